@@ -1,1 +1,3 @@
 //! Policies.
+pub mod cover;
+pub mod tour;

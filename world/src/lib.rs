@@ -1,1 +1,26 @@
-//! World.
+//! The visibility-based persistent monitoring world.
+//!
+//! A map of free and obstacle cells, agents with a square field of view blocked by obstacles,
+//! and a penalty per free cell that falls by D each step it is unseen (floor -Rmax) and is reset
+//! to 0 when seen. `World` holds what never changes (map, parameters, precomputed visibility)
+//! and is shared between threads; `Episode` holds one run's state and steps without allocating.
+
+pub mod episode;
+pub mod error;
+pub mod map;
+pub mod observation;
+pub mod params;
+pub mod penalty;
+pub mod polygon;
+pub mod reference;
+pub mod seed;
+pub mod visibility;
+
+pub use episode::{Action, Episode, World};
+pub use error::{MapError, MapErrorKind, ParamError, StartError};
+pub use map::{Cell, Map};
+pub use observation::{Channels, ObservationConfig, Observer};
+pub use params::WorldParams;
+pub use penalty::PenaltyGrid;
+pub use seed::Seed;
+pub use visibility::Visibility;

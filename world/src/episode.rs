@@ -1,0 +1,275 @@
+//! The dynamics: a `World` (map, parameters, visibility; shared read-only) and an `Episode`
+//! running in it (agent positions, penalties, time).
+
+use std::sync::Arc;
+
+use rand::RngExt;
+
+use crate::error::StartError;
+use crate::map::{Cell, Map};
+use crate::params::WorldParams;
+use crate::penalty::PenaltyGrid;
+use crate::seed::{Seed, purpose};
+use crate::visibility::Visibility;
+
+/// The paper's five actions, in its numbering.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum Action {
+    Stay = 0,
+    /// +y
+    Up = 1,
+    /// -x
+    Left = 2,
+    /// -y
+    Down = 3,
+    /// +x
+    Right = 4,
+}
+
+impl Action {
+    pub const ALL: [Action; 5] = [Action::Stay, Action::Up, Action::Left, Action::Down, Action::Right];
+
+    pub fn from_index(index: usize) -> Option<Self> {
+        Self::ALL.get(index).copied()
+    }
+
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    pub fn delta(self) -> (i64, i64) {
+        match self {
+            Action::Stay => (0, 0),
+            Action::Up => (0, 1),
+            Action::Left => (-1, 0),
+            Action::Down => (0, -1),
+            Action::Right => (1, 0),
+        }
+    }
+}
+
+/// Everything about a world that does not change during an episode.
+#[derive(Debug)]
+pub struct World {
+    map: Map,
+    params: WorldParams,
+    visibility: Visibility,
+}
+
+impl World {
+    /// Precomputes visibility; share the result between episodes and threads.
+    pub fn new(map: Map, params: WorldParams) -> Arc<Self> {
+        let visibility = Visibility::compute(&map, params.fov());
+        Arc::new(Self { map, params, visibility })
+    }
+
+    pub fn map(&self) -> &Map {
+        &self.map
+    }
+
+    pub fn params(&self) -> &WorldParams {
+        &self.params
+    }
+
+    pub fn visibility(&self) -> &Visibility {
+        &self.visibility
+    }
+}
+
+/// The state of one episode. Stepping allocates nothing.
+#[derive(Clone, Debug)]
+pub struct Episode {
+    world: Arc<World>,
+    positions: Vec<Cell>,
+    /// Which cells an agent stands on, row-major from the bottom.
+    occupied: Vec<bool>,
+    penalty: PenaltyGrid,
+    time: usize,
+    reward: f64,
+}
+
+impl Episode {
+    /// An episode with `agents` agents; fails when the map has fewer free cells than agents.
+    pub fn new(world: Arc<World>, agents: usize) -> Result<Self, StartError> {
+        let free = world.map.free_cells().len();
+        if agents > free {
+            return Err(StartError::TooManyAgents { agents, free });
+        }
+        let penalty = PenaltyGrid::new(&world.map, &world.params);
+        let occupied = vec![false; world.map.width() * world.map.height()];
+        let positions = world.map.free_cells()[..agents].to_vec();
+        let mut episode = Self { world, positions, occupied, penalty, time: 0, reward: 0.0 };
+        episode.restart();
+        Ok(episode)
+    }
+
+    /// Starts again with distinct free cells drawn uniformly from `seed`'s start stream
+    /// (each agent in turn draws a free cell until it finds an unoccupied one).
+    pub fn reset(&mut self, seed: Seed) -> f64 {
+        let mut rng = seed.child(purpose::STARTS).rng();
+        let (map, occupied) = (&self.world.map, &mut self.occupied);
+        let free = map.free_cells();
+        occupied.fill(false);
+        for position in self.positions.iter_mut() {
+            *position = loop {
+                let cell = free[rng.random_range(0..free.len())];
+                if !occupied[map.index(cell)] {
+                    break cell;
+                }
+            };
+            occupied[map.index(*position)] = true;
+        }
+        self.restart()
+    }
+
+    /// Starts again from the given cells; they must be distinct free cells, one per agent.
+    pub fn reset_at(&mut self, starts: &[Cell]) -> Result<f64, StartError> {
+        check_starts(&self.world.map, starts, self.positions.len())?;
+        self.positions.copy_from_slice(starts);
+        Ok(self.restart())
+    }
+
+    /// Step 0: penalties from zero, updated once from the start positions with no move.
+    fn restart(&mut self) -> f64 {
+        self.occupied.fill(false);
+        for &p in &self.positions {
+            self.occupied[self.world.map.index(p)] = true;
+        }
+        self.penalty.clear();
+        self.time = 0;
+        self.reward = self.penalty.update(&self.world.visibility, &self.positions);
+        self.reward
+    }
+
+    /// Moves the agents one at a time in index order, then updates penalties; returns the
+    /// step's reward (<= 0). A move off the map, into an obstacle, or onto another agent (as
+    /// moved so far this step) is refused and the agent stays.
+    pub fn step(&mut self, actions: &[Action]) -> f64 {
+        debug_assert_eq!(actions.len(), self.positions.len());
+        let map = &self.world.map;
+        for (position, action) in self.positions.iter_mut().zip(actions) {
+            let (dx, dy) = action.delta();
+            let (x, y) = (position.x as i64 + dx, position.y as i64 + dy);
+            if map.is_obstacle(x, y) {
+                continue;
+            }
+            let target = Cell::new(x as u16, y as u16);
+            let (from, to) = (map.index(*position), map.index(target));
+            if !self.occupied[to] {
+                self.occupied[from] = false;
+                self.occupied[to] = true;
+                *position = target;
+            }
+        }
+        self.time += 1;
+        self.reward = self.penalty.update(&self.world.visibility, &self.positions);
+        self.reward
+    }
+
+    pub fn world(&self) -> &Arc<World> {
+        &self.world
+    }
+
+    pub fn positions(&self) -> &[Cell] {
+        &self.positions
+    }
+
+    pub fn agents(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Steps taken since the last reset (0 right after it).
+    pub fn time(&self) -> usize {
+        self.time
+    }
+
+    /// The reward of the last step (or of step 0).
+    pub fn reward(&self) -> f64 {
+        self.reward
+    }
+
+    pub fn penalty(&self) -> &PenaltyGrid {
+        &self.penalty
+    }
+}
+
+fn check_starts(map: &Map, starts: &[Cell], agents: usize) -> Result<(), StartError> {
+    if starts.len() != agents {
+        return Err(StartError::Count { given: starts.len(), agents });
+    }
+    for (index, &cell) in starts.iter().enumerate() {
+        if !map.is_free(cell) {
+            return Err(StartError::NotFree { index, x: cell.x as i64, y: cell.y as i64 });
+        }
+        if let Some(first) = starts[..index].iter().position(|&c| c == cell) {
+            return Err(StartError::Shared { first, second: index, x: cell.x, y: cell.y });
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    fn world(text: &str, fov: usize) -> Arc<World> {
+        let map = Map::parse_text("t", text, Path::new("t.txt")).unwrap();
+        World::new(map, WorldParams::new(fov, 1.0, 400.0).unwrap())
+    }
+
+    #[test]
+    fn moves_are_refused_into_obstacles_off_the_map_and_onto_agents() {
+        let w = world("...\n.#.\n...\n", 1);
+        let mut e = Episode::new(w, 2).unwrap();
+        e.reset_at(&[Cell::new(0, 0), Cell::new(1, 0)]).unwrap();
+        e.step(&[Action::Left, Action::Up]);
+        assert_eq!(e.positions(), &[Cell::new(0, 0), Cell::new(1, 0)]);
+        e.step(&[Action::Right, Action::Right]);
+        let refused = [Cell::new(0, 0), Cell::new(2, 0)];
+        assert_eq!(e.positions(), &refused, "agent 0 moves first, into agent 1's cell");
+        e.step(&[Action::Right, Action::Left]);
+        let refused = [Cell::new(1, 0), Cell::new(2, 0)];
+        assert_eq!(e.positions(), &refused, "agent 0 took (1,0) before agent 1 moved");
+        assert_eq!(e.time(), 3);
+    }
+
+    #[test]
+    fn step_zero_decays_what_the_starts_do_not_see() {
+        let w = world(".....\n", 1);
+        let mut e = Episode::new(w, 1).unwrap();
+        assert_eq!(e.reset_at(&[Cell::new(2, 0)]).unwrap(), -4.0);
+        assert_eq!(e.step(&[Action::Stay]), -8.0);
+    }
+
+    #[test]
+    fn random_starts_are_distinct_free_and_seeded() {
+        let w = world("....#\n.#...\n..#..\n", 3);
+        let mut e = Episode::new(w.clone(), 12).unwrap();
+        e.reset(Seed::new(3));
+        let first = e.positions().to_vec();
+        let mut sorted = first.clone();
+        sorted.sort();
+        sorted.dedup();
+        assert_eq!(sorted.len(), 12);
+        assert!(first.iter().all(|&c| w.map().is_free(c)));
+        e.reset(Seed::new(3));
+        assert_eq!(e.positions(), &first[..]);
+        e.reset(Seed::new(4));
+        assert_ne!(e.positions(), &first[..]);
+    }
+
+    #[test]
+    fn bad_starts_are_errors() {
+        let w = world("..#\n", 1);
+        let mut e = Episode::new(w.clone(), 2).unwrap();
+        assert!(matches!(e.reset_at(&[Cell::new(0, 0)]), Err(StartError::Count { .. })));
+        let on_wall = [Cell::new(0, 0), Cell::new(2, 0)];
+        assert!(matches!(e.reset_at(&on_wall), Err(StartError::NotFree { index: 1, .. })));
+        let shared = [Cell::new(0, 0), Cell::new(0, 0)];
+        assert!(matches!(e.reset_at(&shared), Err(StartError::Shared { first: 0, .. })));
+        assert!(matches!(Episode::new(w, 3), Err(StartError::TooManyAgents { .. })));
+    }
+}

@@ -1,0 +1,231 @@
+//! The penalty of every cell and its per-step update: the hot loop of the simulator.
+//!
+//! The grid is stored padded: a border of obstacle cells wide enough that a field-of-view
+//! window around any cell of the map stays inside the array, so windows are read and marked
+//! without bounds checks. Obstacle and border cells hold `OBSTACLE_CODE` (150, the paper's
+//! observation code) and a floor of the same value, so the one update rule
+//! `max(R - D, floor)` leaves them unchanged and observations copy rows straight out.
+
+use crate::map::{Cell, Map};
+use crate::params::WorldParams;
+use crate::visibility::Visibility;
+
+/// The value obstacle cells hold, which is also their code in observations (the paper's).
+pub const OBSTACLE_CODE: f32 = 150.0;
+
+/// Cells are updated in groups of this many: one vector register of `f32` under AVX2.
+const LANES: usize = 8;
+
+/// For each byte of "seen" bits, the eight masks that keep an unseen cell and zero a seen one.
+static KEEP_MASKS: [[u32; LANES]; 256] = {
+    let mut table = [[0u32; LANES]; 256];
+    let mut byte = 0;
+    while byte < 256 {
+        let mut lane = 0;
+        while lane < LANES {
+            table[byte][lane] = if byte >> lane & 1 == 1 { 0 } else { u32::MAX };
+            lane += 1;
+        }
+        byte += 1;
+    }
+    table
+};
+
+/// Penalties of a map padded by obstacles, with the mask of cells seen this step.
+#[derive(Clone, Debug)]
+pub struct PenaltyGrid {
+    width: usize,
+    height: usize,
+    pad: usize,
+    stride: usize,
+    decay: f32,
+    /// Penalty (<= 0) of free cells, `OBSTACLE_CODE` elsewhere; padded layout.
+    codes: Vec<f32>,
+    /// `-Rmax` for free cells, `OBSTACLE_CODE` elsewhere; padded layout.
+    floor: Vec<f32>,
+    seen: SeenMask,
+}
+
+impl PenaltyGrid {
+    pub fn new(map: &Map, params: &WorldParams) -> Self {
+        let pad = params.half_fov().max(1);
+        // Rows are updated in whole groups of LANES cells, so the right border is wide enough
+        // for the last group to spill into it.
+        let stride = map.width() + 2 * pad + LANES;
+        let rows = map.height() + 2 * pad;
+        let mut floor = vec![OBSTACLE_CODE; stride * rows];
+        for &cell in map.free_cells() {
+            floor[(cell.y as usize + pad) * stride + cell.x as usize + pad] = -params.rmax();
+        }
+        let codes = floor.iter().map(|&f| if f == OBSTACLE_CODE { f } else { 0.0 }).collect();
+        Self {
+            width: map.width(),
+            height: map.height(),
+            pad,
+            stride,
+            decay: params.decay(),
+            codes,
+            floor,
+            seen: SeenMask::new(stride, rows),
+        }
+    }
+
+    /// Sets every free cell's penalty back to 0.
+    pub fn clear(&mut self) {
+        for (code, &floor) in self.codes.iter_mut().zip(&self.floor) {
+            *code = if floor == OBSTACLE_CODE { floor } else { 0.0 };
+        }
+    }
+
+    /// Marks what agents at `positions` see, then updates every cell; returns the step's reward,
+    /// the sum of the penalties of all free cells (<= 0).
+    pub fn update(&mut self, visibility: &Visibility, positions: &[Cell]) -> f64 {
+        self.seen.clear();
+        let half = visibility.fov() / 2;
+        for &at in positions {
+            let bottom = at.y as usize + self.pad - half;
+            let left = at.x as usize + self.pad - half;
+            self.seen.mark(visibility.window(at), visibility.words_per_row(), bottom, left);
+        }
+        let groups = self.width.div_ceil(LANES);
+        let mut reward = 0.0f64;
+        for y in 0..self.height {
+            let start = (y + self.pad) * self.stride + self.pad;
+            let end = start + groups * LANES;
+            let seen_row = self.seen.row(y + self.pad);
+            let codes = &mut self.codes[start..end];
+            reward += decay_row(codes, &self.floor[start..end], seen_row, self.pad, self.decay);
+        }
+        reward
+    }
+
+    /// The penalty of a free cell (<= 0), or `OBSTACLE_CODE` for an obstacle.
+    pub fn at(&self, cell: Cell) -> f32 {
+        self.codes[self.padded_index(cell)]
+    }
+
+    /// Index of `cell` in `codes()`.
+    pub fn padded_index(&self, cell: Cell) -> usize {
+        (cell.y as usize + self.pad) * self.stride + cell.x as usize + self.pad
+    }
+
+    /// The padded code array: row `y + pad`, column `x + pad` holds cell (x, y).
+    pub fn codes(&self) -> &[f32] {
+        &self.codes
+    }
+
+    pub fn pad(&self) -> usize {
+        self.pad
+    }
+
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+}
+
+/// Updates one row in groups of LANES cells and returns the row's sum of penalties.
+///
+/// Lane-wise `f32` partial sums keep the loop vectorised; each lane adds at most
+/// width / LANES values of at most Rmax, so with integer penalties every sum is exact.
+fn decay_row(codes: &mut [f32], floor: &[f32], seen: &[u64], first_bit: usize, decay: f32) -> f64 {
+    let mut lanes = [0.0f32; LANES];
+    for (group, (codes, floor)) in
+        codes.chunks_exact_mut(LANES).zip(floor.chunks_exact(LANES)).enumerate()
+    {
+        let keep = &KEEP_MASKS[seen_byte(seen, first_bit + group * LANES)];
+        for lane in 0..LANES {
+            let decayed = faster_max(codes[lane] - decay, floor[lane]);
+            let value = f32::from_bits(decayed.to_bits() & keep[lane]);
+            codes[lane] = value;
+            lanes[lane] += faster_min(value, 0.0);
+        }
+    }
+    lanes.iter().map(|&s| s as f64).sum()
+}
+
+/// The eight bits of a bit row starting at `bit`.
+fn seen_byte(words: &[u64], bit: usize) -> usize {
+    let (word, shift) = (bit / 64, bit % 64);
+    let low = words[word] >> shift;
+    let high = if shift > 56 { words[word + 1] << (64 - shift) } else { 0 };
+    ((low | high) & 0xff) as usize
+}
+
+/// `max` without NaN handling: penalties are never NaN, and this compiles to one instruction.
+fn faster_max(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+fn faster_min(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// One bit per cell of the padded grid: which cells some agent sees this step.
+#[derive(Clone, Debug)]
+struct SeenMask {
+    words_per_row: usize,
+    words: Vec<u64>,
+}
+
+impl SeenMask {
+    fn new(columns: usize, rows: usize) -> Self {
+        // One spare word per row lets windows and byte reads run past the last column.
+        let words_per_row = columns.div_ceil(64) + 1;
+        Self { words_per_row, words: vec![0; words_per_row * rows] }
+    }
+
+    fn clear(&mut self) {
+        self.words.fill(0);
+    }
+
+    fn row(&self, row: usize) -> &[u64] {
+        &self.words[row * self.words_per_row..(row + 1) * self.words_per_row]
+    }
+
+    /// ORs a window (rows of `window_words` words each) in with its bottom-left at (left, bottom).
+    fn mark(&mut self, window: &[u64], window_words: usize, bottom: usize, left: usize) {
+        let (word, shift) = (left / 64, left % 64);
+        for (r, bits) in window.chunks_exact(window_words).enumerate() {
+            let row = &mut self.words[(bottom + r) * self.words_per_row..][..self.words_per_row];
+            for (k, &b) in bits.iter().enumerate() {
+                row[word + k] |= b << shift;
+                if shift > 0 {
+                    row[word + k + 1] |= b >> (64 - shift);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    #[test]
+    fn seen_cells_reset_and_unseen_cells_decay_to_the_floor() {
+        let map = Map::parse_text("t", ".....#.........\n", Path::new("t.txt")).unwrap();
+        let params = WorldParams::new(3, 1.0, 2.0).unwrap();
+        let vis = Visibility::compute(&map, 3);
+        let mut grid = PenaltyGrid::new(&map, &params);
+        let at = [Cell::new(0, 0)];
+        // 14 free cells; the agent sees (0,0) and (1,0).
+        assert_eq!(grid.update(&vis, &at), -12.0);
+        assert_eq!(grid.update(&vis, &at), -24.0);
+        assert_eq!(grid.update(&vis, &at), -24.0, "floored at -Rmax");
+        assert_eq!(grid.at(Cell::new(0, 0)), 0.0);
+        assert_eq!(grid.at(Cell::new(14, 0)), -2.0);
+        assert_eq!(grid.at(Cell::new(5, 0)), OBSTACLE_CODE);
+        assert_eq!(grid.update(&vis, &[Cell::new(13, 0)]), -20.0, "(0,0), (1,0) start decaying");
+        assert_eq!(grid.at(Cell::new(14, 0)), 0.0);
+    }
+
+    #[test]
+    fn byte_reads_cross_word_boundaries() {
+        let words = [0xffu64 << 60, 0b1010, 0];
+        assert_eq!(seen_byte(&words, 60), 0b1010_1111);
+        assert_eq!(seen_byte(&words, 64), 0b1010);
+        assert_eq!(seen_byte(&words, 0), 0);
+    }
+}

@@ -1,3 +1,4 @@
 //! Policies.
 pub mod cover;
 pub mod tour;
+pub mod nn;

@@ -1,0 +1,39 @@
+//! Activation and scratch storage that grows to the largest batch seen and is then reused, so
+//! that warmed-up forward and backward passes allocate nothing.
+
+use ndarray::{ArrayView2, ArrayViewMut2};
+
+use super::real::Real;
+
+/// A vector that only grows; views of any smaller size are taken from its front.
+#[derive(Debug, Clone, Default)]
+pub struct ReusableBuffer<T> {
+    data: Vec<T>,
+}
+
+impl<T: Real> ReusableBuffer<T> {
+    /// The first `len` elements, growing the buffer (with zeros) when it is shorter.
+    pub fn slice_mut(&mut self, len: usize) -> &mut [T] {
+        if self.data.len() < len {
+            self.data.resize(len, T::zero());
+        }
+        &mut self.data[..len]
+    }
+
+    /// The first `len` elements, as last written.
+    pub fn slice(&self, len: usize) -> &[T] {
+        &self.data[..len]
+    }
+
+    /// The front as a row-major `rows x cols` matrix.
+    pub fn matrix(&self, rows: usize, cols: usize) -> ArrayView2<'_, T> {
+        ArrayView2::from_shape((rows, cols), self.slice(rows * cols))
+            .expect("length equals rows * cols")
+    }
+
+    /// The front as a writable row-major `rows x cols` matrix, growing the buffer if needed.
+    pub fn matrix_mut(&mut self, rows: usize, cols: usize) -> ArrayViewMut2<'_, T> {
+        ArrayViewMut2::from_shape((rows, cols), self.slice_mut(rows * cols))
+            .expect("length equals rows * cols")
+    }
+}

@@ -1,0 +1,363 @@
+//! 2-D convolution as im2col + one GEMM for the whole batch. Outputs are channels-last
+//! (`[batch, out_h, out_w, channels]`, which is the GEMM's natural `[batch * positions,
+//! channels]` result); inputs may be either order, so observations can arrive as channel
+//! planes. The weight keeps PyTorch's `[out, in, kh, kw]` layout.
+
+use ndarray::{ArrayView2, ArrayViewMut2};
+use rand::Rng;
+use rayon::prelude::*;
+
+use super::buffer::ReusableBuffer;
+use super::error::NnError;
+use super::init::Init;
+use super::linear::Linear;
+use super::params::ParamStore;
+use super::real::Real;
+
+/// Samples per rayon task when gathering or scattering patches.
+const SAMPLES_PER_TASK: usize = 32;
+
+/// Where the channel index sits in one sample's memory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ChannelOrder {
+    /// `[channels, height, width]`, as observation planes.
+    First,
+    /// `[height, width, channels]`, as this module's outputs.
+    Last,
+}
+
+/// The shape of one sample's image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageShape {
+    pub channels: usize,
+    pub height: usize,
+    pub width: usize,
+    pub order: ChannelOrder,
+}
+
+impl ImageShape {
+    /// Values per sample.
+    pub fn len(&self) -> usize {
+        self.channels * self.height * self.width
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Offset of element (channel, y, x) in one sample.
+    fn offset(&self, channel: usize, y: usize, x: usize) -> usize {
+        match self.order {
+            ChannelOrder::First => (channel * self.height + y) * self.width + x,
+            ChannelOrder::Last => (y * self.width + x) * self.channels + channel,
+        }
+    }
+}
+
+/// A square kernel's hyper-parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ConvSpec {
+    pub out_channels: usize,
+    pub kernel: usize,
+    pub stride: usize,
+    pub padding: usize,
+}
+
+/// A 2-D convolution layer.
+#[derive(Debug, Clone)]
+pub struct Conv2d {
+    input: ImageShape,
+    output: ImageShape,
+    /// For each element of one sample's patch matrix (`[positions, in * kh * kw]`), the input
+    /// offset it copies, or `None` where it falls in the zero padding. Computed once so that
+    /// im2col is a plain gather and its adjoint a plain scatter.
+    patch_sources: Vec<Option<u32>>,
+    dense: Linear,
+}
+
+impl Conv2d {
+    /// Allocates `{name}.weight` `[out, in, k, k]` and `{name}.bias` and draws them.
+    pub fn new<T: Real, R: Rng + ?Sized>(
+        store: &mut ParamStore<T>,
+        name: &str,
+        input: ImageShape,
+        spec: ConvSpec,
+        init: Init,
+        rng: &mut R,
+    ) -> Result<Self, NnError> {
+        let output = output_shape(name, input, spec)?;
+        let patch_len = input.channels * spec.kernel * spec.kernel;
+        let weight_shape = [spec.out_channels, input.channels, spec.kernel, spec.kernel];
+        let dense = Linear::with_weight_shape(
+            store,
+            name,
+            patch_len,
+            spec.out_channels,
+            &weight_shape,
+            init,
+            rng,
+        )?;
+        Ok(Conv2d {
+            input,
+            output,
+            patch_sources: patch_sources(input, output, spec),
+            dense,
+        })
+    }
+
+    pub fn input_shape(&self) -> ImageShape {
+        self.input
+    }
+
+    pub fn output_shape(&self) -> ImageShape {
+        self.output
+    }
+
+    fn positions(&self) -> usize {
+        self.output.height * self.output.width
+    }
+
+    pub fn forward_flops_per_sample(&self) -> u64 {
+        self.positions() as u64 * self.dense.forward_flops_per_row()
+    }
+
+    /// `y [batch * positions, out_channels]` from `x` (`batch` samples of the input shape).
+    /// Keeps the patch matrix in `patches` for the backward pass.
+    pub fn forward<T: Real>(
+        &self,
+        params: &[T],
+        x: &[T],
+        batch: usize,
+        patches: &mut ReusableBuffer<T>,
+        y: ArrayViewMut2<T>,
+    ) {
+        let per_sample = self.patch_sources.len();
+        patches
+            .slice_mut(batch * per_sample)
+            .par_chunks_mut(per_sample)
+            .zip(x.par_chunks(self.input.len()))
+            .with_min_len(SAMPLES_PER_TASK)
+            .for_each(|(sample_patches, sample)| {
+                for (p, source) in sample_patches.iter_mut().zip(&self.patch_sources) {
+                    *p = source.map_or(T::zero(), |i| sample[i as usize]);
+                }
+            });
+        let rows = batch * self.positions();
+        self.dense
+            .forward(params, patches.matrix(rows, self.dense.inputs()), y);
+    }
+
+    /// Accumulates the parameter gradients from `dy` (as `y`) and, when `dx` is given, writes
+    /// the input gradient there. Consumes `patches`: the input gradient overwrites them.
+    pub fn backward<T: Real>(
+        &self,
+        params: &[T],
+        grads: &mut [T],
+        batch: usize,
+        patches: &mut ReusableBuffer<T>,
+        dy: ArrayView2<T>,
+        dx: Option<&mut [T]>,
+    ) {
+        let rows = batch * self.positions();
+        let patch_len = self.dense.inputs();
+        self.dense
+            .accumulate_param_grads(grads, patches.matrix(rows, patch_len), dy);
+        let Some(dx) = dx else { return };
+        self.dense
+            .input_grad(params, dy, patches.matrix_mut(rows, patch_len));
+        let per_sample = self.patch_sources.len();
+        dx.par_chunks_mut(self.input.len())
+            .zip(patches.slice(rows * patch_len).par_chunks(per_sample))
+            .with_min_len(SAMPLES_PER_TASK)
+            .for_each(|(sample_dx, sample_patches)| {
+                sample_dx.fill(T::zero());
+                for (&g, source) in sample_patches.iter().zip(&self.patch_sources) {
+                    if let Some(i) = source {
+                        sample_dx[*i as usize] += g;
+                    }
+                }
+            });
+    }
+}
+
+fn output_shape(name: &str, input: ImageShape, spec: ConvSpec) -> Result<ImageShape, NnError> {
+    let side = |size: usize| {
+        (size + 2 * spec.padding)
+            .checked_sub(spec.kernel)
+            .map(|room| room / spec.stride + 1)
+    };
+    if input.is_empty() || spec.out_channels == 0 || spec.kernel == 0 || spec.stride == 0 {
+        return Err(NnError::shape(
+            name,
+            "sizes, kernel and stride must be positive",
+        ));
+    }
+    if u32::try_from(input.len()).is_err() {
+        return Err(NnError::shape(name, "input image too large"));
+    }
+    match (side(input.height), side(input.width)) {
+        (Some(height), Some(width)) => Ok(ImageShape {
+            channels: spec.out_channels,
+            height,
+            width,
+            order: ChannelOrder::Last,
+        }),
+        _ => Err(NnError::shape(name, "kernel larger than the padded input")),
+    }
+}
+
+/// Patch matrix columns are ordered (channel, ky, kx) to match the weight layout.
+fn patch_sources(input: ImageShape, output: ImageShape, spec: ConvSpec) -> Vec<Option<u32>> {
+    let k = spec.kernel;
+    let mut sources = Vec::with_capacity(output.height * output.width * input.channels * k * k);
+    let inside = |position: usize, tap: usize, size: usize| {
+        (position * spec.stride + tap)
+            .checked_sub(spec.padding)
+            .filter(|&i| i < size)
+    };
+    for oy in 0..output.height {
+        for ox in 0..output.width {
+            for c in 0..input.channels {
+                for ky in 0..k {
+                    for kx in 0..k {
+                        let source = inside(oy, ky, input.height)
+                            .zip(inside(ox, kx, input.width))
+                            .map(|(y, x)| input.offset(c, y, x) as u32);
+                        sources.push(source);
+                    }
+                }
+            }
+        }
+    }
+    sources
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nn::gradient_check::{assert_gradients_match, dot, values_away_from_zero};
+    use rand::SeedableRng;
+    use rand_pcg::Pcg64Mcg;
+
+    const SPEC: ConvSpec = ConvSpec {
+        out_channels: 3,
+        kernel: 3,
+        stride: 2,
+        padding: 1,
+    };
+
+    fn layer(order: ChannelOrder, store: &mut ParamStore<f64>, rng: &mut Pcg64Mcg) -> Conv2d {
+        let input = ImageShape {
+            channels: 2,
+            height: 6,
+            width: 5,
+            order,
+        };
+        Conv2d::new(store, "conv", input, SPEC, Init::PyTorchDefault, rng).unwrap()
+    }
+
+    fn forward(conv: &Conv2d, params: &[f64], x: &[f64], batch: usize) -> Vec<f64> {
+        let out = conv.output_shape();
+        let mut y = vec![0.0; batch * out.len()];
+        let view = ArrayViewMut2::from_shape((batch * out.height * out.width, 3), &mut y[..]);
+        conv.forward(
+            params,
+            x,
+            batch,
+            &mut ReusableBuffer::default(),
+            view.unwrap(),
+        );
+        y
+    }
+
+    #[test]
+    fn matches_a_direct_convolution() {
+        let mut rng = Pcg64Mcg::seed_from_u64(20);
+        let mut store = ParamStore::new();
+        let conv = layer(ChannelOrder::First, &mut store, &mut rng);
+        let x = values_away_from_zero(2 * 60, &mut rng);
+        let y = forward(&conv, store.values(), &x, 2);
+        let (w, b) = store.values().split_at(3 * 2 * 9);
+        let out = conv.output_shape();
+        assert_eq!((out.height, out.width), (3, 3));
+        for (s, o, oy, ox) in (0..2).flat_map(|s| {
+            (0..3)
+                .flat_map(move |o| (0..3).flat_map(move |oy| (0..3).map(move |ox| (s, o, oy, ox))))
+        }) {
+            let mut expected = b[o];
+            for c in 0..2 {
+                for ky in 0..3 {
+                    for kx in 0..3 {
+                        let (iy, ix) = ((oy * 2 + ky) as isize - 1, (ox * 2 + kx) as isize - 1);
+                        if (0..6).contains(&iy) && (0..5).contains(&ix) {
+                            let input = x[s * 60 + c * 30 + iy as usize * 5 + ix as usize];
+                            expected += w[((o * 2 + c) * 3 + ky) * 3 + kx] * input;
+                        }
+                    }
+                }
+            }
+            let got = y[((s * 3 + oy) * 3 + ox) * 3 + o];
+            assert!((got - expected).abs() < 1e-12, "{got} vs {expected}");
+        }
+    }
+
+    #[test]
+    fn gradients_match_finite_differences_in_both_channel_orders() {
+        for order in [ChannelOrder::First, ChannelOrder::Last] {
+            let mut rng = Pcg64Mcg::seed_from_u64(21);
+            let mut store = ParamStore::new();
+            let conv = layer(order, &mut store, &mut rng);
+            let batch = 3;
+            let x = values_away_from_zero(batch * 60, &mut rng);
+            let upstream = values_away_from_zero(batch * 27, &mut rng);
+            let params = store.values().to_vec();
+            let mut patches = ReusableBuffer::default();
+            let mut y = vec![0.0; batch * 27];
+            let y_view = ArrayViewMut2::from_shape((batch * 9, 3), &mut y[..]).unwrap();
+            conv.forward(&params, &x, batch, &mut patches, y_view);
+            let dy = ArrayView2::from_shape((batch * 9, 3), &upstream[..]).unwrap();
+            let mut dx = vec![0.0; x.len()];
+            conv.backward(
+                &params,
+                store.grads_mut(),
+                batch,
+                &mut patches,
+                dy,
+                Some(&mut dx),
+            );
+            let loss = |p: &[f64], x: &[f64]| dot(&forward(&conv, p, x, batch), &upstream);
+            assert_gradients_match(&params, store.grads(), |p| loss(p, &x));
+            assert_gradients_match(&x, &dx, |x| loss(&params, x));
+        }
+    }
+
+    #[test]
+    fn the_papers_first_layer_maps_25_to_5() {
+        let mut rng = Pcg64Mcg::seed_from_u64(0);
+        let input = ImageShape {
+            channels: 2,
+            height: 25,
+            width: 25,
+            order: ChannelOrder::First,
+        };
+        let spec = ConvSpec {
+            out_channels: 16,
+            kernel: 8,
+            stride: 4,
+            padding: 1,
+        };
+        let mut store = ParamStore::<f32>::new();
+        let conv = Conv2d::new(&mut store, "c", input, spec, Init::PyTorchDefault, &mut rng);
+        assert_eq!(conv.unwrap().output_shape().height, 5);
+        let too_big = ConvSpec { kernel: 30, ..spec };
+        let conv = Conv2d::new(
+            &mut store,
+            "d",
+            input,
+            too_big,
+            Init::PyTorchDefault,
+            &mut rng,
+        );
+        assert!(conv.is_err());
+    }
+}

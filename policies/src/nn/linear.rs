@@ -1,0 +1,158 @@
+//! Fully connected layer `y = x W^T + b` on a whole batch at once (one GEMM). It is also the
+//! dense core of the convolution, which runs it on image patches.
+
+use ndarray::linalg::general_mat_mul;
+use ndarray::{ArrayView2, ArrayViewMut2, Axis};
+use rand::Rng;
+
+use super::error::NnError;
+use super::init::Init;
+use super::params::{ParamSlot, ParamStore};
+use super::real::Real;
+
+/// A fully connected layer; the weight is stored `[outputs, inputs]` as in PyTorch.
+#[derive(Debug, Clone)]
+pub struct Linear {
+    inputs: usize,
+    outputs: usize,
+    weight: ParamSlot,
+    bias: ParamSlot,
+}
+
+impl Linear {
+    /// Allocates `{name}.weight` and `{name}.bias` in `store` and draws them.
+    pub fn new<T: Real, R: Rng + ?Sized>(
+        store: &mut ParamStore<T>,
+        name: &str,
+        inputs: usize,
+        outputs: usize,
+        init: Init,
+        rng: &mut R,
+    ) -> Result<Self, NnError> {
+        Self::with_weight_shape(store, name, inputs, outputs, &[outputs, inputs], init, rng)
+    }
+
+    /// As [`Linear::new`], recording the weight under another shape of the same size (a
+    /// convolution's `[out, in, kh, kw]`).
+    pub(crate) fn with_weight_shape<T: Real, R: Rng + ?Sized>(
+        store: &mut ParamStore<T>,
+        name: &str,
+        inputs: usize,
+        outputs: usize,
+        weight_shape: &[usize],
+        init: Init,
+        rng: &mut R,
+    ) -> Result<Self, NnError> {
+        if inputs == 0 || outputs == 0 {
+            return Err(NnError::shape(name, "inputs and outputs must be positive"));
+        }
+        let weight = store.allocate(format!("{name}.weight"), weight_shape);
+        init.fill_weight(weight.of_mut(store.values_mut()), inputs, rng);
+        let bias = store.allocate(format!("{name}.bias"), &[outputs]);
+        init.fill_bias(bias.of_mut(store.values_mut()), inputs, rng);
+        Ok(Linear {
+            inputs,
+            outputs,
+            weight,
+            bias,
+        })
+    }
+
+    pub fn inputs(&self) -> usize {
+        self.inputs
+    }
+
+    pub fn outputs(&self) -> usize {
+        self.outputs
+    }
+
+    /// Multiply-adds count twice.
+    pub fn forward_flops_per_row(&self) -> u64 {
+        2 * (self.inputs * self.outputs) as u64
+    }
+
+    fn weight<'a, T: Real>(&self, flat: &'a [T]) -> ArrayView2<'a, T> {
+        ArrayView2::from_shape((self.outputs, self.inputs), self.weight.of(flat))
+            .expect("slot holds outputs * inputs values")
+    }
+
+    fn weight_mut<'a, T: Real>(&self, flat: &'a mut [T]) -> ArrayViewMut2<'a, T> {
+        ArrayViewMut2::from_shape((self.outputs, self.inputs), self.weight.of_mut(flat))
+            .expect("slot holds outputs * inputs values")
+    }
+
+    /// `y [batch, outputs] = x [batch, inputs] W^T + b`.
+    pub fn forward<T: Real>(&self, params: &[T], x: ArrayView2<T>, mut y: ArrayViewMut2<T>) {
+        let bias = self.bias.of(params);
+        y.rows_mut()
+            .into_iter()
+            .for_each(|mut row| row.as_slice_mut().unwrap().copy_from_slice(bias));
+        general_mat_mul(T::one(), &x, &self.weight(params).t(), T::one(), &mut y);
+    }
+
+    /// Adds `dy^T x` to the weight gradient and the column sums of `dy` to the bias gradient.
+    pub fn accumulate_param_grads<T: Real>(
+        &self,
+        grads: &mut [T],
+        x: ArrayView2<T>,
+        dy: ArrayView2<T>,
+    ) {
+        general_mat_mul(T::one(), &dy.t(), &x, T::one(), &mut self.weight_mut(grads));
+        let bias_grad = self.bias.of_mut(grads);
+        for row in dy.axis_iter(Axis(0)) {
+            bias_grad.iter_mut().zip(row).for_each(|(g, &d)| *g += d);
+        }
+    }
+
+    /// Writes `dx = dy W`.
+    pub fn input_grad<T: Real>(&self, params: &[T], dy: ArrayView2<T>, mut dx: ArrayViewMut2<T>) {
+        general_mat_mul(T::one(), &dy, &self.weight(params), T::zero(), &mut dx);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nn::gradient_check::{assert_gradients_match, dot, values_away_from_zero};
+    use rand::SeedableRng;
+    use rand_pcg::Pcg64Mcg;
+
+    #[test]
+    fn gradients_match_finite_differences() {
+        let mut rng = Pcg64Mcg::seed_from_u64(10);
+        let mut store = ParamStore::<f64>::new();
+        let layer = Linear::new(&mut store, "fc", 4, 3, Init::PyTorchDefault, &mut rng).unwrap();
+        let batch = 5;
+        let x = values_away_from_zero(batch * 4, &mut rng);
+        let upstream = values_away_from_zero(batch * 3, &mut rng);
+        let loss = |params: &[f64], x: &[f64]| {
+            let mut y = vec![0.0; batch * 3];
+            let x = ArrayView2::from_shape((batch, 4), x).unwrap();
+            layer.forward(
+                params,
+                x,
+                ArrayViewMut2::from_shape((batch, 3), &mut y).unwrap(),
+            );
+            dot(&y, &upstream)
+        };
+        let params = store.values().to_vec();
+        let x_view = ArrayView2::from_shape((batch, 4), &x[..]).unwrap();
+        let dy = ArrayView2::from_shape((batch, 3), &upstream[..]).unwrap();
+        layer.accumulate_param_grads(store.grads_mut(), x_view, dy);
+        let mut dx = vec![0.0; batch * 4];
+        layer.input_grad(
+            &params,
+            dy,
+            ArrayViewMut2::from_shape((batch, 4), &mut dx).unwrap(),
+        );
+        assert_gradients_match(&params, store.grads(), |p| loss(p, &x));
+        assert_gradients_match(&x, &dx, |x| loss(&params, x));
+    }
+
+    #[test]
+    fn zero_sizes_are_rejected() {
+        let mut rng = Pcg64Mcg::seed_from_u64(0);
+        let mut store = ParamStore::<f32>::new();
+        assert!(Linear::new(&mut store, "fc", 0, 3, Init::PyTorchDefault, &mut rng).is_err());
+    }
+}

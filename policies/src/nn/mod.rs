@@ -1,0 +1,25 @@
+//! A small neural-network library written for the paper's models: hand-written forward and
+//! backward passes over whole batches, GEMMs through `ndarray`, parameters and gradients in
+//! one flat buffer each.
+
+pub mod activation;
+pub mod buffer;
+pub mod conv;
+pub mod error;
+pub mod init;
+pub mod linear;
+pub mod params;
+pub mod real;
+pub mod softmax;
+
+#[cfg(test)]
+mod gradient_check;
+
+pub use activation::{LeakyRelu, RELU};
+pub use buffer::ReusableBuffer;
+pub use conv::{ChannelOrder, Conv2d, ConvSpec, ImageShape};
+pub use error::NnError;
+pub use init::Init;
+pub use linear::Linear;
+pub use params::{ParamSlot, ParamSpec, ParamStore};
+pub use real::Real;

@@ -1,4 +1,8 @@
 //! Policies.
 pub mod cover;
 pub mod tour;
-pub mod nn;
+pub mod policy;
+pub mod random;
+
+pub use policy::Policy;
+pub use random::RandomPolicy;

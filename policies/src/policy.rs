@@ -1,0 +1,25 @@
+//! The one interface every policy implements, baseline or learned.
+
+use world::{Action, Cell, Episode, Seed, World};
+
+/// Chooses one action per agent per step.
+///
+/// A centralised policy reads the whole episode state; a learned one builds observations from
+/// it. Either way all randomness comes from the `Seed` given at reset, so an episode is a pure
+/// function of (world, policy, seed).
+pub trait Policy: Send {
+    /// A short name for tables and logs.
+    fn name(&self) -> &str;
+
+    /// Start positions this policy insists on (TSPC places its agents along its tour), or
+    /// `None` to let the episode draw them from its seed.
+    fn starts(&mut self, _world: &World, _agents: usize) -> Option<Vec<Cell>> {
+        None
+    }
+
+    /// Prepares for an episode that has just been reset; `seed` is the episode's seed.
+    fn reset(&mut self, episode: &Episode, seed: Seed);
+
+    /// Writes this step's action of every agent into `actions` (one per agent).
+    fn act(&mut self, episode: &Episode, actions: &mut [Action]);
+}

@@ -1,6 +1,7 @@
 //! Policies.
 pub mod cover;
 pub mod tour;
+pub mod nn;
 pub mod policy;
 pub mod random;
 

@@ -3,9 +3,12 @@
 //! one flat buffer each.
 
 pub mod activation;
+pub mod attention;
 pub mod buffer;
+pub mod categorical;
 pub mod conv;
 pub mod error;
+pub mod graph;
 pub mod init;
 pub mod linear;
 pub mod params;
@@ -16,9 +19,12 @@ pub mod softmax;
 mod gradient_check;
 
 pub use activation::{LeakyRelu, RELU};
+pub use attention::{AttentionWorkspace, GraphAttention};
 pub use buffer::ReusableBuffer;
+pub use categorical::CategoricalBatch;
 pub use conv::{ChannelOrder, Conv2d, ConvSpec, ImageShape};
 pub use error::NnError;
+pub use graph::{AgentGraph, Neighbours};
 pub use init::Init;
 pub use linear::Linear;
 pub use params::{ParamSlot, ParamSpec, ParamStore};

@@ -1,0 +1,151 @@
+//! Who listens to whom in graph attention. A batch holds many groups (the agents of one
+//! environment at one time step, stored as consecutive rows); edges never cross groups. The
+//! graph is kept in compressed rows: the neighbours of agent `i` are
+//! `neighbours[offsets[i]..offsets[i + 1]]`, in increasing order. Edge `e` is that position.
+
+use std::ops::Range;
+
+use super::error::NnError;
+
+/// How the neighbours of an agent are chosen within its group.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Neighbours {
+    /// Every other agent (the paper).
+    AllOthers,
+    /// Every agent, itself included (the authors' released code).
+    AllAgents,
+    /// Other agents at Euclidean distance at most this radius (limited communication).
+    WithinRadius(f64),
+}
+
+/// The attention graph of a batch; cleared and refilled each step without reallocating.
+#[derive(Debug, Clone)]
+pub struct AgentGraph {
+    offsets: Vec<usize>,
+    neighbours: Vec<usize>,
+}
+
+impl Default for AgentGraph {
+    fn default() -> Self {
+        AgentGraph {
+            offsets: vec![0],
+            neighbours: Vec::new(),
+        }
+    }
+}
+
+impl AgentGraph {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    pub fn clear(&mut self) {
+        self.offsets.truncate(1);
+        self.neighbours.clear();
+    }
+
+    /// Agents (batch rows) in all groups so far.
+    pub fn agents(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    pub fn edges(&self) -> usize {
+        self.neighbours.len()
+    }
+
+    /// The edges leaving agent `agent` (positions into [`AgentGraph::neighbour_rows`] and into
+    /// per-edge arrays such as attention weights).
+    pub fn edge_range(&self, agent: usize) -> Range<usize> {
+        self.offsets[agent]..self.offsets[agent + 1]
+    }
+
+    /// The batch row of every edge's neighbour.
+    pub fn neighbour_rows(&self) -> &[usize] {
+        &self.neighbours
+    }
+
+    /// `(edge, neighbour row)` for every neighbour of `agent`.
+    pub fn edges_of(&self, agent: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let range = self.edge_range(agent);
+        range.clone().zip(self.neighbours[range].iter().copied())
+    }
+
+    /// Appends a group of `positions.len()` agents; positions matter only for
+    /// [`Neighbours::WithinRadius`].
+    pub fn push_group(&mut self, rule: Neighbours, positions: &[[f64; 2]]) {
+        self.push_with(positions.len(), |i, j| match rule {
+            Neighbours::AllOthers => i != j,
+            Neighbours::AllAgents => true,
+            Neighbours::WithinRadius(radius) => {
+                let (dx, dy) = (
+                    positions[i][0] - positions[j][0],
+                    positions[i][1] - positions[j][1],
+                );
+                i != j && dx * dx + dy * dy <= radius * radius
+            }
+        });
+    }
+
+    /// Appends a group of `agents` agents with a row-major adjacency: `adjacency[i * agents + j]`
+    /// says whether agent `i` listens to agent `j`.
+    pub fn push_group_adjacency(
+        &mut self,
+        agents: usize,
+        adjacency: &[bool],
+    ) -> Result<(), NnError> {
+        if adjacency.len() != agents * agents {
+            return Err(NnError::AdjacencyLength {
+                agents,
+                expected: agents * agents,
+                got: adjacency.len(),
+            });
+        }
+        self.push_with(agents, |i, j| adjacency[i * agents + j]);
+        Ok(())
+    }
+
+    fn push_with(&mut self, agents: usize, listens: impl Fn(usize, usize) -> bool) {
+        let first = self.agents();
+        for i in 0..agents {
+            let rows = (0..agents).filter(|&j| listens(i, j)).map(|j| first + j);
+            self.neighbours.extend(rows);
+            self.offsets.push(self.neighbours.len());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn groups_do_not_mix_and_rules_pick_the_right_neighbours() {
+        let mut graph = AgentGraph::new();
+        graph.push_group(Neighbours::AllOthers, &[[0.0, 0.0]; 3]);
+        graph.push_group(Neighbours::AllAgents, &[[0.0, 0.0]; 2]);
+        graph.push_group(
+            Neighbours::WithinRadius(1.5),
+            &[[0.0, 0.0], [1.0, 1.0], [3.0, 0.0]],
+        );
+        graph.push_group(Neighbours::AllOthers, &[[0.0, 0.0]]);
+        assert_eq!(graph.agents(), 9);
+        let of = |i: usize| graph.neighbour_rows()[graph.edge_range(i)].to_vec();
+        assert_eq!(of(0), vec![1, 2]);
+        assert_eq!(of(3), vec![3, 4]);
+        assert_eq!(of(5), vec![6]);
+        assert_eq!(of(7), Vec::<usize>::new());
+        assert_eq!(of(8), Vec::<usize>::new());
+        graph.clear();
+        assert_eq!((graph.agents(), graph.edges()), (0, 0));
+    }
+
+    #[test]
+    fn adjacency_length_is_checked() {
+        let mut graph = AgentGraph::new();
+        assert!(graph.push_group_adjacency(2, &[true; 3]).is_err());
+        graph
+            .push_group_adjacency(2, &[false, true, false, false])
+            .unwrap();
+        assert_eq!(graph.neighbour_rows(), &[1]);
+    }
+}

@@ -22,6 +22,11 @@ impl ParamSlot {
         &mut flat[self.offset..self.offset + self.len]
     }
 
+    /// The positions of this tensor in the flat buffers.
+    pub fn range(&self) -> std::ops::Range<usize> {
+        self.offset..self.offset + self.len
+    }
+
     pub fn len(&self) -> usize {
         self.len
     }

@@ -1,0 +1,245 @@
+//! The feature extractor: convolutions, each followed by ReLU, flattened (channels-last) into
+//! one feature vector per sample.
+
+use ndarray::ArrayView2;
+use rand::Rng;
+
+use super::activation::RELU;
+use super::buffer::ReusableBuffer;
+use super::conv::{Conv2d, ConvSpec, ImageShape};
+use super::error::NnError;
+use super::init::Init;
+use super::params::ParamStore;
+use super::real::Real;
+
+/// The released code's extractor: 25 x 25 -> 16 x 5 x 5 -> 32 x 2 x 2 -> 32 x 2 x 2 = 128.
+pub const PAPER_CONVOLUTIONS: [ConvSpec; 3] = [
+    ConvSpec {
+        out_channels: 16,
+        kernel: 8,
+        stride: 4,
+        padding: 1,
+    },
+    ConvSpec {
+        out_channels: 32,
+        kernel: 4,
+        stride: 2,
+        padding: 1,
+    },
+    ConvSpec {
+        out_channels: 32,
+        kernel: 3,
+        stride: 1,
+        padding: 1,
+    },
+];
+
+/// Convolutions with ReLU after each.
+#[derive(Debug, Clone)]
+pub struct CnnEncoder {
+    convs: Vec<Conv2d>,
+}
+
+/// Patch matrices and outputs of every convolution, and two gradient buffers used in turn.
+#[derive(Debug, Clone, Default)]
+pub struct CnnWorkspace<T> {
+    batch: usize,
+    patches: Vec<ReusableBuffer<T>>,
+    outputs: Vec<ReusableBuffer<T>>,
+    grads: [ReusableBuffer<T>; 2],
+}
+
+impl CnnEncoder {
+    /// Convolutions named `{name}.0`, `{name}.1`, ...
+    pub fn new<T: Real, R: Rng + ?Sized>(
+        store: &mut ParamStore<T>,
+        name: &str,
+        input: ImageShape,
+        specs: &[ConvSpec],
+        init: Init,
+        rng: &mut R,
+    ) -> Result<Self, NnError> {
+        if specs.is_empty() {
+            return Err(NnError::shape(name, "needs at least one convolution"));
+        }
+        let mut convs: Vec<Conv2d> = Vec::with_capacity(specs.len());
+        for (k, &spec) in specs.iter().enumerate() {
+            let shape = convs.last().map_or(input, Conv2d::output_shape);
+            convs.push(Conv2d::new(
+                store,
+                &format!("{name}.{k}"),
+                shape,
+                spec,
+                init,
+                rng,
+            )?);
+        }
+        Ok(CnnEncoder { convs })
+    }
+
+    /// Values per input sample.
+    pub fn input_len(&self) -> usize {
+        self.convs[0].input_shape().len()
+    }
+
+    /// Features per sample.
+    pub fn features(&self) -> usize {
+        self.convs[self.convs.len() - 1].output_shape().len()
+    }
+
+    pub fn forward_flops_per_sample(&self) -> u64 {
+        self.convs
+            .iter()
+            .map(Conv2d::forward_flops_per_sample)
+            .sum()
+    }
+
+    /// The features `[batch, features]` of `x` (`batch` images of the input shape).
+    pub fn forward<'w, T: Real>(
+        &self,
+        params: &[T],
+        ws: &'w mut CnnWorkspace<T>,
+        x: &[T],
+        batch: usize,
+    ) -> ArrayView2<'w, T> {
+        ws.batch = batch;
+        ws.patches.resize_with(self.convs.len(), Default::default);
+        ws.outputs.resize_with(self.convs.len(), Default::default);
+        for (k, conv) in self.convs.iter().enumerate() {
+            let (done, rest) = ws.outputs.split_at_mut(k);
+            let input = match done.last() {
+                Some(previous) => previous.slice(batch * conv.input_shape().len()),
+                None => x,
+            };
+            let out = conv.output_shape();
+            let mut y = rest[0].matrix_mut(batch * out.height * out.width, out.channels);
+            conv.forward(params, input, batch, &mut ws.patches[k], y.view_mut());
+            RELU.forward_in_place(y.as_slice_mut().expect("buffer views are contiguous"));
+        }
+        self.output(ws)
+    }
+
+    /// The features of the last forward pass.
+    pub fn output<'w, T: Real>(&self, ws: &'w CnnWorkspace<T>) -> ArrayView2<'w, T> {
+        ws.outputs[self.convs.len() - 1].matrix(ws.batch, self.features())
+    }
+
+    /// Accumulates parameter gradients for the feature gradient `d_features`, and writes the
+    /// input gradient to `dx` when given. Consumes the workspace's patch matrices.
+    pub fn backward<T: Real>(
+        &self,
+        params: &[T],
+        grads: &mut [T],
+        ws: &mut CnnWorkspace<T>,
+        d_features: ArrayView2<T>,
+        dx: Option<&mut [T]>,
+    ) {
+        let batch = ws.batch;
+        let last = self.convs.len() - 1;
+        let [even, odd] = &mut ws.grads;
+        let top = if last % 2 == 0 { &mut *even } else { &mut *odd };
+        let d_top = top.slice_mut(batch * self.features());
+        d_top.copy_from_slice(
+            d_features
+                .as_slice()
+                .expect("feature gradients are contiguous"),
+        );
+        RELU.backward_in_place(ws.outputs[last].slice(d_top.len()), d_top);
+        let mut dx = dx;
+        for (k, conv) in self.convs.iter().enumerate().rev() {
+            // The gradient of conv k's output (before its ReLU) is in buffer k % 2.
+            let (current, previous) = if k % 2 == 0 {
+                (&*even, &mut *odd)
+            } else {
+                (&*odd, &mut *even)
+            };
+            let out = conv.output_shape();
+            let d_output = current.matrix(batch * out.height * out.width, out.channels);
+            let patches = &mut ws.patches[k];
+            let Some(below) = k.checked_sub(1) else {
+                conv.backward(params, grads, batch, patches, d_output, dx.take());
+                continue;
+            };
+            let d_input = previous.slice_mut(batch * conv.input_shape().len());
+            conv.backward(params, grads, batch, patches, d_output, Some(&mut *d_input));
+            RELU.backward_in_place(ws.outputs[below].slice(d_input.len()), d_input);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nn::conv::ChannelOrder;
+    use crate::nn::gradient_check::{assert_gradients_match, dot, values_away_from_zero};
+    use rand::SeedableRng;
+    use rand_pcg::Pcg64Mcg;
+
+    #[test]
+    fn the_papers_extractor_gives_128_features() {
+        let mut rng = Pcg64Mcg::seed_from_u64(0);
+        let mut store = ParamStore::<f32>::new();
+        let input = ImageShape {
+            channels: 2,
+            height: 25,
+            width: 25,
+            order: ChannelOrder::First,
+        };
+        let cnn = CnnEncoder::new(
+            &mut store,
+            "cnn",
+            input,
+            &PAPER_CONVOLUTIONS,
+            Init::PyTorchDefault,
+            &mut rng,
+        );
+        assert_eq!(cnn.unwrap().features(), 128);
+    }
+
+    #[test]
+    fn gradients_match_finite_differences() {
+        let mut rng = Pcg64Mcg::seed_from_u64(60);
+        let mut store = ParamStore::new();
+        let input = ImageShape {
+            channels: 2,
+            height: 9,
+            width: 9,
+            order: ChannelOrder::First,
+        };
+        let specs = [
+            ConvSpec {
+                out_channels: 3,
+                kernel: 3,
+                stride: 2,
+                padding: 1,
+            },
+            ConvSpec {
+                out_channels: 4,
+                kernel: 2,
+                stride: 1,
+                padding: 0,
+            },
+        ];
+        // Not orthogonal: its zero biases would put all-zero patches exactly on the ReLU kink.
+        let init = Init::PyTorchDefault;
+        let cnn = CnnEncoder::new(&mut store, "cnn", input, &specs, init, &mut rng).unwrap();
+        let batch = 3;
+        let features = cnn.features();
+        assert_eq!(features, 4 * 4 * 4);
+        let x = values_away_from_zero(batch * input.len(), &mut rng);
+        let upstream = values_away_from_zero(batch * features, &mut rng);
+        let loss = |p: &[f64], x: &[f64]| {
+            let mut ws = CnnWorkspace::default();
+            let y = cnn.forward(p, &mut ws, x, batch);
+            dot(y.as_slice().unwrap(), &upstream)
+        };
+        let params = store.values().to_vec();
+        let mut ws = CnnWorkspace::default();
+        cnn.forward(&params, &mut ws, &x, batch);
+        let mut dx = vec![0.0; x.len()];
+        let dy = ArrayView2::from_shape((batch, features), &upstream[..]).unwrap();
+        cnn.backward(&params, store.grads_mut(), &mut ws, dy, Some(&mut dx));
+        assert_gradients_match(&params, store.grads(), |p| loss(p, &x));
+        assert_gradients_match(&x, &dx, |x| loss(&params, x));
+    }
+}

@@ -3,6 +3,7 @@
 //! one flat buffer each.
 
 pub mod activation;
+pub mod adam;
 pub mod attention;
 pub mod buffer;
 pub mod categorical;
@@ -22,6 +23,7 @@ pub mod softmax;
 mod gradient_check;
 
 pub use activation::{LeakyRelu, RELU};
+pub use adam::{Adam, AdamConfig};
 pub use attention::{AttentionWorkspace, GraphAttention};
 pub use buffer::ReusableBuffer;
 pub use categorical::CategoricalBatch;

@@ -544,4 +544,119 @@ mod tests {
         assert_eq!(plain.forward_flops_per_sample(0), 1_254_400);
         assert_eq!(plain.policy_forward_flops_per_sample(0), 628_224);
     }
+
+    /// Observations, graph (groups of `agents`) and output gradients for `batch` agents.
+    fn paper_batch(
+        groups: usize,
+        agents: usize,
+        rng: &mut Pcg64Mcg,
+    ) -> (Vec<f32>, AgentGraph, Vec<f32>) {
+        let graph = graph(&vec![agents; groups]);
+        let batch = groups * agents;
+        let observation_len = 2 * PAPER_IMAGE_SIDE * PAPER_IMAGE_SIDE;
+        let observations = (0..batch * observation_len)
+            .map(|_| rng.random::<f32>() - 0.5)
+            .collect();
+        let grads = (0..batch * (ACTIONS + 2))
+            .map(|_| rng.random::<f32>() - 0.5)
+            .collect();
+        (observations, graph, grads)
+    }
+
+    /// One forward and backward pass; returns the log-probabilities, values and gradients.
+    fn forward_backward(
+        model: &mut ActorCritic<f32>,
+        ws: &mut ModelWorkspace<f32>,
+        observations: &[f32],
+        graph: &AgentGraph,
+        grads: &[f32],
+    ) -> Vec<f32> {
+        let batch = graph.agents();
+        model.params_mut().zero_grads();
+        model.forward(ws, observations, graph);
+        let (log_probs, rest) = grads.split_at(batch * ACTIONS);
+        let (entropy, values) = rest.split_at(batch);
+        let output_grads = OutputGradients {
+            log_probs: ArrayView2::from_shape((batch, ACTIONS), log_probs).unwrap(),
+            entropy,
+            values,
+            attention_entropy: 0.01,
+        };
+        model.backward(ws, graph, &output_grads);
+        let mut result: Vec<f32> = ws.policy().log_probs().iter().copied().collect();
+        result.extend_from_slice(ws.values());
+        result.extend_from_slice(model.params().grads());
+        result
+    }
+
+    #[test]
+    fn results_do_not_depend_on_the_thread_count_or_on_workspace_reuse() {
+        let mut rng = Pcg64Mcg::seed_from_u64(80);
+        let config = ModelConfig::paper(Architecture::MaGPpo { heads: PAPER_HEADS }, 2);
+        let mut model = ActorCritic::<f32>::new(&config, &mut rng).unwrap();
+        let (observations, graph, grads) = paper_batch(40, 4, &mut rng);
+        let mut run_in_pool = |threads: usize, ws: &mut ModelWorkspace<f32>| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| forward_backward(&mut model, ws, &observations, &graph, &grads))
+        };
+        let single = run_in_pool(1, &mut ModelWorkspace::default());
+        // A workspace warmed up on a larger batch of another model.
+        let mut used = ModelWorkspace::default();
+        let mut other = ActorCritic::<f32>::new(&config, &mut rng).unwrap();
+        let (big_observations, big_graph, big_grads) = paper_batch(50, 5, &mut rng);
+        forward_backward(
+            &mut other,
+            &mut used,
+            &big_observations,
+            &big_graph,
+            &big_grads,
+        );
+        let double = run_in_pool(2, &mut used);
+        assert!(
+            single
+                .iter()
+                .zip(&double)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
+    }
+
+    /// Forward + backward time of the paper's models on a PPO-sized batch; run with
+    /// `cargo test --release -p policies timing -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn timing_of_a_ppo_sized_batch() {
+        let mut rng = Pcg64Mcg::seed_from_u64(90);
+        let (observations, graph, grads) = paper_batch(1000, 4, &mut rng);
+        for architecture in [
+            Architecture::MaGPpo { heads: PAPER_HEADS },
+            Architecture::MaPpo,
+        ] {
+            let config = ModelConfig::paper(architecture, 2);
+            let mut model = ActorCritic::<f32>::new(&config, &mut rng).unwrap();
+            let mut ws = ModelWorkspace::default();
+            forward_backward(&mut model, &mut ws, &observations, &graph, &grads);
+            let repeats = 5;
+            let start = std::time::Instant::now();
+            for _ in 0..repeats {
+                forward_backward(&mut model, &mut ws, &observations, &graph, &grads);
+            }
+            let seconds = start.elapsed().as_secs_f64() / repeats as f64;
+            let flops = 3.0 * graph.agents() as f64 * model.forward_flops_per_sample(3) as f64;
+            let start = std::time::Instant::now();
+            for _ in 0..repeats {
+                model.forward_policy(&mut ws, &observations, &graph);
+            }
+            let policy_seconds = start.elapsed().as_secs_f64() / repeats as f64;
+            println!(
+                "{architecture:?}: forward+backward of {} samples {:.1} ms ({:.1} GFLOP/s); policy forward {:.1} ms",
+                graph.agents(),
+                seconds * 1e3,
+                flops / seconds / 1e9,
+                policy_seconds * 1e3
+            );
+        }
+    }
 }

@@ -1,1 +1,7 @@
-//! The harness library.
+//! The research harness: runs episodes of any policy in any world, reproducibly.
+
+pub mod atomic_file;
+pub mod replay;
+pub mod runner;
+pub mod trace;
+pub mod world_bench;

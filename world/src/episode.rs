@@ -28,7 +28,13 @@ pub enum Action {
 }
 
 impl Action {
-    pub const ALL: [Action; 5] = [Action::Stay, Action::Up, Action::Left, Action::Down, Action::Right];
+    pub const ALL: [Action; 5] = [
+        Action::Stay,
+        Action::Up,
+        Action::Left,
+        Action::Down,
+        Action::Right,
+    ];
 
     pub fn from_index(index: usize) -> Option<Self> {
         Self::ALL.get(index).copied()
@@ -61,7 +67,11 @@ impl World {
     /// Precomputes visibility; share the result between episodes and threads.
     pub fn new(map: Map, params: WorldParams) -> Arc<Self> {
         let visibility = Visibility::compute(&map, params.fov());
-        Arc::new(Self { map, params, visibility })
+        Arc::new(Self {
+            map,
+            params,
+            visibility,
+        })
     }
 
     pub fn map(&self) -> &Map {
@@ -99,7 +109,14 @@ impl Episode {
         let penalty = PenaltyGrid::new(&world.map, &world.params);
         let occupied = vec![false; world.map.width() * world.map.height()];
         let positions = world.map.free_cells()[..agents].to_vec();
-        let mut episode = Self { world, positions, occupied, penalty, time: 0, reward: 0.0 };
+        let mut episode = Self {
+            world,
+            positions,
+            occupied,
+            penalty,
+            time: 0,
+            reward: 0.0,
+        };
         episode.restart();
         Ok(episode)
     }
@@ -196,14 +213,26 @@ impl Episode {
 
 fn check_starts(map: &Map, starts: &[Cell], agents: usize) -> Result<(), StartError> {
     if starts.len() != agents {
-        return Err(StartError::Count { given: starts.len(), agents });
+        return Err(StartError::Count {
+            given: starts.len(),
+            agents,
+        });
     }
     for (index, &cell) in starts.iter().enumerate() {
         if !map.is_free(cell) {
-            return Err(StartError::NotFree { index, x: cell.x as i64, y: cell.y as i64 });
+            return Err(StartError::NotFree {
+                index,
+                x: cell.x as i64,
+                y: cell.y as i64,
+            });
         }
         if let Some(first) = starts[..index].iter().position(|&c| c == cell) {
-            return Err(StartError::Shared { first, second: index, x: cell.x, y: cell.y });
+            return Err(StartError::Shared {
+                first,
+                second: index,
+                x: cell.x,
+                y: cell.y,
+            });
         }
     }
     Ok(())
@@ -229,10 +258,18 @@ mod tests {
         assert_eq!(e.positions(), &[Cell::new(0, 0), Cell::new(1, 0)]);
         e.step(&[Action::Right, Action::Right]);
         let refused = [Cell::new(0, 0), Cell::new(2, 0)];
-        assert_eq!(e.positions(), &refused, "agent 0 moves first, into agent 1's cell");
+        assert_eq!(
+            e.positions(),
+            &refused,
+            "agent 0 moves first, into agent 1's cell"
+        );
         e.step(&[Action::Right, Action::Left]);
         let refused = [Cell::new(1, 0), Cell::new(2, 0)];
-        assert_eq!(e.positions(), &refused, "agent 0 took (1,0) before agent 1 moved");
+        assert_eq!(
+            e.positions(),
+            &refused,
+            "agent 0 took (1,0) before agent 1 moved"
+        );
         assert_eq!(e.time(), 3);
     }
 
@@ -265,11 +302,23 @@ mod tests {
     fn bad_starts_are_errors() {
         let w = world("..#\n", 1);
         let mut e = Episode::new(w.clone(), 2).unwrap();
-        assert!(matches!(e.reset_at(&[Cell::new(0, 0)]), Err(StartError::Count { .. })));
+        assert!(matches!(
+            e.reset_at(&[Cell::new(0, 0)]),
+            Err(StartError::Count { .. })
+        ));
         let on_wall = [Cell::new(0, 0), Cell::new(2, 0)];
-        assert!(matches!(e.reset_at(&on_wall), Err(StartError::NotFree { index: 1, .. })));
+        assert!(matches!(
+            e.reset_at(&on_wall),
+            Err(StartError::NotFree { index: 1, .. })
+        ));
         let shared = [Cell::new(0, 0), Cell::new(0, 0)];
-        assert!(matches!(e.reset_at(&shared), Err(StartError::Shared { first: 0, .. })));
-        assert!(matches!(Episode::new(w, 3), Err(StartError::TooManyAgents { .. })));
+        assert!(matches!(
+            e.reset_at(&shared),
+            Err(StartError::Shared { first: 0, .. })
+        ));
+        assert!(matches!(
+            Episode::new(w, 3),
+            Err(StartError::TooManyAgents { .. })
+        ));
     }
 }

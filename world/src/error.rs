@@ -13,7 +13,11 @@ pub struct MapError {
 
 impl MapError {
     pub fn new(file: &Path, line: Option<usize>, kind: MapErrorKind) -> Self {
-        Self { file: file.to_owned(), line, kind }
+        Self {
+            file: file.to_owned(),
+            line,
+            kind,
+        }
     }
 }
 
@@ -49,7 +53,11 @@ pub enum MapErrorKind {
     #[error("the file holds several maps ({available}); choose one as FILE#NAME")]
     AmbiguousName { available: String },
     #[error("map {map:?}, polygon {polygon}: {problem}")]
-    BadPolygon { map: String, polygon: usize, problem: String },
+    BadPolygon {
+        map: String,
+        polygon: usize,
+        problem: String,
+    },
 }
 
 /// World parameters that make no sense, named by field.
@@ -73,5 +81,10 @@ pub enum StartError {
     #[error("start position {index} ({x}, {y}) is not a free cell of the map")]
     NotFree { index: usize, x: i64, y: i64 },
     #[error("start positions {first} and {second} are the same cell ({x}, {y})")]
-    Shared { first: usize, second: usize, x: u16, y: u16 },
+    Shared {
+        first: usize,
+        second: usize,
+        x: u16,
+        y: u16,
+    },
 }

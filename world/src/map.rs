@@ -59,7 +59,13 @@ impl Map {
         if free.is_empty() {
             return Err(err(MapErrorKind::NoFreeCell));
         }
-        Ok(Self { name: name.to_owned(), width, height, obstacle, free })
+        Ok(Self {
+            name: name.to_owned(),
+            width,
+            height,
+            obstacle,
+            free,
+        })
     }
 
     /// Parses the text format: `#` obstacle, `.` free, first line the top row.
@@ -76,14 +82,21 @@ impl Map {
         let width = first.chars().count();
         let height = rows.len();
         if width > MAX_SIDE || height > MAX_SIDE {
-            return Err(MapError::new(source, None, MapErrorKind::TooLarge { width, height }));
+            return Err(MapError::new(
+                source,
+                None,
+                MapErrorKind::TooLarge { width, height },
+            ));
         }
         let mut obstacle = vec![false; width * height];
         for (row, &(line_no, line)) in rows.iter().enumerate() {
             let y = height - 1 - row;
             let found = line.chars().count();
             if found != width {
-                let kind = MapErrorKind::RaggedRow { expected: width, found };
+                let kind = MapErrorKind::RaggedRow {
+                    expected: width,
+                    found,
+                };
                 return Err(MapError::new(source, Some(line_no), kind));
             }
             for (x, ch) in line.chars().enumerate() {
@@ -104,7 +117,10 @@ impl Map {
     pub fn load_text(path: &Path) -> Result<Self, MapError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| MapError::new(path, None, MapErrorKind::Io(e.to_string())))?;
-        let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
         Self::parse_text(&name, &text, path)
     }
 
@@ -115,7 +131,10 @@ impl Map {
             Some((path, name)) => (PathBuf::from(path), Some(name)),
             None => (PathBuf::from(spec), None),
         };
-        let is_yaml = matches!(path.extension().and_then(|e| e.to_str()), Some("yaml" | "yml"));
+        let is_yaml = matches!(
+            path.extension().and_then(|e| e.to_str()),
+            Some("yaml" | "yml")
+        );
         if is_yaml {
             crate::polygon::load_polygon_map(&path, name)
         } else {
@@ -126,7 +145,10 @@ impl Map {
     /// Fails with a clear error when `agents` cannot all stand on distinct free cells.
     pub fn check_agents(&self, agents: usize, source: &Path) -> Result<(), MapError> {
         if agents > self.free.len() {
-            let kind = MapErrorKind::TooFewFreeCells { free: self.free.len(), agents };
+            let kind = MapErrorKind::TooFewFreeCells {
+                free: self.free.len(),
+                agents,
+            };
             return Err(MapError::new(source, None, kind));
         }
         Ok(())
@@ -137,7 +159,11 @@ impl Map {
         let mut out = String::with_capacity((self.width + 1) * self.height);
         for y in (0..self.height).rev() {
             for x in 0..self.width {
-                out.push(if self.obstacle[y * self.width + x] { '#' } else { '.' });
+                out.push(if self.obstacle[y * self.width + x] {
+                    '#'
+                } else {
+                    '.'
+                });
             }
             out.push('\n');
         }
@@ -212,13 +238,31 @@ mod tests {
         let e = parse("...\n..\n").unwrap_err();
         assert_eq!(e.line, Some(2));
         assert!(e.to_string().contains("t.txt:2"), "{e}");
-        assert!(matches!(e.kind, MapErrorKind::RaggedRow { expected: 3, found: 2 }));
+        assert!(matches!(
+            e.kind,
+            MapErrorKind::RaggedRow {
+                expected: 3,
+                found: 2
+            }
+        ));
         let e = parse("..\n.x\n").unwrap_err();
-        assert!(matches!(e.kind, MapErrorKind::UnknownChar { ch: 'x', column: 2 }));
-        assert!(matches!(parse("##\n##\n").unwrap_err().kind, MapErrorKind::NoFreeCell));
-        assert!(matches!(parse("\n\n").unwrap_err().kind, MapErrorKind::Empty));
+        assert!(matches!(
+            e.kind,
+            MapErrorKind::UnknownChar { ch: 'x', column: 2 }
+        ));
+        assert!(matches!(
+            parse("##\n##\n").unwrap_err().kind,
+            MapErrorKind::NoFreeCell
+        ));
+        assert!(matches!(
+            parse("\n\n").unwrap_err().kind,
+            MapErrorKind::Empty
+        ));
         let wide = ".".repeat(MAX_SIDE + 1);
-        assert!(matches!(parse(&wide).unwrap_err().kind, MapErrorKind::TooLarge { .. }));
+        assert!(matches!(
+            parse(&wide).unwrap_err().kind,
+            MapErrorKind::TooLarge { .. }
+        ));
     }
 
     #[test]
@@ -226,6 +270,9 @@ mod tests {
         let map = parse(".#\n..\n").unwrap();
         assert!(map.check_agents(3, Path::new("t.txt")).is_ok());
         let e = map.check_agents(4, Path::new("t.txt")).unwrap_err();
-        assert!(matches!(e.kind, MapErrorKind::TooFewFreeCells { free: 3, agents: 4 }));
+        assert!(matches!(
+            e.kind,
+            MapErrorKind::TooFewFreeCells { free: 3, agents: 4 }
+        ));
     }
 }

@@ -49,7 +49,10 @@ pub struct ObservationConfig {
 
 impl Default for ObservationConfig {
     fn default() -> Self {
-        Self { channels: Channels::Both, mark_others_on_mini: false }
+        Self {
+            channels: Channels::Both,
+            mark_others_on_mini: false,
+        }
     }
 }
 
@@ -62,8 +65,12 @@ pub struct Observer {
     mini_width: usize,
     mini_height: usize,
     scale: f32,
-    /// This step's mini-map before agent marks, scaled; shared by all agents.
+    /// This step's mini-map image (side x side, padding filled once) before agent marks,
+    /// scaled; shared by all agents, each of which copies it whole.
     mini: Vec<f32>,
+    /// Per block row: the lower and upper of each column pair, before pairing columns.
+    column_low: Vec<f32>,
+    column_high: Vec<f32>,
 }
 
 impl Observer {
@@ -73,8 +80,19 @@ impl Observer {
         let (mini_width, mini_height) = (map.width().div_ceil(2), map.height().div_ceil(2));
         let side = fov.max(mini_width).max(mini_height);
         let scale = 1.0 / world.params().rmax();
-        let mini = vec![0.0; mini_width * mini_height];
-        Self { config, side, fov, mini_width, mini_height, scale, mini }
+        let mini = vec![OBSTACLE_CODE * scale; side * side];
+        let (column_low, column_high) = (vec![0.0; 2 * mini_width], vec![0.0; 2 * mini_width]);
+        Self {
+            config,
+            side,
+            fov,
+            mini_width,
+            mini_height,
+            scale,
+            mini,
+            column_low,
+            column_high,
+        }
     }
 
     pub fn config(&self) -> ObservationConfig {
@@ -141,14 +159,8 @@ impl Observer {
     }
 
     fn write_mini(&self, positions: &[Cell], agent: usize, out: &mut [f32]) {
-        let side = self.side;
-        if side > self.mini_width || side > self.mini_height {
-            out.fill(OBSTACLE_CODE * self.scale);
-        }
-        for (row, source) in self.mini.chunks_exact(self.mini_width).enumerate() {
-            out[row * side..row * side + self.mini_width].copy_from_slice(source);
-        }
-        let block = |cell: Cell| (cell.y as usize / 2) * side + cell.x as usize / 2;
+        out.copy_from_slice(&self.mini);
+        let block = |cell: Cell| (cell.y as usize / 2) * self.side + cell.x as usize / 2;
         if self.config.mark_others_on_mini {
             for &other in positions {
                 out[block(other)] = OTHER_AGENT_CODE * self.scale;
@@ -163,15 +175,40 @@ impl Observer {
     fn compute_mini(&mut self, episode: &Episode) {
         let grid = episode.penalty();
         let (codes, stride, pad) = (grid.codes(), grid.stride(), grid.pad());
-        for (by, row) in self.mini.chunks_exact_mut(self.mini_width).enumerate() {
+        let pairs = 2 * self.mini_width;
+        for by in 0..self.mini_height {
             let bottom = (2 * by + pad) * stride + pad;
-            let (lower, upper) = (&codes[bottom..], &codes[bottom + stride..]);
-            for (bx, out) in row.iter_mut().enumerate() {
-                let block = [lower[2 * bx], lower[2 * bx + 1], upper[2 * bx], upper[2 * bx + 1]];
-                let low = block.into_iter().fold(f32::INFINITY, f32::min);
-                let high = block.into_iter().fold(f32::NEG_INFINITY, f32::max);
+            let (lower, upper) = (
+                &codes[bottom..bottom + pairs],
+                &codes[bottom + stride..][..pairs],
+            );
+            for (((low, high), &a), &b) in self
+                .column_low
+                .iter_mut()
+                .zip(&mut self.column_high)
+                .zip(lower)
+                .zip(upper)
+            {
+                (*low, *high) = (fast_min(a, b), fast_max(a, b));
+            }
+            let row = &mut self.mini[by * self.side..by * self.side + self.mini_width];
+            let column_pairs = self
+                .column_low
+                .chunks_exact(2)
+                .zip(self.column_high.chunks_exact(2));
+            for (out, (low, high)) in row.iter_mut().zip(column_pairs) {
+                let (low, high) = (fast_min(low[0], low[1]), fast_max(high[0], high[1]));
                 *out = if low < 0.0 { low } else { high } * self.scale;
             }
         }
     }
+}
+
+/// `min` without NaN handling (codes are never NaN), which compiles to one instruction.
+fn fast_min(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+fn fast_max(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
 }

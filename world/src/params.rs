@@ -36,7 +36,11 @@ impl WorldParams {
     }
 
     pub fn paper() -> Self {
-        Self { fov: PAPER_FOV, decay: PAPER_DECAY, rmax: PAPER_RMAX }
+        Self {
+            fov: PAPER_FOV,
+            decay: PAPER_DECAY,
+            rmax: PAPER_RMAX,
+        }
     }
 
     /// Side L of the square field of view.
@@ -67,8 +71,14 @@ mod tests {
         assert_eq!(WorldParams::new(24, 1.0, 400.0), Err(ParamError::Fov(24)));
         assert_eq!(WorldParams::new(0, 1.0, 400.0), Err(ParamError::Fov(0)));
         assert_eq!(WorldParams::new(257, 1.0, 400.0), Err(ParamError::Fov(257)));
-        assert_eq!(WorldParams::new(25, -1.0, 400.0), Err(ParamError::Decay(-1.0)));
-        assert!(matches!(WorldParams::new(25, 1.0, f32::NAN), Err(ParamError::Rmax(_))));
+        assert_eq!(
+            WorldParams::new(25, -1.0, 400.0),
+            Err(ParamError::Decay(-1.0))
+        );
+        assert!(matches!(
+            WorldParams::new(25, 1.0, f32::NAN),
+            Err(ParamError::Rmax(_))
+        ));
         assert_eq!(WorldParams::new(25, 1.0, 400.0), Ok(WorldParams::paper()));
     }
 }

@@ -6,6 +6,8 @@
 //! observation code) and a floor of the same value, so the one update rule
 //! `max(R - D, floor)` leaves them unchanged and observations copy rows straight out.
 
+use wide::f32x8;
+
 use crate::map::{Cell, Map};
 use crate::params::WorldParams;
 use crate::visibility::Visibility;
@@ -16,14 +18,15 @@ pub const OBSTACLE_CODE: f32 = 150.0;
 /// Cells are updated in groups of this many: one vector register of `f32` under AVX2.
 const LANES: usize = 8;
 
-/// For each byte of "seen" bits, the eight masks that keep an unseen cell and zero a seen one.
-static KEEP_MASKS: [[u32; LANES]; 256] = {
-    let mut table = [[0u32; LANES]; 256];
+/// For each byte of "seen" bits, eight factors: 1 keeps an unseen cell, 0 zeroes a seen one.
+/// Multiplying (rather than masking bits) keeps the whole update in vector float registers.
+static KEEP_FACTORS: [[f32; LANES]; 256] = {
+    let mut table = [[0f32; LANES]; 256];
     let mut byte = 0;
     while byte < 256 {
         let mut lane = 0;
         while lane < LANES {
-            table[byte][lane] = if byte >> lane & 1 == 1 { 0 } else { u32::MAX };
+            table[byte][lane] = if byte >> lane & 1 == 1 { 0.0 } else { 1.0 };
             lane += 1;
         }
         byte += 1;
@@ -38,6 +41,9 @@ pub struct PenaltyGrid {
     height: usize,
     pad: usize,
     stride: usize,
+    /// Bit of the seen mask that holds column 0 of the map: a multiple of 8 at least as wide
+    /// as the window's half, so each group of LANES cells is one whole byte of the mask.
+    seen_offset: usize,
     decay: f32,
     /// Penalty (<= 0) of free cells, `OBSTACLE_CODE` elsewhere; padded layout.
     codes: Vec<f32>,
@@ -57,7 +63,11 @@ impl PenaltyGrid {
         for &cell in map.free_cells() {
             floor[(cell.y as usize + pad) * stride + cell.x as usize + pad] = -params.rmax();
         }
-        let codes = floor.iter().map(|&f| if f == OBSTACLE_CODE { f } else { 0.0 }).collect();
+        let codes = floor
+            .iter()
+            .map(|&f| if f == OBSTACLE_CODE { f } else { 0.0 })
+            .collect();
+        let seen_offset = params.half_fov().next_multiple_of(LANES);
         Self {
             width: map.width(),
             height: map.height(),
@@ -66,7 +76,8 @@ impl PenaltyGrid {
             decay: params.decay(),
             codes,
             floor,
-            seen: SeenMask::new(stride, rows),
+            seen_offset,
+            seen: SeenMask::new(seen_offset + map.width() + params.half_fov() + LANES, rows),
         }
     }
 
@@ -84,8 +95,13 @@ impl PenaltyGrid {
         let half = visibility.fov() / 2;
         for &at in positions {
             let bottom = at.y as usize + self.pad - half;
-            let left = at.x as usize + self.pad - half;
-            self.seen.mark(visibility.window(at), visibility.words_per_row(), bottom, left);
+            let left = at.x as usize + self.seen_offset - half;
+            self.seen.mark(
+                visibility.window(at),
+                visibility.words_per_row(),
+                bottom,
+                left,
+            );
         }
         let groups = self.width.div_ceil(LANES);
         let mut reward = 0.0f64;
@@ -94,7 +110,14 @@ impl PenaltyGrid {
             let end = start + groups * LANES;
             let seen_row = self.seen.row(y + self.pad);
             let codes = &mut self.codes[start..end];
-            reward += decay_row(codes, &self.floor[start..end], seen_row, self.pad, self.decay);
+            let first_byte = self.seen_offset / LANES;
+            reward += decay_row(
+                codes,
+                &self.floor[start..end],
+                seen_row,
+                first_byte,
+                self.decay,
+            );
         }
         reward
     }
@@ -125,39 +148,29 @@ impl PenaltyGrid {
 
 /// Updates one row in groups of LANES cells and returns the row's sum of penalties.
 ///
-/// Lane-wise `f32` partial sums keep the loop vectorised; each lane adds at most
-/// width / LANES values of at most Rmax, so with integer penalties every sum is exact.
-fn decay_row(codes: &mut [f32], floor: &[f32], seen: &[u64], first_bit: usize, decay: f32) -> f64 {
-    let mut lanes = [0.0f32; LANES];
-    for (group, (codes, floor)) in
-        codes.chunks_exact_mut(LANES).zip(floor.chunks_exact(LANES)).enumerate()
+/// Lane-wise `f32` partial sums keep the loop in vector registers; each lane adds at most
+/// width / LANES values of at most Rmax, so with integer penalties every sum is exact. Adding +0
+/// turns the -0 that a negative penalty times a zero factor gives into +0.
+fn decay_row(codes: &mut [f32], floor: &[f32], seen: &[u64], first_byte: usize, decay: f32) -> f64 {
+    let (decay, zero) = (f32x8::splat(decay), f32x8::ZERO);
+    let mut lanes = f32x8::ZERO;
+    for (group, (codes, floor)) in codes
+        .chunks_exact_mut(LANES)
+        .zip(floor.chunks_exact(LANES))
+        .enumerate()
     {
-        let keep = &KEEP_MASKS[seen_byte(seen, first_bit + group * LANES)];
-        for lane in 0..LANES {
-            let decayed = faster_max(codes[lane] - decay, floor[lane]);
-            let value = f32::from_bits(decayed.to_bits() & keep[lane]);
-            codes[lane] = value;
-            lanes[lane] += faster_min(value, 0.0);
-        }
+        let keep = f32x8::from(KEEP_FACTORS[seen_byte(seen, first_byte + group)]);
+        let decayed = (f32x8::from(&*codes) - decay).fast_max(f32x8::from(floor));
+        let value = decayed * keep + zero;
+        codes.copy_from_slice(value.as_array());
+        lanes += value.fast_min(zero);
     }
-    lanes.iter().map(|&s| s as f64).sum()
+    lanes.as_array().iter().map(|&s| s as f64).sum()
 }
 
-/// The eight bits of a bit row starting at `bit`.
-fn seen_byte(words: &[u64], bit: usize) -> usize {
-    let (word, shift) = (bit / 64, bit % 64);
-    let low = words[word] >> shift;
-    let high = if shift > 56 { words[word + 1] << (64 - shift) } else { 0 };
-    ((low | high) & 0xff) as usize
-}
-
-/// `max` without NaN handling: penalties are never NaN, and this compiles to one instruction.
-fn faster_max(a: f32, b: f32) -> f32 {
-    if a > b { a } else { b }
-}
-
-fn faster_min(a: f32, b: f32) -> f32 {
-    if a < b { a } else { b }
+/// Byte `index` of a bit row (bits 8 * index up to 8 * index + 7).
+fn seen_byte(words: &[u64], index: usize) -> usize {
+    (words[index / 8] >> (8 * (index % 8)) & 0xff) as usize
 }
 
 /// One bit per cell of the padded grid: which cells some agent sees this step.
@@ -171,7 +184,10 @@ impl SeenMask {
     fn new(columns: usize, rows: usize) -> Self {
         // One spare word per row lets windows and byte reads run past the last column.
         let words_per_row = columns.div_ceil(64) + 1;
-        Self { words_per_row, words: vec![0; words_per_row * rows] }
+        Self {
+            words_per_row,
+            words: vec![0; words_per_row * rows],
+        }
     }
 
     fn clear(&mut self) {
@@ -217,15 +233,19 @@ mod tests {
         assert_eq!(grid.at(Cell::new(0, 0)), 0.0);
         assert_eq!(grid.at(Cell::new(14, 0)), -2.0);
         assert_eq!(grid.at(Cell::new(5, 0)), OBSTACLE_CODE);
-        assert_eq!(grid.update(&vis, &[Cell::new(13, 0)]), -20.0, "(0,0), (1,0) start decaying");
+        assert_eq!(
+            grid.update(&vis, &[Cell::new(13, 0)]),
+            -20.0,
+            "(0,0), (1,0) start decaying"
+        );
         assert_eq!(grid.at(Cell::new(14, 0)), 0.0);
     }
 
     #[test]
-    fn byte_reads_cross_word_boundaries() {
-        let words = [0xffu64 << 60, 0b1010, 0];
-        assert_eq!(seen_byte(&words, 60), 0b1010_1111);
-        assert_eq!(seen_byte(&words, 64), 0b1010);
-        assert_eq!(seen_byte(&words, 0), 0);
+    fn bytes_are_read_in_bit_order_across_words() {
+        let words = [0xabu64 << 56 | 0x12, 0xcd];
+        assert_eq!(seen_byte(&words, 0), 0x12);
+        assert_eq!(seen_byte(&words, 7), 0xab);
+        assert_eq!(seen_byte(&words, 8), 0xcd);
     }
 }

@@ -51,12 +51,21 @@ pub fn parse_polygon_map(text: &str, source: &Path, name: Option<&str>) -> Resul
         Some(name) => match maps.get_key_value(name) {
             Some(found) => found,
             None => {
-                let kind = MapErrorKind::UnknownName { name: name.to_owned(), available };
+                let kind = MapErrorKind::UnknownName {
+                    name: name.to_owned(),
+                    available,
+                };
                 return Err(MapError::new(source, None, kind));
             }
         },
         None if maps.len() == 1 => maps.iter().next().expect("one map"),
-        None => return Err(MapError::new(source, None, MapErrorKind::AmbiguousName { available })),
+        None => {
+            return Err(MapError::new(
+                source,
+                None,
+                MapErrorKind::AmbiguousName { available },
+            ));
+        }
     };
     rasterise(name, spec, source)
 }
@@ -68,7 +77,11 @@ fn yaml_error_line(error: &serde_saphyr::Error) -> Option<usize> {
 fn rasterise(name: &str, spec: &PolygonMap, source: &Path) -> Result<Map, MapError> {
     let [width, height] = spec.size;
     if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
-        return Err(MapError::new(source, None, MapErrorKind::TooLarge { width, height }));
+        return Err(MapError::new(
+            source,
+            None,
+            MapErrorKind::TooLarge { width, height },
+        ));
     }
     for (i, polygon) in spec.polygons.iter().enumerate() {
         check_polygon(name, i, polygon, source)?;
@@ -89,9 +102,17 @@ fn rasterise(name: &str, spec: &PolygonMap, source: &Path) -> Result<Map, MapErr
     Map::from_obstacles(name, width, height, obstacle, source)
 }
 
-fn check_polygon(map: &str, index: usize, polygon: &Polygon, source: &Path) -> Result<(), MapError> {
+fn check_polygon(
+    map: &str,
+    index: usize,
+    polygon: &Polygon,
+    source: &Path,
+) -> Result<(), MapError> {
     let problem = if polygon.vertices.len() < 3 {
-        Some(format!("has {} vertices, needs at least 3", polygon.vertices.len()))
+        Some(format!(
+            "has {} vertices, needs at least 3",
+            polygon.vertices.len()
+        ))
     } else if polygon.vertices.iter().flatten().any(|v| !v.is_finite()) {
         Some("has a vertex that is not a finite number".to_owned())
     } else {
@@ -99,7 +120,11 @@ fn check_polygon(map: &str, index: usize, polygon: &Polygon, source: &Path) -> R
     };
     match problem {
         Some(problem) => {
-            let kind = MapErrorKind::BadPolygon { map: map.to_owned(), polygon: index, problem };
+            let kind = MapErrorKind::BadPolygon {
+                map: map.to_owned(),
+                polygon: index,
+                problem,
+            };
             Err(MapError::new(source, None, kind))
         }
         None => Ok(()),
@@ -153,6 +178,9 @@ mod tests {
     fn degenerate_polygon_is_an_error() {
         let text = SQUARE.replace("[[1, 1], [1, 2], [3, 2], [3, 1]]", "[[1, 1], [1, 2]]");
         let e = parse_polygon_map(&text, Path::new("m.yaml"), None).unwrap_err();
-        assert!(matches!(e.kind, MapErrorKind::BadPolygon { polygon: 0, .. }), "{e}");
+        assert!(
+            matches!(e.kind, MapErrorKind::BadPolygon { polygon: 0, .. }),
+            "{e}"
+        );
     }
 }

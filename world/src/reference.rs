@@ -7,7 +7,7 @@
 
 use crate::episode::Action;
 use crate::map::{Cell, Map};
-use crate::observation::{AGENT_CODE, ObservationConfig, OTHER_AGENT_CODE};
+use crate::observation::{AGENT_CODE, OTHER_AGENT_CODE, ObservationConfig};
 use crate::params::WorldParams;
 use crate::penalty::OBSTACLE_CODE;
 use crate::visibility::segment_clear;
@@ -24,7 +24,12 @@ impl ReferenceEpisode {
     /// Starts at `starts` (assumed distinct free cells) and applies step 0.
     pub fn new(map: Map, params: WorldParams, starts: &[Cell]) -> (Self, f64) {
         let penalty = vec![0.0; map.width() * map.height()];
-        let mut episode = Self { map, params, positions: starts.to_vec(), penalty };
+        let mut episode = Self {
+            map,
+            params,
+            positions: starts.to_vec(),
+            penalty,
+        };
         let reward = episode.update_penalty();
         (episode, reward)
     }
@@ -34,7 +39,10 @@ impl ReferenceEpisode {
             let (dx, dy) = actions[i].delta();
             let p = self.positions[i];
             let (x, y) = (p.x as i64 + dx, p.y as i64 + dy);
-            let taken = self.positions.iter().any(|q| q.x as i64 == x && q.y as i64 == y);
+            let taken = self
+                .positions
+                .iter()
+                .any(|q| q.x as i64 == x && q.y as i64 == y);
             if !self.map.is_obstacle(x, y) && !taken {
                 self.positions[i] = Cell::new(x as u16, y as u16);
             }
@@ -103,8 +111,15 @@ impl ReferenceEpisode {
         for r in 0..fov {
             for c in 0..fov {
                 let (x, y) = (at.x as i64 - half + c as i64, at.y as i64 - half + r as i64);
-                let agent_here = self.positions.iter().any(|p| p.x as i64 == x && p.y as i64 == y);
-                let code = if agent_here { AGENT_CODE } else { self.code(x, y) };
+                let agent_here = self
+                    .positions
+                    .iter()
+                    .any(|p| p.x as i64 == x && p.y as i64 == y);
+                let code = if agent_here {
+                    AGENT_CODE
+                } else {
+                    self.code(x, y)
+                };
                 out[r * side + c] = code * scale;
             }
         }

@@ -30,7 +30,9 @@ impl Seed {
 
     /// The child `index` of this node.
     pub fn child(self, index: u64) -> Self {
-        Self(splitmix64(self.0 ^ splitmix64(index.wrapping_add(0x5851_f42d_4c95_7f2d))))
+        Self(splitmix64(
+            self.0 ^ splitmix64(index.wrapping_add(0x5851_f42d_4c95_7f2d)),
+        ))
     }
 
     /// The child reached by following `path` from this node.

@@ -31,13 +31,21 @@ impl Visibility {
         let per_cell = fov * words_per_row;
         let mut bits = vec![0u64; map.width() * map.height() * per_cell];
         let obstacles = ObstacleCounts::new(map);
-        bits.par_chunks_mut(per_cell).enumerate().for_each(|(index, window)| {
-            let from = map.cell(index);
-            if map.is_free(from) {
-                fill_window(map, &obstacles, from, fov, words_per_row, window);
-            }
-        });
-        Self { width: map.width(), height: map.height(), fov, words_per_row, bits }
+        bits.par_chunks_mut(per_cell)
+            .enumerate()
+            .for_each(|(index, window)| {
+                let from = map.cell(index);
+                if map.is_free(from) {
+                    fill_window(map, &obstacles, from, fov, words_per_row, window);
+                }
+            });
+        Self {
+            width: map.width(),
+            height: map.height(),
+            fov,
+            words_per_row,
+            bits,
+        }
     }
 
     pub fn fov(&self) -> usize {
@@ -83,7 +91,10 @@ impl Visibility {
     }
 
     pub fn count(&self, from: Cell) -> usize {
-        self.window(from).iter().map(|w| w.count_ones() as usize).sum()
+        self.window(from)
+            .iter()
+            .map(|w| w.count_ones() as usize)
+            .sum()
     }
 
     /// Height of the map this was computed for.
@@ -218,9 +229,18 @@ mod tests {
         // A wall at x = 3 with a door at y = 2.
         let m = map("...#...\n...#...\n.......\n...#...\n...#...\n");
         assert!(sees(&m, (0, 2), (6, 2)));
-        assert!(sees(&m, (2, 1), (4, 3)), "diagonal through the door's centre");
-        assert!(sees(&m, (0, 0), (6, 4)), "crosses x = 3 between y = 2.17 and 2.83");
-        assert!(!sees(&m, (2, 0), (4, 4)), "too steep: crosses the wall at (3, 1)");
+        assert!(
+            sees(&m, (2, 1), (4, 3)),
+            "diagonal through the door's centre"
+        );
+        assert!(
+            sees(&m, (0, 0), (6, 4)),
+            "crosses x = 3 between y = 2.17 and 2.83"
+        );
+        assert!(
+            !sees(&m, (2, 0), (4, 4)),
+            "too steep: crosses the wall at (3, 1)"
+        );
         assert!(!sees(&m, (0, 4), (6, 4)));
     }
 
@@ -239,18 +259,36 @@ mod tests {
         let m = map("...\n#..\n.#.\n");
         assert!(!sees(&m, (0, 0), (1, 1)), "both side cells are obstacles");
         assert!(!sees(&m, (0, 0), (2, 2)));
-        assert!(sees(&m, (1, 2), (2, 1)), "its side cells (2,2) and (1,1) are free");
+        assert!(
+            sees(&m, (1, 2), (2, 1)),
+            "its side cells (2,2) and (1,1) are free"
+        );
     }
 
     #[test]
     fn a_shallow_line_crosses_exactly_its_cells() {
         // (0,0) -> (3,1) crosses (1,0), then the corner (2,1) between side cells (2,0) and (1,1),
         // then (2,1) and (3,1).
-        assert!(sees(&map("....\n..#.\n"), (0, 0), (3, 1)), "(2,0) alone is grazed");
-        assert!(sees(&map(".#..\n....\n"), (0, 0), (3, 1)), "(1,1) alone is grazed");
-        assert!(!sees(&map(".#..\n..#.\n"), (0, 0), (3, 1)), "both side cells");
-        assert!(!sees(&map("....\n.#..\n"), (0, 0), (3, 1)), "(1,0) is crossed");
-        assert!(!sees(&map("..#.\n....\n"), (0, 0), (3, 1)), "(2,1) is crossed");
+        assert!(
+            sees(&map("....\n..#.\n"), (0, 0), (3, 1)),
+            "(2,0) alone is grazed"
+        );
+        assert!(
+            sees(&map(".#..\n....\n"), (0, 0), (3, 1)),
+            "(1,1) alone is grazed"
+        );
+        assert!(
+            !sees(&map(".#..\n..#.\n"), (0, 0), (3, 1)),
+            "both side cells"
+        );
+        assert!(
+            !sees(&map("....\n.#..\n"), (0, 0), (3, 1)),
+            "(1,0) is crossed"
+        );
+        assert!(
+            !sees(&map("..#.\n....\n"), (0, 0), (3, 1)),
+            "(2,1) is crossed"
+        );
     }
 
     #[test]
@@ -259,9 +297,13 @@ mod tests {
         let vis = Visibility::compute(&m, 5);
         for &a in m.free_cells() {
             for &b in m.free_cells() {
-                let in_square = (a.x as i32 - b.x as i32).abs() <= 2
-                    && (a.y as i32 - b.y as i32).abs() <= 2;
-                assert_eq!(vis.sees(a, b), in_square && segment_clear(&m, a, b), "{a:?} {b:?}");
+                let in_square =
+                    (a.x as i32 - b.x as i32).abs() <= 2 && (a.y as i32 - b.y as i32).abs() <= 2;
+                assert_eq!(
+                    vis.sees(a, b),
+                    in_square && segment_clear(&m, a, b),
+                    "{a:?} {b:?}"
+                );
             }
             assert_eq!(vis.visible_cells(a).count(), vis.count(a));
             assert!(vis.visible_cells(a).all(|b| vis.sees(a, b)));

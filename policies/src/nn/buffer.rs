@@ -37,3 +37,31 @@ impl<T: Real> ReusableBuffer<T> {
             .expect("length equals rows * cols")
     }
 }
+
+/// The two gradient buffers of a backward pass through a stack of layers: the gradient of
+/// layer k's output lives in buffer k % 2, and layer k writes its input gradient (the output
+/// gradient of layer k - 1) into the other one.
+#[derive(Debug, Clone, Default)]
+pub struct AlternatingBuffers<T> {
+    buffers: [ReusableBuffer<T>; 2],
+}
+
+impl<T: Real> AlternatingBuffers<T> {
+    /// Where the gradient of layer `layer`'s output goes.
+    pub fn output_grad_mut(&mut self, layer: usize) -> &mut ReusableBuffer<T> {
+        &mut self.buffers[layer % 2]
+    }
+
+    /// Layer `layer`'s output gradient, and the buffer for its input gradient.
+    pub fn output_and_input_grads(
+        &mut self,
+        layer: usize,
+    ) -> (&ReusableBuffer<T>, &mut ReusableBuffer<T>) {
+        let [even, odd] = &mut self.buffers;
+        if layer.is_multiple_of(2) {
+            (even, odd)
+        } else {
+            (odd, even)
+        }
+    }
+}

@@ -5,7 +5,7 @@ use ndarray::ArrayView2;
 use rand::Rng;
 
 use super::activation::RELU;
-use super::buffer::ReusableBuffer;
+use super::buffer::{AlternatingBuffers, ReusableBuffer};
 use super::conv::{Conv2d, ConvSpec, ImageShape};
 use super::error::NnError;
 use super::init::Init;
@@ -40,13 +40,14 @@ pub struct CnnEncoder {
     convs: Vec<Conv2d>,
 }
 
-/// Patch matrices and outputs of every convolution, and two gradient buffers used in turn.
+/// Patch matrices and outputs of every convolution, and the gradient buffers of the backward
+/// pass.
 #[derive(Debug, Clone, Default)]
 pub struct CnnWorkspace<T> {
     batch: usize,
     patches: Vec<ReusableBuffer<T>>,
     outputs: Vec<ReusableBuffer<T>>,
-    grads: [ReusableBuffer<T>; 2],
+    grads: AlternatingBuffers<T>,
 }
 
 impl CnnEncoder {
@@ -132,27 +133,23 @@ impl CnnEncoder {
         grads: &mut [T],
         ws: &mut CnnWorkspace<T>,
         d_features: ArrayView2<T>,
-        dx: Option<&mut [T]>,
+        mut dx: Option<&mut [T]>,
     ) {
         let batch = ws.batch;
         let last = self.convs.len() - 1;
-        let [even, odd] = &mut ws.grads;
-        let top = if last % 2 == 0 { &mut *even } else { &mut *odd };
-        let d_top = top.slice_mut(batch * self.features());
+        let d_top = ws
+            .grads
+            .output_grad_mut(last)
+            .slice_mut(batch * self.features());
         d_top.copy_from_slice(
             d_features
                 .as_slice()
                 .expect("feature gradients are contiguous"),
         );
         RELU.backward_in_place(ws.outputs[last].slice(d_top.len()), d_top);
-        let mut dx = dx;
         for (k, conv) in self.convs.iter().enumerate().rev() {
-            // The gradient of conv k's output (before its ReLU) is in buffer k % 2.
-            let (current, previous) = if k % 2 == 0 {
-                (&*even, &mut *odd)
-            } else {
-                (&*odd, &mut *even)
-            };
+            // `current`: the gradient of conv k's output, already through its ReLU.
+            let (current, previous) = ws.grads.output_and_input_grads(k);
             let out = conv.output_shape();
             let d_output = current.matrix(batch * out.height * out.width, out.channels);
             let patches = &mut ws.patches[k];

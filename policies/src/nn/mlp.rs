@@ -5,7 +5,7 @@ use ndarray::{ArrayView2, ArrayViewMut2};
 use rand::Rng;
 
 use super::activation::RELU;
-use super::buffer::ReusableBuffer;
+use super::buffer::{AlternatingBuffers, ReusableBuffer};
 use super::error::NnError;
 use super::init::Init;
 use super::linear::Linear;
@@ -18,13 +18,13 @@ pub struct Mlp {
     layers: Vec<Linear>,
 }
 
-/// Each layer's output (after its ReLU) from the last forward pass, and two gradient buffers
-/// used in turn during backward.
+/// Each layer's output (after its ReLU) from the last forward pass, and the gradient buffers
+/// of the backward pass.
 #[derive(Debug, Clone, Default)]
 pub struct MlpWorkspace<T> {
     batch: usize,
     outputs: Vec<ReusableBuffer<T>>,
-    grads: [ReusableBuffer<T>; 2],
+    grads: AlternatingBuffers<T>,
 }
 
 impl Mlp {
@@ -104,18 +104,11 @@ impl Mlp {
         ws: &mut MlpWorkspace<T>,
         x: ArrayView2<T>,
         dy: ArrayView2<T>,
-        dx: Option<ArrayViewMut2<T>>,
+        mut dx: Option<ArrayViewMut2<T>>,
     ) {
         let batch = ws.batch;
-        let [even, odd] = &mut ws.grads;
-        let mut dx = dx;
         for (k, layer) in self.layers.iter().enumerate().rev() {
-            // The gradient of layer k's output is in buffer k % 2 (or is `dy`).
-            let (current, previous) = if k % 2 == 0 {
-                (&*even, &mut *odd)
-            } else {
-                (&*odd, &mut *even)
-            };
+            let (current, previous) = ws.grads.output_and_input_grads(k);
             let d_output = if k + 1 == self.layers.len() {
                 dy.view()
             } else {

@@ -385,7 +385,8 @@ impl<T: Real> ActorCritic<T> {
         let critic_features = self.critic_cnn.output(&ws.critic_cnn);
         let d_values =
             ArrayView2::from_shape((batch, 1), output_grads.values).expect("one value per sample");
-        let d_features = Some(ws.d_features.matrix_mut(batch, f));
+        let critic_f = self.critic_cnn.features();
+        let d_features = Some(ws.d_features.matrix_mut(batch, critic_f));
         self.critic_mlp.backward(
             params,
             grads,
@@ -394,7 +395,7 @@ impl<T: Real> ActorCritic<T> {
             d_values,
             d_features,
         );
-        let d_features = ws.d_features.matrix(batch, f);
+        let d_features = ws.d_features.matrix(batch, critic_f);
         self.critic_cnn
             .backward(params, grads, &mut ws.critic_cnn, d_features, None);
     }

@@ -1,0 +1,59 @@
+//! Command-line parsing; each subcommand lives in its own module.
+
+mod bench;
+mod run;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "harness",
+    version,
+    about = "Visibility-based persistent monitoring: runs, sweeps and reports"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run one episode and print its cumulative penalty.
+    Run(run::RunArgs),
+    /// Measure speed against in-process baselines and print the ratios.
+    Bench(bench::BenchArgs),
+}
+
+impl Cli {
+    pub fn run(self) -> anyhow::Result<()> {
+        match self.command {
+            Command::Run(args) => run::run(args),
+            Command::Bench(args) => bench::run(args),
+        }
+    }
+}
+
+/// World parameters as given on a command line, checked into `WorldParams` once.
+#[derive(clap::Args, Clone, Debug)]
+pub struct WorldArgs {
+    /// Map file: text grid, or polygon YAML as FILE or FILE#NAME.
+    #[arg(long)]
+    pub map: String,
+    /// Side L of the square field of view (odd).
+    #[arg(long, default_value_t = world::params::PAPER_FOV)]
+    pub fov: usize,
+    /// Decay D of an unseen cell's penalty per step.
+    #[arg(long, default_value_t = world::params::PAPER_DECAY)]
+    pub decay: f32,
+    /// Floor Rmax of the penalty.
+    #[arg(long, default_value_t = world::params::PAPER_RMAX)]
+    pub rmax: f32,
+}
+
+impl WorldArgs {
+    pub fn load(&self) -> anyhow::Result<std::sync::Arc<world::World>> {
+        let map = world::Map::load(&self.map)?;
+        let params = world::WorldParams::new(self.fov, self.decay, self.rmax)?;
+        Ok(world::World::new(map, params))
+    }
+}

@@ -1,0 +1,143 @@
+//! Replaying recorded actions instead of a policy, so that any episode can be re-run here or
+//! compared step for step with another implementation.
+
+use std::path::{Path, PathBuf};
+
+use policies::Policy;
+use world::{Action, Cell, Episode, Seed};
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{file}:{line}: {problem}")]
+pub struct ActionsError {
+    pub file: PathBuf,
+    pub line: usize,
+    pub problem: String,
+}
+
+/// Reads an actions CSV: one row per step, one column per agent, each an action 0..=4. Blank
+/// lines and a first line that starts with a letter (a header) are skipped.
+pub fn parse_actions(
+    text: &str,
+    agents: usize,
+    file: &Path,
+) -> Result<Vec<Vec<Action>>, ActionsError> {
+    let error = |line: usize, problem: String| ActionsError {
+        file: file.to_owned(),
+        line,
+        problem,
+    };
+    let mut rows = Vec::new();
+    for (index, line) in text.lines().enumerate() {
+        let line_no = index + 1;
+        let line = line.trim();
+        let is_header = rows.is_empty() && line.starts_with(|c: char| c.is_ascii_alphabetic());
+        if line.is_empty() || is_header {
+            continue;
+        }
+        let row = line
+            .split(',')
+            .enumerate()
+            .map(|(column, field)| {
+                let field = field.trim();
+                field
+                    .parse::<usize>()
+                    .ok()
+                    .and_then(Action::from_index)
+                    .ok_or_else(|| {
+                        error(
+                            line_no,
+                            format!("column {}: {field:?} is not an action 0..=4", column + 1),
+                        )
+                    })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        if row.len() != agents {
+            return Err(error(
+                line_no,
+                format!("{} actions for {agents} agents", row.len()),
+            ));
+        }
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+/// Parses start cells written "x,y;x,y;...".
+pub fn parse_starts(text: &str) -> Result<Vec<Cell>, String> {
+    text.split(';')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|pair| {
+            let parsed = pair
+                .split_once(',')
+                .and_then(|(x, y)| Some(Cell::new(x.trim().parse().ok()?, y.trim().parse().ok()?)));
+            parsed.ok_or_else(|| format!("{pair:?} is not a cell \"x,y\""))
+        })
+        .collect()
+}
+
+/// A policy that plays back recorded rows; after the last row every agent stays.
+pub struct ReplayPolicy {
+    rows: Vec<Vec<Action>>,
+    next: usize,
+}
+
+impl ReplayPolicy {
+    pub fn new(rows: Vec<Vec<Action>>) -> Self {
+        Self { rows, next: 0 }
+    }
+}
+
+impl Policy for ReplayPolicy {
+    fn name(&self) -> &str {
+        "replay"
+    }
+
+    fn reset(&mut self, _episode: &Episode, _seed: Seed) {
+        self.next = 0;
+    }
+
+    fn act(&mut self, _episode: &Episode, actions: &mut [Action]) {
+        match self.rows.get(self.next) {
+            Some(row) => actions.copy_from_slice(row),
+            None => actions.fill(Action::Stay),
+        }
+        self.next += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_rows_and_names_bad_lines() {
+        let file = Path::new("a.csv");
+        let rows = parse_actions("a0,a1\n0,4\n\n3,2\n", 2, file).unwrap();
+        assert_eq!(
+            rows,
+            vec![
+                vec![Action::Stay, Action::Right],
+                vec![Action::Down, Action::Left]
+            ]
+        );
+        let e = parse_actions("0,4\n1,5\n", 2, file).unwrap_err();
+        assert_eq!(
+            (e.line, e.to_string().contains("a.csv:2: column 2")),
+            (2, true),
+            "{e}"
+        );
+        let e = parse_actions("0,4,1\n", 2, file).unwrap_err();
+        assert!(e.problem.contains("3 actions for 2 agents"), "{e}");
+    }
+
+    #[test]
+    fn reads_starts() {
+        assert_eq!(
+            parse_starts("1,2; 3,4").unwrap(),
+            vec![Cell::new(1, 2), Cell::new(3, 4)]
+        );
+        assert!(parse_starts("1,2;3").is_err());
+        assert!(parse_starts("1,-2").is_err());
+    }
+}

@@ -1,0 +1,60 @@
+//! Runs one episode of a policy in a world: the unit every command and sweep is built from.
+
+use std::sync::Arc;
+
+use policies::Policy;
+use world::{Action, Cell, Episode, Seed, StartError, World};
+
+/// The paper's metric for one episode.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EpisodeOutcome {
+    /// Sum over steps 1..=T of |reward|; step 0 (the start) is not counted.
+    pub cumulative_penalty: f64,
+    pub steps: usize,
+}
+
+/// Where the agents start: given cells, else the policy's choice, else drawn from the seed.
+pub fn reset_episode(
+    episode: &mut Episode,
+    policy: &mut dyn Policy,
+    seed: Seed,
+    starts: Option<&[Cell]>,
+) -> Result<(), StartError> {
+    let chosen = match starts {
+        Some(starts) => Some(starts.to_vec()),
+        None => policy.starts(episode.world(), episode.agents()),
+    };
+    match chosen {
+        Some(cells) => episode.reset_at(&cells).map(drop)?,
+        None => drop(episode.reset(seed)),
+    }
+    policy.reset(episode, seed);
+    Ok(())
+}
+
+/// Runs `steps` steps; `on_step` sees the episode after each step, with the actions taken
+/// (`None` for step 0, the start).
+pub fn run_episode(
+    world: &Arc<World>,
+    agents: usize,
+    policy: &mut dyn Policy,
+    seed: Seed,
+    starts: Option<&[Cell]>,
+    steps: usize,
+    on_step: &mut dyn FnMut(&Episode, Option<&[Action]>),
+) -> Result<EpisodeOutcome, StartError> {
+    let mut episode = Episode::new(world.clone(), agents)?;
+    reset_episode(&mut episode, policy, seed, starts)?;
+    on_step(&episode, None);
+    let mut actions = vec![Action::Stay; agents];
+    let mut cumulative_penalty = 0.0;
+    for _ in 0..steps {
+        policy.act(&episode, &mut actions);
+        cumulative_penalty -= episode.step(&actions);
+        on_step(&episode, Some(&actions));
+    }
+    Ok(EpisodeOutcome {
+        cumulative_penalty,
+        steps,
+    })
+}

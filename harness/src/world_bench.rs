@@ -1,0 +1,100 @@
+//! World speed, measured against baselines run in the same process.
+//!
+//! The in-process baseline is the reference simulator, which recomputes visibility every step
+//! as the authors' Python environment does. The Python figure itself (about 1,770 steps/s on
+//! one core of this machine class, measured once outside this project) is quoted for scale.
+
+use std::hint::black_box;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use policies::{Policy, RandomPolicy};
+use world::reference::ReferenceEpisode;
+use world::{Action, Episode, ObservationConfig, Observer, Seed, World};
+
+/// Steps per second of the authors' Python environment, as quoted in the project's brief.
+pub const PYTHON_STEPS_PER_SECOND: f64 = 1_770.0;
+
+pub struct Measurement {
+    pub name: &'static str,
+    pub steps_per_second: f64,
+}
+
+/// Runs each variant for about `budget` and returns steps per second, the reference first.
+pub fn measure(world: &Arc<World>, agents: usize, budget: Duration) -> Vec<Measurement> {
+    vec![
+        Measurement {
+            name: "reference (per-step ray casts)",
+            steps_per_second: reference(world, agents, budget),
+        },
+        Measurement {
+            name: "episode, no observations",
+            steps_per_second: fast(world, agents, budget, None),
+        },
+        Measurement {
+            name: "episode + local and mini-map for every agent",
+            steps_per_second: fast(world, agents, budget, Some(ObservationConfig::default())),
+        },
+    ]
+}
+
+/// Steps in batches until the budget is spent; episodes restart every `EPISODE` steps.
+const EPISODE: usize = 1000;
+
+fn fast(
+    world: &Arc<World>,
+    agents: usize,
+    budget: Duration,
+    obs: Option<ObservationConfig>,
+) -> f64 {
+    let mut episode = Episode::new(world.clone(), agents).expect("benchmark map fits its agents");
+    let mut observer = obs.map(|config| Observer::new(world, config));
+    let mut buffer = vec![0.0f32; observer.as_ref().map_or(0, |o| o.per_agent() * agents)];
+    let mut policy = RandomPolicy::new();
+    let mut actions = vec![Action::Stay; agents];
+    timed(budget, |round| {
+        let seed = Seed::new(round as u64);
+        episode.reset(seed);
+        policy.reset(&episode, seed);
+        for _ in 0..EPISODE {
+            policy.act(&episode, &mut actions);
+            black_box(episode.step(&actions));
+            if let Some(observer) = observer.as_mut() {
+                observer.write(&episode, &mut buffer);
+                black_box(&buffer);
+            }
+        }
+        EPISODE
+    })
+}
+
+fn reference(world: &Arc<World>, agents: usize, budget: Duration) -> f64 {
+    let mut episode = Episode::new(world.clone(), agents).expect("benchmark map fits its agents");
+    let mut policy = RandomPolicy::new();
+    let mut actions = vec![Action::Stay; agents];
+    timed(budget, |round| {
+        let seed = Seed::new(round as u64);
+        episode.reset(seed);
+        policy.reset(&episode, seed);
+        let params = *world.params();
+        // The random policy reads no state, so the fast episode only lends it the agent count.
+        let (mut slow, _) = ReferenceEpisode::new(world.map().clone(), params, episode.positions());
+        for _ in 0..EPISODE / 10 {
+            policy.act(&episode, &mut actions);
+            black_box(slow.step(&actions));
+        }
+        EPISODE / 10
+    })
+}
+
+/// Calls `round` until `budget` has passed (at least once); returns steps per second.
+fn timed(budget: Duration, mut round: impl FnMut(usize) -> usize) -> f64 {
+    let start = Instant::now();
+    let mut steps = 0;
+    let mut rounds = 0;
+    while rounds == 0 || start.elapsed() < budget {
+        steps += round(rounds);
+        rounds += 1;
+    }
+    steps as f64 / start.elapsed().as_secs_f64()
+}

@@ -68,10 +68,11 @@ pub struct ConvSpec {
 pub struct Conv2d {
     input: ImageShape,
     output: ImageShape,
-    /// For each element of one sample's patch matrix (`[positions, in * kh * kw]`), the input
-    /// offset it copies, or `None` where it falls in the zero padding. Computed once so that
-    /// im2col is a plain gather and its adjoint a plain scatter.
-    patch_sources: Vec<Option<u32>>,
+    /// One sample's patch matrix (`[positions, in * kh * kw]`, row-major) as consecutive runs
+    /// copied from consecutive input elements, or zero where they fall in the padding.
+    /// Computed once so that im2col is a series of slice copies and its adjoint of slice sums.
+    patch_runs: Vec<PatchRun>,
+    patch_len_per_sample: usize,
     dense: Linear,
 }
 
@@ -100,7 +101,8 @@ impl Conv2d {
         Ok(Conv2d {
             input,
             output,
-            patch_sources: patch_sources(input, output, spec),
+            patch_runs: patch_runs(input, output, spec),
+            patch_len_per_sample: output.height * output.width * patch_len,
             dense,
         })
     }
@@ -131,15 +133,21 @@ impl Conv2d {
         patches: &mut ReusableBuffer<T>,
         y: ArrayViewMut2<T>,
     ) {
-        let per_sample = self.patch_sources.len();
+        let per_sample = self.patch_len_per_sample;
         patches
             .slice_mut(batch * per_sample)
             .par_chunks_mut(per_sample)
             .zip(x.par_chunks(self.input.len()))
             .with_min_len(SAMPLES_PER_TASK)
             .for_each(|(sample_patches, sample)| {
-                for (p, source) in sample_patches.iter_mut().zip(&self.patch_sources) {
-                    *p = source.map_or(T::zero(), |i| sample[i as usize]);
+                let mut rest = sample_patches;
+                for run in &self.patch_runs {
+                    let (target, tail) = rest.split_at_mut(run.len);
+                    match run.source {
+                        Some(start) => target.copy_from_slice(&sample[start..start + run.len]),
+                        None => target.fill(T::zero()),
+                    }
+                    rest = tail;
                 }
             });
         let rows = batch * self.positions();
@@ -165,16 +173,20 @@ impl Conv2d {
         let Some(dx) = dx else { return };
         self.dense
             .input_grad(params, dy, patches.matrix_mut(rows, patch_len));
-        let per_sample = self.patch_sources.len();
+        let per_sample = self.patch_len_per_sample;
         dx.par_chunks_mut(self.input.len())
             .zip(patches.slice(rows * patch_len).par_chunks(per_sample))
             .with_min_len(SAMPLES_PER_TASK)
             .for_each(|(sample_dx, sample_patches)| {
                 sample_dx.fill(T::zero());
-                for (&g, source) in sample_patches.iter().zip(&self.patch_sources) {
-                    if let Some(i) = source {
-                        sample_dx[*i as usize] += g;
+                let mut rest = sample_patches;
+                for run in &self.patch_runs {
+                    let (grads, tail) = rest.split_at(run.len);
+                    if let Some(start) = run.source {
+                        let target = &mut sample_dx[start..start + run.len];
+                        target.iter_mut().zip(grads).for_each(|(d, &g)| *d += g);
                     }
+                    rest = tail;
                 }
             });
     }
@@ -192,9 +204,6 @@ fn output_shape(name: &str, input: ImageShape, spec: ConvSpec) -> Result<ImageSh
             "sizes, kernel and stride must be positive",
         ));
     }
-    if u32::try_from(input.len()).is_err() {
-        return Err(NnError::shape(name, "input image too large"));
-    }
     match (side(input.height), side(input.width)) {
         (Some(height), Some(width)) => Ok(ImageShape {
             channels: spec.out_channels,
@@ -206,15 +215,24 @@ fn output_shape(name: &str, input: ImageShape, spec: ConvSpec) -> Result<ImageSh
     }
 }
 
-/// Patch matrix columns are ordered (channel, ky, kx) to match the weight layout.
-fn patch_sources(input: ImageShape, output: ImageShape, spec: ConvSpec) -> Vec<Option<u32>> {
+/// A stretch of a patch matrix: `len` elements copied from the input starting at `source`, or
+/// zeros.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct PatchRun {
+    source: Option<usize>,
+    len: usize,
+}
+
+/// Patch matrix columns are ordered (channel, ky, kx) to match the weight layout; elements are
+/// merged into a run while both they and their sources are consecutive.
+fn patch_runs(input: ImageShape, output: ImageShape, spec: ConvSpec) -> Vec<PatchRun> {
     let k = spec.kernel;
-    let mut sources = Vec::with_capacity(output.height * output.width * input.channels * k * k);
     let inside = |position: usize, tap: usize, size: usize| {
         (position * spec.stride + tap)
             .checked_sub(spec.padding)
             .filter(|&i| i < size)
     };
+    let mut runs: Vec<PatchRun> = Vec::new();
     for oy in 0..output.height {
         for ox in 0..output.width {
             for c in 0..input.channels {
@@ -222,14 +240,29 @@ fn patch_sources(input: ImageShape, output: ImageShape, spec: ConvSpec) -> Vec<O
                     for kx in 0..k {
                         let source = inside(oy, ky, input.height)
                             .zip(inside(ox, kx, input.width))
-                            .map(|(y, x)| input.offset(c, y, x) as u32);
-                        sources.push(source);
+                            .map(|(y, x)| input.offset(c, y, x));
+                        extend_runs(&mut runs, source);
                     }
                 }
             }
         }
     }
-    sources
+    runs
+}
+
+fn extend_runs(runs: &mut Vec<PatchRun>, source: Option<usize>) {
+    if let Some(last) = runs.last_mut() {
+        let continues = match (last.source, source) {
+            (Some(start), Some(next)) => start + last.len == next,
+            (None, None) => true,
+            _ => false,
+        };
+        if continues {
+            last.len += 1;
+            return;
+        }
+    }
+    runs.push(PatchRun { source, len: 1 });
 }
 
 #[cfg(test)]

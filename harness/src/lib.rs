@@ -1,6 +1,7 @@
 //! The research harness: runs episodes of any policy in any world, reproducibly.
 
 pub mod atomic_file;
+pub mod cli;
 pub mod replay;
 pub mod runner;
 pub mod trace;

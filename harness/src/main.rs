@@ -1,9 +1,5 @@
 //! `harness`: the command line of the research harness.
 
-mod cli;
-
-use clap::Parser;
-
 fn main() -> anyhow::Result<()> {
-    cli::Cli::parse().run()
+    harness::cli::main()
 }

@@ -41,9 +41,12 @@ impl FromStr for Baseline {
     type Err = UnknownBaseline;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL.into_iter().find(|b| b.name() == s).ok_or_else(|| UnknownBaseline {
-            given: s.to_owned(),
-            known: Self::ALL.map(Baseline::name).join(", "),
-        })
+        Self::ALL
+            .into_iter()
+            .find(|b| b.name() == s)
+            .ok_or_else(|| UnknownBaseline {
+                given: s.to_owned(),
+                known: Self::ALL.map(Baseline::name).join(", "),
+            })
     }
 }

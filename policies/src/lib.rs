@@ -1,10 +1,10 @@
 //! Policies.
 pub mod baseline;
 pub mod cover;
-pub mod tour;
 pub mod nn;
 pub mod policy;
 pub mod random;
+pub mod tour;
 
 pub use baseline::Baseline;
 pub use policy::Policy;

@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use harness::world_bench::{PYTHON_STEPS_PER_SECOND, measure};
+use crate::world_bench::{PYTHON_STEPS_PER_SECOND, measure};
 
 use super::WorldArgs;
 

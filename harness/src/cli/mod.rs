@@ -24,6 +24,11 @@ enum Command {
     Bench(bench::BenchArgs),
 }
 
+/// Parses the process's arguments and runs the command.
+pub fn main() -> anyhow::Result<()> {
+    Cli::parse().run()
+}
+
 impl Cli {
     pub fn run(self) -> anyhow::Result<()> {
         match self.command {

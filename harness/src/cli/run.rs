@@ -2,11 +2,11 @@
 
 use std::path::PathBuf;
 
+use crate::atomic_file::write_atomic;
+use crate::replay::{ReplayPolicy, parse_actions, parse_starts};
+use crate::runner::run_episode;
+use crate::trace::Trace;
 use anyhow::Context;
-use harness::atomic_file::write_atomic;
-use harness::replay::{ReplayPolicy, parse_actions, parse_starts};
-use harness::runner::run_episode;
-use harness::trace::Trace;
 use policies::{Baseline, Policy};
 use world::Seed;
 

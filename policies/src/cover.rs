@@ -261,7 +261,6 @@ mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64Mcg;
-    use std::time::Instant;
 
     fn random_sets(universe: usize, candidates: usize, density: f64, seed: u64) -> CoverageSets {
         let mut rng = Pcg64Mcg::seed_from_u64(seed);
@@ -452,41 +451,6 @@ mod tests {
                 );
                 previous = covered;
             }
-        }
-    }
-
-    #[test]
-    #[ignore = "timing; run with --release --nocapture"]
-    fn large_instances_solve_quickly() {
-        // Every cell of a 50 × 50 grid is a candidate seeing the cells within Chebyshev radius 4,
-        // roughly what a viewpoint sees in an open room.
-        let side = 50usize;
-        let lists: Vec<Vec<usize>> = (0..side * side)
-            .map(|cell| {
-                let (row, column) = (cell / side, cell % side);
-                (0..side * side)
-                    .filter(|other| {
-                        (other / side).abs_diff(row) <= 4 && (other % side).abs_diff(column) <= 4
-                    })
-                    .collect()
-            })
-            .collect();
-        let grid = CoverageSets::from_index_lists(side * side, &lists).unwrap();
-        for (name, sets) in [
-            ("grid", grid),
-            ("random 5 %", random_sets(2500, 2500, 0.05, 1)),
-        ] {
-            let started = Instant::now();
-            let cover = greedy_set_cover(&sets);
-            let cover_time = started.elapsed();
-            let started = Instant::now();
-            let chosen = greedy_max_coverage(&sets, 20);
-            println!(
-                "{name}: cover of {} in {cover_time:?}; 20 best cover {} in {:?}",
-                cover.chosen.len(),
-                sets.covered_count(&chosen),
-                started.elapsed()
-            );
         }
     }
 }

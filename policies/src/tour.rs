@@ -438,7 +438,6 @@ fn relative_gap(length: u64, optimum: u64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::time::Instant;
 
     fn random_instance(points: usize, metric: PlaneMetric, seed: u64) -> DistanceMatrix {
         let family = RandomPlaneInstances {
@@ -624,21 +623,6 @@ mod tests {
             let gap = heuristic_gap(&family).unwrap();
             println!("{metric:?}: {gap:?}");
             assert!(gap.mean_gap < 0.004, "{metric:?}: {gap:?}");
-        }
-    }
-
-    #[test]
-    #[ignore = "timing; run with --release --nocapture"]
-    fn two_hundred_points_solve_quickly() {
-        for metric in [PlaneMetric::Manhattan, PlaneMetric::RoundedEuclidean] {
-            let distances = random_instance(200, metric, 3);
-            let started = Instant::now();
-            let tour = solve(&distances);
-            println!(
-                "{metric:?}: 200 points, length {} in {:?}",
-                tour.length(),
-                started.elapsed()
-            );
         }
     }
 }

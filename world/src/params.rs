@@ -23,7 +23,7 @@ pub struct WorldParams {
 
 impl WorldParams {
     pub fn new(fov: usize, decay: f32, rmax: f32) -> Result<Self, ParamError> {
-        if fov % 2 == 0 || fov > MAX_FOV {
+        if fov.is_multiple_of(2) || fov > MAX_FOV {
             return Err(ParamError::Fov(fov));
         }
         if !decay.is_finite() || decay < 0.0 {

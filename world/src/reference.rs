@@ -35,8 +35,8 @@ impl ReferenceEpisode {
     }
 
     pub fn step(&mut self, actions: &[Action]) -> f64 {
-        for i in 0..self.positions.len() {
-            let (dx, dy) = actions[i].delta();
+        for (i, action) in actions.iter().enumerate() {
+            let (dx, dy) = action.delta();
             let p = self.positions[i];
             let (x, y) = (p.x as i64 + dx, p.y as i64 + dy);
             let taken = self

@@ -623,41 +623,4 @@ mod tests {
                 .all(|(a, b)| a.to_bits() == b.to_bits())
         );
     }
-
-    /// Forward + backward time of the paper's models on a PPO-sized batch; run with
-    /// `cargo test --release -p policies timing -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn timing_of_a_ppo_sized_batch() {
-        let mut rng = Pcg64Mcg::seed_from_u64(90);
-        let (observations, graph, grads) = paper_batch(1000, 4, &mut rng);
-        for architecture in [
-            Architecture::MaGPpo { heads: PAPER_HEADS },
-            Architecture::MaPpo,
-        ] {
-            let config = ModelConfig::paper(architecture, 2);
-            let mut model = ActorCritic::<f32>::new(&config, &mut rng).unwrap();
-            let mut ws = ModelWorkspace::default();
-            forward_backward(&mut model, &mut ws, &observations, &graph, &grads);
-            let repeats = 5;
-            let start = std::time::Instant::now();
-            for _ in 0..repeats {
-                forward_backward(&mut model, &mut ws, &observations, &graph, &grads);
-            }
-            let seconds = start.elapsed().as_secs_f64() / repeats as f64;
-            let flops = 3.0 * graph.agents() as f64 * model.forward_flops_per_sample(3) as f64;
-            let start = std::time::Instant::now();
-            for _ in 0..repeats {
-                model.forward_policy(&mut ws, &observations, &graph);
-            }
-            let policy_seconds = start.elapsed().as_secs_f64() / repeats as f64;
-            println!(
-                "{architecture:?}: forward+backward of {} samples {:.1} ms ({:.1} GFLOP/s); policy forward {:.1} ms",
-                graph.agents(),
-                seconds * 1e3,
-                flops / seconds / 1e9,
-                policy_seconds * 1e3
-            );
-        }
-    }
 }

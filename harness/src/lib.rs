@@ -2,6 +2,7 @@
 
 pub mod atomic_file;
 pub mod cli;
+pub mod cpu_clock;
 pub mod replay;
 pub mod runner;
 pub mod trace;

@@ -6,9 +6,11 @@
 
 use std::hint::black_box;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use policies::{Policy, RandomPolicy};
+
+use crate::cpu_clock::thread_cpu_time;
 use world::reference::ReferenceEpisode;
 use world::{Action, Episode, ObservationConfig, Observer, Seed, World};
 
@@ -20,7 +22,8 @@ pub struct Measurement {
     pub steps_per_second: f64,
 }
 
-/// Runs each variant for about `budget` and returns steps per second, the reference first.
+/// Runs each variant for about `budget` of CPU time and returns steps per CPU-second of the
+/// benchmark thread, the reference first.
 pub fn measure(world: &Arc<World>, agents: usize, budget: Duration) -> Vec<Measurement> {
     vec![
         Measurement {
@@ -87,14 +90,15 @@ fn reference(world: &Arc<World>, agents: usize, budget: Duration) -> f64 {
     })
 }
 
-/// Calls `round` until `budget` has passed (at least once); returns steps per second.
+/// Calls `round` until `budget` of this thread's CPU time has passed (at least once); returns
+/// steps per CPU-second.
 fn timed(budget: Duration, mut round: impl FnMut(usize) -> usize) -> f64 {
-    let start = Instant::now();
+    let start = thread_cpu_time();
     let mut steps = 0;
     let mut rounds = 0;
-    while rounds == 0 || start.elapsed() < budget {
+    while rounds == 0 || thread_cpu_time() - start < budget {
         steps += round(rounds);
         rounds += 1;
     }
-    steps as f64 / start.elapsed().as_secs_f64()
+    steps as f64 / (thread_cpu_time() - start).as_secs_f64()
 }

@@ -27,7 +27,9 @@ impl Policy for RandomPolicy {
 
     fn reset(&mut self, episode: &Episode, seed: Seed) {
         let policy = seed.child(purpose::POLICY);
-        self.streams = (0..episode.agents() as u64).map(|agent| policy.child(agent).rng()).collect();
+        self.streams = (0..episode.agents() as u64)
+            .map(|agent| policy.child(agent).rng())
+            .collect();
     }
 
     fn act(&mut self, _episode: &Episode, actions: &mut [Action]) {
@@ -63,11 +65,13 @@ mod tests {
                 .collect::<Vec<_>>()
         };
         let (two, three) = (draw(2), draw(3));
-        assert_eq!(two, three, "agent 0's stream does not depend on the agent count");
+        assert_eq!(
+            two, three,
+            "agent 0's stream does not depend on the agent count"
+        );
         for action in Action::ALL {
             let share = two.iter().filter(|&&a| a == action).count() as f64 / 500.0;
             assert!((share - 0.2).abs() < 0.06, "{action:?}: {share}");
         }
     }
-
 }

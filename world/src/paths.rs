@@ -53,7 +53,7 @@ impl BreadthFirst {
 
     /// Reaches every free cell connected to `source`.
     pub fn explore(&mut self, map: &Map, source: Cell) {
-        self.search(map, source, |_, _| false);
+        self.search(map, source, &[], |_, _| false);
     }
 
     /// Searches outward from `source` until the nearest goals are known and returns the one
@@ -63,10 +63,22 @@ impl BreadthFirst {
         &mut self,
         map: &Map,
         source: Cell,
+        rank: impl FnMut(Cell) -> Option<R>,
+    ) -> Option<Cell> {
+        self.nearest_avoiding(map, source, &[], rank)
+    }
+
+    /// [`nearest`](Self::nearest) on paths that do not pass through `avoid` (say, cells other
+    /// agents stand on); the source may be one of them.
+    pub fn nearest_avoiding<R: Ord>(
+        &mut self,
+        map: &Map,
+        source: Cell,
+        avoid: &[Cell],
         mut rank: impl FnMut(Cell) -> Option<R>,
     ) -> Option<Cell> {
         let mut best: Option<(u32, R, Cell)> = None;
-        self.search(map, source, |cell, distance| {
+        self.search(map, source, avoid, |cell, distance| {
             if best
                 .as_ref()
                 .is_some_and(|&(nearest, ..)| distance > nearest)
@@ -115,7 +127,13 @@ impl BreadthFirst {
     /// Visits reached cells in order of distance; `stop(cell, distance)` returning true ends
     /// the search before that cell's neighbours are reached. Distances of every cell reached
     /// so far stay valid: in breadth-first order a cell's first distance is its shortest.
-    fn search(&mut self, map: &Map, source: Cell, mut stop: impl FnMut(Cell, u32) -> bool) {
+    fn search(
+        &mut self,
+        map: &Map,
+        source: Cell,
+        avoid: &[Cell],
+        mut stop: impl FnMut(Cell, u32) -> bool,
+    ) {
         for &index in &self.reached {
             self.distances[index as usize] = UNREACHED;
         }
@@ -133,9 +151,9 @@ impl BreadthFirst {
                 return;
             }
             for (_, neighbour) in free_neighbours(map, cell) {
-                let neighbour = map.index(neighbour);
-                if self.distances[neighbour] == UNREACHED {
-                    self.reach(neighbour, distance + 1);
+                let index = map.index(neighbour);
+                if self.distances[index] == UNREACHED && !avoid.contains(&neighbour) {
+                    self.reach(index, distance + 1);
                 }
             }
         }
@@ -234,6 +252,18 @@ mod tests {
             "not reached this time"
         );
         assert_eq!(search.distance(&m, cell(5, 0)), Some(1));
+    }
+
+    #[test]
+    fn avoided_cells_are_walked_around() {
+        let m = map("...\n...\n");
+        let mut search = BreadthFirst::new(&m);
+        let goal = |c: Cell| (c == cell(2, 0)).then_some(());
+        let avoid = [cell(0, 0), cell(1, 0)];
+        let found = search.nearest_avoiding(&m, cell(0, 0), &avoid, goal);
+        assert_eq!(found, Some(cell(2, 0)));
+        assert_eq!(search.distance(&m, cell(2, 0)), Some(4), "over the top row");
+        assert_eq!(search.distance(&m, cell(1, 0)), None);
     }
 
     #[test]

@@ -1,0 +1,211 @@
+//! Greedy centralised search (GCS), the paper's baseline: every free agent heads for the
+//! nearest of a spread-out set of the worst cells.
+//!
+//! Candidates: the free cells with non-zero penalty (the paper's set S), worst first; the worst
+//! is taken and every cell within L2 distance r of it dropped, until none is left. Each agent
+//! without a target, in index order, takes the candidate nearest by shortest path that no
+//! other agent holds (equal distances: the worse candidate) and walks a shortest path to it.
+//! It is given a new target when it arrives or when its target is no longer in S, i.e. has
+//! just been seen ([`Retarget::WhenSeen`], the paper's rule read literally). Targets are
+//! unseen cells, so a target is usually seen from about L/2 cells away and the agent turns to
+//! the next nearest candidate, which is again just out of sight: agents drift along the edge
+//! of what they see and can circle in one region for a whole episode.
+//! [`Retarget::OnArrival`] keeps the target until the agent stands on it, which makes every
+//! trip end on the cell chosen. When S is empty (everything was seen this step) agents without a target stay. Beyond the
+//! paper, an agent whose moves keep being refused (another agent in the way) plans a new path
+//! to its target around the cells agents stand on.
+//!
+//! Cost: targets are found by a breadth-first search from the agent that stops at the nearest
+//! candidate, and the path comes from the same search, so nothing is stored per map cell pair
+//! and one assignment costs about the area of the disc around the agent out to its target.
+
+use std::sync::Arc;
+
+use world::paths::BreadthFirst;
+use world::{Action, Cell, Episode, Map, Seed, World};
+
+use crate::policy::Policy;
+use crate::route::{Route, patience};
+
+/// The paper's radius: half the side of the field of view.
+pub fn default_radius(world: &World) -> f64 {
+    world.params().fov() as f64 / 2.0
+}
+
+/// When an agent gives up its target for a new one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Retarget {
+    /// On arrival, or as soon as the target is seen (its penalty is back to zero).
+    WhenSeen,
+    /// On arrival only.
+    OnArrival,
+}
+
+pub struct Gcs {
+    world: Arc<World>,
+    retarget: Retarget,
+    candidates: Candidates,
+    search: BreadthFirst,
+    agents: Vec<Assignment>,
+}
+
+#[derive(Clone, Debug, Default)]
+struct Assignment {
+    target: Option<Cell>,
+    route: Route,
+}
+
+impl Gcs {
+    /// `radius` is the L2 distance within which a candidate suppresses less bad cells.
+    pub fn new(world: &Arc<World>, radius: f64, retarget: Retarget) -> Self {
+        Self {
+            world: world.clone(),
+            retarget,
+            candidates: Candidates::new(world.map(), radius),
+            search: BreadthFirst::new(world.map()),
+            agents: Vec::new(),
+        }
+    }
+
+    /// Each agent's current target.
+    pub fn targets(&self) -> impl Iterator<Item = Option<Cell>> + '_ {
+        self.agents.iter().map(|agent| agent.target)
+    }
+
+    /// Forgets targets that were reached (or seen, if the rule says so).
+    fn release_finished(&mut self, episode: &Episode) {
+        let penalty = episode.penalty();
+        let seen_counts = self.retarget == Retarget::WhenSeen;
+        for (agent, &position) in self.agents.iter_mut().zip(episode.positions()) {
+            let finished = agent.target.is_some_and(|target| {
+                target == position || (seen_counts && penalty.at(target) == 0.0)
+            });
+            if finished {
+                agent.target = None;
+                agent.route.clear();
+            }
+        }
+    }
+
+    fn assign_free_agents(&mut self, episode: &Episode) {
+        let held = self.agents.iter().filter_map(|agent| agent.target);
+        self.candidates.rebuild(episode, held);
+        let map = self.world.map();
+        let idle = self.agents.iter_mut().zip(episode.positions());
+        for (agent, &position) in idle.filter(|(agent, _)| agent.target.is_none()) {
+            let candidates = &self.candidates;
+            let nearest = self
+                .search
+                .nearest(map, position, |cell| candidates.rank(map, cell));
+            let Some(target) = nearest else {
+                continue;
+            };
+            self.candidates.take(map, target);
+            agent.route.plan(&self.search, map, target);
+            agent.target = Some(target);
+        }
+    }
+}
+
+impl Policy for Gcs {
+    fn name(&self) -> &str {
+        match self.retarget {
+            Retarget::WhenSeen => "gcs",
+            Retarget::OnArrival => "gcs-arrival",
+        }
+    }
+
+    fn reset(&mut self, episode: &Episode, _seed: Seed) {
+        self.agents.clear();
+        self.agents
+            .resize_with(episode.agents(), Assignment::default);
+    }
+
+    fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
+        self.release_finished(episode);
+        if self.agents.iter().any(|agent| agent.target.is_none()) {
+            self.assign_free_agents(episode);
+        }
+        let (map, positions) = (self.world.map(), episode.positions());
+        let agents = self.agents.iter_mut().zip(positions).zip(actions);
+        for (index, ((agent, &position), action)) in agents.enumerate() {
+            let patience = patience(index);
+            let route = &mut agent.route;
+            *action = route.next_move_around(position, patience, positions, &mut self.search, map);
+        }
+    }
+}
+
+/// Marks a cell that is not a candidate, or one some agent already holds.
+const NOT_AVAILABLE: u32 = u32::MAX;
+
+/// The spread-out set of worst cells, rebuilt in place.
+struct Candidates {
+    radius_squared: f64,
+    /// Free cells with non-zero penalty as sort keys: worst first, then by cell index.
+    by_penalty: Vec<u64>,
+    chosen: Vec<Cell>,
+    /// Rank (0 = worst) of each available candidate by cell index, `NOT_AVAILABLE` elsewhere.
+    rank: Vec<u32>,
+}
+
+impl Candidates {
+    fn new(map: &Map, radius: f64) -> Self {
+        Self {
+            radius_squared: radius * radius,
+            by_penalty: Vec::with_capacity(map.free_cells().len()),
+            chosen: Vec::new(),
+            rank: vec![NOT_AVAILABLE; map.width() * map.height()],
+        }
+    }
+
+    /// Recomputes the candidates from this step's penalties; those in `held` stay unavailable.
+    fn rebuild(&mut self, episode: &Episode, held: impl Iterator<Item = Cell>) {
+        let map = episode.world().map();
+        for &cell in &self.chosen {
+            self.rank[map.index(cell)] = NOT_AVAILABLE;
+        }
+        self.chosen.clear();
+        self.sort_by_penalty(episode);
+        for &key in &self.by_penalty {
+            let cell = map.cell(key as u32 as usize);
+            if self.chosen.iter().all(|&c| self.apart(c, cell)) {
+                self.rank[map.index(cell)] = self.chosen.len() as u32;
+                self.chosen.push(cell);
+            }
+        }
+        held.for_each(|cell| self.take(map, cell));
+    }
+
+    /// Penalties are negative, and for negative floats a larger bit pattern is a larger
+    /// magnitude: so the complemented bits sort the worst first, and the cell index below
+    /// them breaks ties.
+    fn sort_by_penalty(&mut self, episode: &Episode) {
+        let (map, penalty) = (episode.world().map(), episode.penalty());
+        self.by_penalty.clear();
+        for &cell in map.free_cells() {
+            let value = penalty.at(cell);
+            if value < 0.0 {
+                let worse_first = u64::from(!value.to_bits());
+                self.by_penalty
+                    .push(worse_first << 32 | map.index(cell) as u64);
+            }
+        }
+        self.by_penalty.sort_unstable();
+    }
+
+    fn apart(&self, a: Cell, b: Cell) -> bool {
+        let dx = a.x as f64 - b.x as f64;
+        let dy = a.y as f64 - b.y as f64;
+        dx * dx + dy * dy > self.radius_squared
+    }
+
+    fn rank(&self, map: &Map, cell: Cell) -> Option<u32> {
+        let rank = self.rank[map.index(cell)];
+        (rank != NOT_AVAILABLE).then_some(rank)
+    }
+
+    fn take(&mut self, map: &Map, cell: Cell) {
+        self.rank[map.index(cell)] = NOT_AVAILABLE;
+    }
+}

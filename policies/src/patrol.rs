@@ -1,0 +1,183 @@
+//! Agents patrolling closed walks, all in the walk's direction: the engine of TSPC and of the
+//! partitioned tours.
+
+use world::paths::{BreadthFirst, move_between};
+use world::{Action, Cell, Episode, Map};
+
+use crate::closed_walk::ClosedWalk;
+use crate::route::{Route, patience};
+
+/// Which walk an agent patrols and where on it it starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Home {
+    walk: usize,
+    phase: usize,
+}
+
+/// Walks shared out among agents: agent i patrols walk i mod (number of walks), and the agents
+/// of one walk are spread evenly along it.
+#[derive(Clone, Debug)]
+pub struct Patrol {
+    walks: Vec<ClosedWalk>,
+    search: BreadthFirst,
+    patrollers: Vec<Patroller>,
+}
+
+impl Patrol {
+    pub fn new(map: &Map, walks: Vec<ClosedWalk>) -> Self {
+        assert!(!walks.is_empty(), "a patrol needs at least one walk");
+        Self {
+            walks,
+            search: BreadthFirst::new(map),
+            patrollers: Vec::new(),
+        }
+    }
+
+    pub fn walks(&self) -> &[ClosedWalk] {
+        &self.walks
+    }
+
+    /// Agent i's walk, the k-th of the m agents on walk w starting at position
+    /// floor(k · length / m).
+    fn homes(&self, agents: usize) -> Vec<Home> {
+        let walks = self.walks.len();
+        (0..agents)
+            .map(|agent| {
+                let walk = agent % walks;
+                let sharing = (agents - walk).div_ceil(walks);
+                let length = self.walks[walk].len();
+                let phase = agent / walks * length / sharing;
+                Home { walk, phase }
+            })
+            .collect()
+    }
+
+    /// Distinct start cells on the agents' walks. An agent whose start cell is taken (a walk
+    /// passing a cell twice, or more agents than cells) moves on along its walk to the first
+    /// free one; if its whole walk is taken it starts on the nearest unused free cell instead
+    /// and joins the walk from there.
+    pub fn starts(&mut self, map: &Map, agents: usize) -> Vec<Cell> {
+        let mut starts: Vec<Cell> = Vec::with_capacity(agents);
+        for home in self.homes(agents) {
+            let walk = &self.walks[home.walk];
+            let on_walk = (0..walk.len())
+                .map(|offset| walk.cell(home.phase + offset))
+                .find(|cell| !starts.contains(cell));
+            let start = on_walk.or_else(|| {
+                self.search.nearest(map, walk.cell(home.phase), |cell| {
+                    (!starts.contains(&cell)).then_some(())
+                })
+            });
+            starts.push(start.expect("the map has a free cell for every agent"));
+        }
+        starts
+    }
+
+    pub fn reset(&mut self, episode: &Episode) {
+        let map = episode.world().map();
+        let homes = self.homes(episode.agents());
+        self.patrollers = homes
+            .iter()
+            .zip(episode.positions())
+            .enumerate()
+            .map(|(agent, (home, &position))| {
+                let walk = &self.walks[home.walk];
+                let patience = patience(agent);
+                Patroller::start(walk, home, position, patience, map, &mut self.search)
+            })
+            .collect();
+    }
+
+    pub fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
+        let (map, positions) = (episode.world().map(), episode.positions());
+        let agents = self.patrollers.iter_mut().zip(positions);
+        for ((patroller, &position), action) in agents.zip(actions) {
+            let walk = &self.walks[patroller.walk];
+            *action = patroller.next_move(walk, position, positions, &mut self.search, map);
+        }
+    }
+}
+
+/// One agent's progress along its walk.
+#[derive(Clone, Debug)]
+struct Patroller {
+    walk: usize,
+    /// The position on the walk the agent stands on (or is joining at).
+    phase: usize,
+    /// The way onto the walk, for an agent that did not start on it.
+    joining: Route,
+    /// Whether the last move asked for was along the walk, so standing still means refused.
+    moving: bool,
+    refusals: u32,
+    /// Refused moves in a row after which the agent skips ahead on its walk (see
+    /// [`patience`]): two agents meeting head-on where a walk goes out and back along the same
+    /// corridor would otherwise block each other forever.
+    patience: u32,
+}
+
+impl Patroller {
+    /// An agent not standing on its home cell joins at the nearest walk cell, preferring among
+    /// equally near ones the positions soonest after its home phase.
+    fn start(
+        walk: &ClosedWalk,
+        home: &Home,
+        position: Cell,
+        patience: u32,
+        map: &Map,
+        search: &mut BreadthFirst,
+    ) -> Self {
+        let mut patroller = Self {
+            walk: home.walk,
+            phase: home.phase,
+            joining: Route::default(),
+            moving: false,
+            refusals: 0,
+            patience,
+        };
+        if walk.cell(home.phase) != position {
+            let after_home = |cell| {
+                let position = walk.position_of(map, cell)?;
+                Some((position + walk.len() - home.phase) % walk.len())
+            };
+            if let Some(entry) = search.nearest(map, position, after_home) {
+                patroller.phase = walk.position_of(map, entry).expect("entry is on the walk");
+                patroller.joining.plan(search, map, entry);
+            }
+        }
+        patroller
+    }
+
+    fn next_move(
+        &mut self,
+        walk: &ClosedWalk,
+        position: Cell,
+        others: &[Cell],
+        search: &mut BreadthFirst,
+        map: &Map,
+    ) -> Action {
+        if !self.joining.is_finished() {
+            let action =
+                self.joining
+                    .next_move_around(position, self.patience, others, search, map);
+            if action != Action::Stay {
+                return action;
+            }
+        }
+        if walk.len() == 1 {
+            return Action::Stay;
+        }
+        if position == walk.cell(self.phase + 1) {
+            self.phase = (self.phase + 1) % walk.len();
+            self.refusals = 0;
+        } else if self.moving {
+            self.refusals += 1;
+            if self.refusals >= self.patience {
+                self.phase = walk.next_visit(self.phase);
+                self.refusals = 0;
+            }
+        }
+        let action = move_between(position, walk.cell(self.phase + 1));
+        self.moving = action.is_some();
+        action.unwrap_or(Action::Stay)
+    }
+}

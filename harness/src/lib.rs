@@ -1,7 +1,10 @@
 //! The research harness: runs episodes of any policy in any world, reproducibly.
 
 pub mod atomic_file;
+pub mod baseline_sweep;
+pub mod policy_bench;
 pub mod replay;
 pub mod runner;
+pub mod stats;
 pub mod trace;
 pub mod world_bench;

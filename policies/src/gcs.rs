@@ -25,7 +25,7 @@ use world::paths::BreadthFirst;
 use world::{Action, Cell, Episode, Map, Seed, World};
 
 use crate::policy::Policy;
-use crate::route::{Route, patience};
+use crate::route::{Impatience, Route};
 
 /// The paper's radius: half the side of the field of view.
 pub fn default_radius(world: &World) -> f64 {
@@ -49,10 +49,11 @@ pub struct Gcs {
     agents: Vec<Assignment>,
 }
 
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 struct Assignment {
     target: Option<Cell>,
     route: Route,
+    impatience: Impatience,
 }
 
 impl Gcs {
@@ -93,6 +94,9 @@ impl Gcs {
         let map = self.world.map();
         let idle = self.agents.iter_mut().zip(episode.positions());
         for (agent, &position) in idle.filter(|(agent, _)| agent.target.is_none()) {
+            if self.candidates.available == 0 {
+                break; // More agents than candidates: searching would find nothing.
+            }
             let candidates = &self.candidates;
             let nearest = self
                 .search
@@ -115,10 +119,14 @@ impl Policy for Gcs {
         }
     }
 
-    fn reset(&mut self, episode: &Episode, _seed: Seed) {
-        self.agents.clear();
-        self.agents
-            .resize_with(episode.agents(), Assignment::default);
+    fn reset(&mut self, episode: &Episode, seed: Seed) {
+        self.agents = (0..episode.agents())
+            .map(|agent| Assignment {
+                target: None,
+                route: Route::default(),
+                impatience: Impatience::of_agent(seed, agent),
+            })
+            .collect();
     }
 
     fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
@@ -127,11 +135,11 @@ impl Policy for Gcs {
             self.assign_free_agents(episode);
         }
         let (map, positions) = (self.world.map(), episode.positions());
-        let agents = self.agents.iter_mut().zip(positions).zip(actions);
-        for (index, ((agent, &position), action)) in agents.enumerate() {
-            let patience = patience(index);
+        for ((agent, &position), action) in self.agents.iter_mut().zip(positions).zip(actions) {
+            let impatience = &mut agent.impatience;
             let route = &mut agent.route;
-            *action = route.next_move_around(position, patience, positions, &mut self.search, map);
+            *action =
+                route.next_move_around(position, impatience, positions, &mut self.search, map);
         }
     }
 }
@@ -147,6 +155,8 @@ struct Candidates {
     chosen: Vec<Cell>,
     /// Rank (0 = worst) of each available candidate by cell index, `NOT_AVAILABLE` elsewhere.
     rank: Vec<u32>,
+    /// How many candidates no agent holds.
+    available: usize,
 }
 
 impl Candidates {
@@ -156,6 +166,7 @@ impl Candidates {
             by_penalty: Vec::with_capacity(map.free_cells().len()),
             chosen: Vec::new(),
             rank: vec![NOT_AVAILABLE; map.width() * map.height()],
+            available: 0,
         }
     }
 
@@ -174,6 +185,7 @@ impl Candidates {
                 self.chosen.push(cell);
             }
         }
+        self.available = self.chosen.len();
         held.for_each(|cell| self.take(map, cell));
     }
 
@@ -206,6 +218,10 @@ impl Candidates {
     }
 
     fn take(&mut self, map: &Map, cell: Cell) {
-        self.rank[map.index(cell)] = NOT_AVAILABLE;
+        let rank = &mut self.rank[map.index(cell)];
+        if *rank != NOT_AVAILABLE {
+            *rank = NOT_AVAILABLE;
+            self.available -= 1;
+        }
     }
 }

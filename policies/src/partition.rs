@@ -109,8 +109,8 @@ impl Policy for Partition {
         Some(self.patrol(agents).starts(world.map(), agents))
     }
 
-    fn reset(&mut self, episode: &Episode, _seed: Seed) {
-        self.patrol(episode.agents()).reset(episode);
+    fn reset(&mut self, episode: &Episode, seed: Seed) {
+        self.patrol(episode.agents()).reset(episode, seed);
     }
 
     fn act(&mut self, episode: &Episode, actions: &mut [Action]) {

@@ -2,10 +2,10 @@
 //! partitioned tours.
 
 use world::paths::{BreadthFirst, move_between};
-use world::{Action, Cell, Episode, Map};
+use world::{Action, Cell, Episode, Map, Seed};
 
 use crate::closed_walk::ClosedWalk;
-use crate::route::{Route, patience};
+use crate::route::{Impatience, Route};
 
 /// Which walk an agent patrols and where on it it starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -73,7 +73,7 @@ impl Patrol {
         starts
     }
 
-    pub fn reset(&mut self, episode: &Episode) {
+    pub fn reset(&mut self, episode: &Episode, seed: Seed) {
         let map = episode.world().map();
         let homes = self.homes(episode.agents());
         self.patrollers = homes
@@ -82,8 +82,8 @@ impl Patrol {
             .enumerate()
             .map(|(agent, (home, &position))| {
                 let walk = &self.walks[home.walk];
-                let patience = patience(agent);
-                Patroller::start(walk, home, position, patience, map, &mut self.search)
+                let impatience = Impatience::of_agent(seed, agent);
+                Patroller::start(walk, home, position, impatience, map, &mut self.search)
             })
             .collect();
     }
@@ -109,11 +109,13 @@ struct Patroller {
     /// Whether the last move asked for was along the walk, so standing still means refused.
     moving: bool,
     refusals: u32,
-    /// Refused moves in a row after which the agent skips ahead on its walk (see
-    /// [`patience`]): two agents meeting head-on where a walk goes out and back along the same
-    /// corridor would otherwise block each other forever.
-    patience: u32,
+    /// When the agent goes around whoever blocks it: two agents meeting head-on where a walk
+    /// goes out and back along the same corridor would otherwise block each other forever.
+    impatience: Impatience,
 }
+
+/// How far along its walk a blocked patroller looks for a cell to rejoin at by a detour.
+const DETOUR_REACH: usize = 6;
 
 impl Patroller {
     /// An agent not standing on its home cell joins at the nearest walk cell, preferring among
@@ -122,7 +124,7 @@ impl Patroller {
         walk: &ClosedWalk,
         home: &Home,
         position: Cell,
-        patience: u32,
+        impatience: Impatience,
         map: &Map,
         search: &mut BreadthFirst,
     ) -> Self {
@@ -132,7 +134,7 @@ impl Patroller {
             joining: Route::default(),
             moving: false,
             refusals: 0,
-            patience,
+            impatience,
         };
         if walk.cell(home.phase) != position {
             let after_home = |cell| {
@@ -147,6 +149,33 @@ impl Patroller {
         patroller
     }
 
+    /// Plans a way around the agents in the way, back onto the walk a few positions ahead,
+    /// so the agent keeps its place in the cycle. Where no such way exists (a corridor one
+    /// cell wide) it instead skips ahead to the next time its walk passes its current cell,
+    /// which turns it around where the walk goes out and back the same way.
+    fn detour(
+        &mut self,
+        walk: &ClosedWalk,
+        position: Cell,
+        others: &[Cell],
+        search: &mut BreadthFirst,
+        map: &Map,
+    ) -> bool {
+        for ahead in 2..=DETOUR_REACH {
+            let rejoin = walk.cell(self.phase + ahead);
+            let is_rejoin = |cell| (cell == rejoin).then_some(());
+            if search
+                .nearest_avoiding(map, position, others, is_rejoin)
+                .is_some()
+            {
+                self.joining.plan(search, map, rejoin);
+                self.phase = (self.phase + ahead) % walk.len();
+                return true;
+            }
+        }
+        false
+    }
+
     fn next_move(
         &mut self,
         walk: &ClosedWalk,
@@ -158,7 +187,7 @@ impl Patroller {
         if !self.joining.is_finished() {
             let action =
                 self.joining
-                    .next_move_around(position, self.patience, others, search, map);
+                    .next_move_around(position, &mut self.impatience, others, search, map);
             if action != Action::Stay {
                 return action;
             }
@@ -171,9 +200,12 @@ impl Patroller {
             self.refusals = 0;
         } else if self.moving {
             self.refusals += 1;
-            if self.refusals >= self.patience {
-                self.phase = walk.next_visit(self.phase);
+            if self.impatience.gives_way(self.refusals) {
                 self.refusals = 0;
+                if self.detour(walk, position, others, search, map) {
+                    return self.joining.next_move(position);
+                }
+                self.phase = walk.next_visit(self.phase);
             }
         }
         let action = move_between(position, walk.cell(self.phase + 1));

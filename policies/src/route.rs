@@ -1,15 +1,37 @@
 //! Following a planned path one move per step.
 
+use rand::RngExt;
+use rand_pcg::Pcg64Mcg;
 use world::paths::{BreadthFirst, move_between};
-use world::{Action, Cell, Map};
+use world::seed::purpose;
+use world::{Action, Cell, Map, Seed};
 
-/// How many refused moves in a row agent `agent` accepts before it plans around whoever is in
-/// its way. One refusal is the normal cost of walking close behind another agent; two in a row
-/// usually mean two agents wanting each other's cells, which waiting never resolves. Agents
-/// differ in patience so that two of them never give way at the same step: both stepping
-/// aside the same way would meet again, and could do so forever.
-pub fn patience(agent: usize) -> u32 {
-    2 + agent as u32
+/// Refused moves in a row after which an agent may give way. One refusal is the normal cost
+/// of walking close behind another agent; two in a row usually mean two agents wanting each
+/// other's cells, which waiting never resolves.
+const REFUSALS_BEFORE_GIVING_WAY: u32 = 2;
+
+/// When a blocked agent gives way (plans around the others): from then on, at each step, on
+/// the toss of a coin from the agent's own stream. Two agents blocking each other that gave
+/// way at the same step would step aside the same way and could meet again forever; with
+/// coins, they soon give way at different steps and one of them lets the other pass.
+#[derive(Clone, Debug)]
+pub struct Impatience {
+    coins: Pcg64Mcg,
+}
+
+impl Impatience {
+    /// Agent `agent`'s stream under the episode's policy seed.
+    pub fn of_agent(seed: Seed, agent: usize) -> Self {
+        Self {
+            coins: seed.child(purpose::POLICY).child(agent as u64).rng(),
+        }
+    }
+
+    /// Whether to give way after `refusals` refused moves in a row.
+    pub fn gives_way(&mut self, refusals: u32) -> bool {
+        refusals >= REFUSALS_BEFORE_GIVING_WAY && self.coins.random_bool(0.5)
+    }
 }
 
 /// The cells still ahead of an agent on its way to a goal.
@@ -77,12 +99,12 @@ impl Route {
     }
 
     /// The next move, planning a new path around `others` (agents' cells) first when the
-    /// last `patience` moves were refused. When no such path exists the route is kept and the
-    /// agent waits.
+    /// agent's moves keep being refused and it gives way. When no such path exists the route
+    /// is kept and the agent waits.
     pub fn next_move_around(
         &mut self,
         position: Cell,
-        patience: u32,
+        impatience: &mut Impatience,
         others: &[Cell],
         search: &mut BreadthFirst,
         map: &Map,
@@ -91,7 +113,7 @@ impl Route {
         let Some(goal) = self.goal() else {
             return action;
         };
-        if self.refusals < patience {
+        if !impatience.gives_way(self.refusals) {
             return action;
         }
         let is_goal = |cell| (cell == goal).then_some(());
@@ -151,10 +173,16 @@ mod tests {
         let mut route = Route::default();
         route.plan(&search, &m, goal);
         let others = [start, blocker];
-        let moves: Vec<Action> = (0..3)
-            .map(|_| route.next_move_around(start, patience(0), &others, &mut search, &m))
+        let mut impatience = Impatience::of_agent(Seed::new(1), 0);
+        let moves: Vec<Action> = (0..40)
+            .map(|_| route.next_move_around(start, &mut impatience, &others, &mut search, &m))
             .collect();
-        assert_eq!(moves, [Action::Right, Action::Right, Action::Up]);
+        assert_eq!(moves[..2], [Action::Right, Action::Right]);
+        assert_eq!(
+            moves.last(),
+            Some(&Action::Up),
+            "gave way, over the top row"
+        );
         assert_eq!(route.goal(), Some(goal));
     }
 }

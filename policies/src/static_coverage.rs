@@ -15,7 +15,7 @@ use world::{Action, Cell, Episode, Seed, World};
 
 use crate::cover::{CoverageSets, greedy_max_coverage};
 use crate::policy::Policy;
-use crate::route::{Route, patience};
+use crate::route::{Impatience, Route};
 use crate::viewpoints::visibility_sets;
 
 pub struct StaticCoverage {
@@ -23,6 +23,7 @@ pub struct StaticCoverage {
     sets: CoverageSets,
     search: BreadthFirst,
     routes: Vec<Route>,
+    impatience: Vec<Impatience>,
 }
 
 impl StaticCoverage {
@@ -32,6 +33,7 @@ impl StaticCoverage {
             sets: visibility_sets(world),
             search: BreadthFirst::new(world.map()),
             routes: Vec::new(),
+            impatience: Vec::new(),
         }
     }
 
@@ -72,7 +74,10 @@ impl Policy for StaticCoverage {
         "static"
     }
 
-    fn reset(&mut self, episode: &Episode, _seed: Seed) {
+    fn reset(&mut self, episode: &Episode, seed: Seed) {
+        self.impatience = (0..episode.agents())
+            .map(|agent| Impatience::of_agent(seed, agent))
+            .collect();
         let posts = self.posts(episode.agents());
         let matched = self.match_posts(episode.positions(), &posts);
         let map = self.world.map();
@@ -90,10 +95,10 @@ impl Policy for StaticCoverage {
 
     fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
         let (map, positions) = (self.world.map(), episode.positions());
-        let routes = self.routes.iter_mut().zip(positions).zip(actions);
-        for (index, ((route, &position), action)) in routes.enumerate() {
-            let patience = patience(index);
-            *action = route.next_move_around(position, patience, positions, &mut self.search, map);
+        let walkers = self.routes.iter_mut().zip(&mut self.impatience);
+        for (((route, impatience), &position), action) in walkers.zip(positions).zip(actions) {
+            *action =
+                route.next_move_around(position, impatience, positions, &mut self.search, map);
         }
     }
 }

@@ -42,8 +42,8 @@ impl Policy for Tspc {
         Some(self.patrol.starts(world.map(), agents))
     }
 
-    fn reset(&mut self, episode: &Episode, _seed: Seed) {
-        self.patrol.reset(episode);
+    fn reset(&mut self, episode: &Episode, seed: Seed) {
+        self.patrol.reset(episode, seed);
     }
 
     fn act(&mut self, episode: &Episode, actions: &mut [Action]) {

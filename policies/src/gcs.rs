@@ -225,3 +225,120 @@ impl Candidates {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use world::WorldParams;
+
+    use super::*;
+
+    /// Two rooms joined by a door, with a field of view much smaller than the map.
+    const ROOMS: &str = "\
+............#...........
+............#...........
+........................
+............#...........
+............#...........
+#####.#######.##########
+........................
+........................
+";
+
+    fn world() -> Arc<World> {
+        let map = Map::parse_text("rooms", ROOMS, Path::new("rooms.txt")).unwrap();
+        World::new(map, WorldParams::new(5, 1.0, 400.0).unwrap())
+    }
+
+    fn episode(world: &Arc<World>, agents: usize, seed: u64) -> Episode {
+        let mut episode = Episode::new(world.clone(), agents).unwrap();
+        episode.reset(Seed::new(seed));
+        episode
+    }
+
+    #[test]
+    fn candidates_are_spread_out_worst_first() {
+        let world = world();
+        let mut episode = episode(&world, 1, 3);
+        for _ in 0..20 {
+            episode.step(&[Action::Right]);
+        }
+        let mut candidates = Candidates::new(world.map(), 2.5);
+        candidates.rebuild(&episode, std::iter::empty());
+        let (map, penalty) = (world.map(), episode.penalty());
+        let chosen = &candidates.chosen;
+        assert!(!chosen.is_empty());
+        for (i, &a) in chosen.iter().enumerate() {
+            assert!(penalty.at(a) < 0.0);
+            assert_eq!(candidates.rank(map, a), Some(i as u32));
+            assert!(chosen[..i].iter().all(|&b| candidates.apart(a, b)));
+        }
+        for &cell in map.free_cells().iter().filter(|&&c| penalty.at(c) < 0.0) {
+            let suppressor = chosen
+                .iter()
+                .find(|&&c| !candidates.apart(c, cell))
+                .expect("every unseen cell is near a candidate");
+            assert!(penalty.at(*suppressor) <= penalty.at(cell), "{cell:?}");
+        }
+    }
+
+    #[test]
+    fn no_candidate_is_assigned_to_two_agents() {
+        let world = world();
+        for retarget in [Retarget::WhenSeen, Retarget::OnArrival] {
+            let mut episode = episode(&world, 6, 5);
+            let mut gcs = Gcs::new(&world, 2.5, retarget);
+            gcs.reset(&episode, Seed::new(5));
+            let mut actions = vec![Action::Stay; 6];
+            for _ in 0..300 {
+                gcs.act(&episode, &mut actions);
+                let mut targets: Vec<Cell> = gcs.targets().flatten().collect();
+                let held = targets.len();
+                targets.sort();
+                targets.dedup();
+                assert_eq!(targets.len(), held, "{retarget:?}");
+                episode.step(&actions);
+            }
+        }
+    }
+
+    #[test]
+    fn agents_stay_when_every_cell_was_just_seen() {
+        let map = Map::parse_text("small", "...\n...\n", Path::new("small.txt")).unwrap();
+        let world = World::new(map, WorldParams::new(5, 1.0, 400.0).unwrap());
+        let mut episode = episode(&world, 2, 1);
+        let mut gcs = Gcs::new(&world, default_radius(&world), Retarget::WhenSeen);
+        gcs.reset(&episode, Seed::new(1));
+        let mut actions = vec![Action::Up; 2];
+        for _ in 0..5 {
+            gcs.act(&episode, &mut actions);
+            assert_eq!(actions, [Action::Stay; 2]);
+            assert!(gcs.targets().all(|target| target.is_none()));
+            episode.step(&actions);
+        }
+    }
+
+    #[test]
+    fn an_agent_walks_to_its_target_through_the_door() {
+        let world = world();
+        let mut episode = Episode::new(world.clone(), 1).unwrap();
+        episode.reset_at(&[Cell::new(0, 7)]).unwrap();
+        for _ in 0..30 {
+            episode.step(&[Action::Stay]);
+        }
+        // One candidate: the worst cell of lowest index, in the room below.
+        let mut gcs = Gcs::new(&world, 100.0, Retarget::OnArrival);
+        gcs.reset(&episode, Seed::new(0));
+        let mut actions = [Action::Stay];
+        for _ in 0..40 {
+            gcs.act(&episode, &mut actions);
+            assert_eq!(gcs.targets().next(), Some(Some(Cell::new(0, 0))));
+            episode.step(&actions);
+            if episode.positions()[0] == Cell::new(0, 0) {
+                return;
+            }
+        }
+        panic!("never reached its target");
+    }
+}

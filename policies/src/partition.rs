@@ -117,3 +117,39 @@ impl Policy for Partition {
         self.patrol(episode.agents()).act(episode, actions);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid_points(count: u16) -> Vec<Cell> {
+        (0..count)
+            .map(|i| Cell::new(i % 6 * 8, i / 6 * 8))
+            .collect()
+    }
+
+    #[test]
+    fn groups_share_out_every_viewpoint_once() {
+        let viewpoints = grid_points(30);
+        for agents in [1, 2, 5, 10] {
+            let groups = split(&viewpoints, agents);
+            assert!(!groups.is_empty() && groups.len() <= agents);
+            let mut all: Vec<Cell> = groups.concat();
+            all.sort();
+            let mut expected = viewpoints.clone();
+            expected.sort();
+            assert_eq!(all, expected, "{agents} agents");
+            assert_eq!(split(&viewpoints, agents), groups, "seeded");
+        }
+    }
+
+    #[test]
+    fn fewer_viewpoints_than_agents_gives_one_viewpoint_each() {
+        let viewpoints = grid_points(3);
+        let groups = split(&viewpoints, 5);
+        assert_eq!(
+            groups,
+            viewpoints.iter().map(|&v| vec![v]).collect::<Vec<_>>()
+        );
+    }
+}

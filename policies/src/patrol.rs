@@ -213,3 +213,87 @@ impl Patroller {
         action.unwrap_or(Action::Stay)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+    use std::sync::Arc;
+
+    use world::{World, WorldParams};
+
+    use super::*;
+
+    fn world(text: &str) -> Arc<World> {
+        let map = Map::parse_text("t", text, Path::new("t.txt")).unwrap();
+        World::new(map, WorldParams::new(1, 1.0, 400.0).unwrap())
+    }
+
+    fn patrol(world: &World, viewpoints: &[Cell]) -> Patrol {
+        let walk = ClosedWalk::through(world.map(), viewpoints).unwrap();
+        Patrol::new(world.map(), vec![walk])
+    }
+
+    fn run(world: &Arc<World>, patrol: &mut Patrol, agents: usize, steps: usize) -> Vec<Vec<Cell>> {
+        let mut episode = Episode::new(world.clone(), agents).unwrap();
+        let starts = patrol.starts(world.map(), agents);
+        episode.reset_at(&starts).unwrap();
+        patrol.reset(&episode, Seed::new(0));
+        let mut actions = vec![Action::Stay; agents];
+        (0..steps)
+            .map(|_| {
+                patrol.act(&episode, &mut actions);
+                episode.step(&actions);
+                episode.positions().to_vec()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn agents_start_spread_evenly_along_the_walk() {
+        let world = world("........\n");
+        let mut patrol = patrol(&world, &[Cell::new(0, 0), Cell::new(7, 0)]);
+        let walk = &patrol.walks()[0];
+        assert_eq!(walk.len(), 14);
+        let expected: Vec<Cell> = [0, 4, 9].iter().map(|&p| walk.cell(p)).collect();
+        assert_eq!(patrol.starts(world.map(), 3), expected);
+    }
+
+    #[test]
+    fn a_tiny_walk_still_gives_distinct_starts() {
+        let world = world("...\n");
+        let mut patrol = patrol(&world, &[Cell::new(1, 0)]);
+        let starts = patrol.starts(world.map(), 3);
+        assert_eq!(starts, [Cell::new(1, 0), Cell::new(0, 0), Cell::new(2, 0)]);
+    }
+
+    #[test]
+    fn agents_follow_the_walk_in_step() {
+        let world = world("....\n....\n....\n");
+        let corners = [
+            Cell::new(0, 0),
+            Cell::new(3, 0),
+            Cell::new(3, 2),
+            Cell::new(0, 2),
+        ];
+        let mut patrol = patrol(&world, &corners);
+        let walk = patrol.walks()[0].clone();
+        assert_eq!(walk.len(), 10, "the perimeter");
+        let trace = run(&world, &mut patrol, 2, 25);
+        for (step, positions) in trace.iter().enumerate() {
+            assert_eq!(positions[0], walk.cell(step + 1));
+            assert_eq!(positions[1], walk.cell(5 + step + 1));
+        }
+    }
+
+    #[test]
+    fn agents_meeting_head_on_get_past_each_other() {
+        let world = world("..........\n..........\n");
+        let mut patrol = patrol(&world, &[Cell::new(0, 0), Cell::new(9, 0)]);
+        let trace = run(&world, &mut patrol, 2, 120);
+        for agent in 0..2 {
+            let xs: Vec<u16> = trace.iter().map(|positions| positions[agent].x).collect();
+            let ends = |x| xs.iter().filter(|&&at| at == x).count();
+            assert!(ends(0) >= 2 && ends(9) >= 2, "agent {agent} stuck: {xs:?}");
+        }
+    }
+}

@@ -102,3 +102,38 @@ impl Policy for StaticCoverage {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use world::{Map, WorldParams};
+
+    use super::*;
+
+    #[test]
+    fn agents_walk_to_the_best_posts_and_stay() {
+        let text = ".......#.......\n.......#.......\n...............\n";
+        let map = Map::parse_text("t", text, Path::new("t.txt")).unwrap();
+        let world = World::new(map, WorldParams::new(5, 1.0, 400.0).unwrap());
+        let mut policy = StaticCoverage::new(&world);
+        let posts = policy.posts(2);
+        let mut episode = Episode::new(world.clone(), 2).unwrap();
+        episode
+            .reset_at(&[Cell::new(0, 0), Cell::new(1, 0)])
+            .unwrap();
+        policy.reset(&episode, Seed::new(0));
+        let mut actions = [Action::Stay; 2];
+        for _ in 0..40 {
+            policy.act(&episode, &mut actions);
+            episode.step(&actions);
+        }
+        let mut at = episode.positions().to_vec();
+        at.sort();
+        let mut expected = posts.clone();
+        expected.sort();
+        assert_eq!(at, expected);
+        policy.act(&episode, &mut actions);
+        assert_eq!(actions, [Action::Stay; 2]);
+    }
+}

@@ -85,13 +85,10 @@ impl BreadthFirst {
             {
                 return true;
             }
-            if let Some(rank) = rank(cell) {
-                if best
-                    .as_ref()
-                    .is_none_or(|(_, best_rank, _)| rank < *best_rank)
-                {
-                    best = Some((distance, rank, cell));
-                }
+            if let Some(rank) = rank(cell)
+                && best.as_ref().is_none_or(|(_, best, _)| rank < *best)
+            {
+                best = Some((distance, rank, cell));
             }
             false
         });

@@ -1,9 +1,12 @@
 //! The research harness: runs episodes of any policy in any world, reproducibly.
 
 pub mod atomic_file;
+pub mod baseline_sweep;
 pub mod cli;
 pub mod cpu_clock;
+pub mod policy_bench;
 pub mod replay;
 pub mod runner;
+pub mod stats;
 pub mod trace;
 pub mod world_bench;

@@ -1,5 +1,6 @@
 //! Command-line parsing; each subcommand lives in its own module.
 
+mod baselines;
 mod bench;
 mod run;
 
@@ -22,6 +23,8 @@ enum Command {
     Run(run::RunArgs),
     /// Measure speed against in-process baselines and print the ratios.
     Bench(bench::BenchArgs),
+    /// Summarise every baseline's cumulative penalty over maps and agent counts (Markdown).
+    Baselines(baselines::BaselinesArgs),
 }
 
 /// Parses the process's arguments and runs the command.
@@ -34,6 +37,7 @@ impl Cli {
         match self.command {
             Command::Run(args) => run::run(args),
             Command::Bench(args) => bench::run(args),
+            Command::Baselines(args) => baselines::run(args),
         }
     }
 }

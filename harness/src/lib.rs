@@ -3,6 +3,7 @@
 pub mod atomic_file;
 pub mod cli;
 pub mod cpu_clock;
+pub mod nn_bench;
 pub mod replay;
 pub mod runner;
 pub mod trace;

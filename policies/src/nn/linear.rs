@@ -1,12 +1,12 @@
 //! Fully connected layer `y = x W^T + b` on a whole batch at once (one GEMM). It is also the
 //! dense core of the convolution, which runs it on image patches.
 
-use ndarray::linalg::general_mat_mul;
 use ndarray::{ArrayView2, ArrayViewMut2, Axis};
 use rand::Rng;
 
 use super::error::NnError;
 use super::init::Init;
+use super::matmul::{matmul, matmul_add};
 use super::params::{ParamSlot, ParamStore};
 use super::real::Real;
 
@@ -87,7 +87,7 @@ impl Linear {
         y.rows_mut()
             .into_iter()
             .for_each(|mut row| row.as_slice_mut().unwrap().copy_from_slice(bias));
-        general_mat_mul(T::one(), &x, &self.weight(params).t(), T::one(), &mut y);
+        matmul_add(x, self.weight(params).t(), y);
     }
 
     /// Adds `dy^T x` to the weight gradient and the column sums of `dy` to the bias gradient.
@@ -97,7 +97,7 @@ impl Linear {
         x: ArrayView2<T>,
         dy: ArrayView2<T>,
     ) {
-        general_mat_mul(T::one(), &dy.t(), &x, T::one(), &mut self.weight_mut(grads));
+        matmul_add(dy.t(), x, self.weight_mut(grads));
         let bias_grad = self.bias.of_mut(grads);
         for row in dy.axis_iter(Axis(0)) {
             bias_grad.iter_mut().zip(row).for_each(|(g, &d)| *g += d);
@@ -105,8 +105,8 @@ impl Linear {
     }
 
     /// Writes `dx = dy W`.
-    pub fn input_grad<T: Real>(&self, params: &[T], dy: ArrayView2<T>, mut dx: ArrayViewMut2<T>) {
-        general_mat_mul(T::one(), &dy, &self.weight(params), T::zero(), &mut dx);
+    pub fn input_grad<T: Real>(&self, params: &[T], dy: ArrayView2<T>, dx: ArrayViewMut2<T>) {
+        matmul(dy, self.weight(params), dx);
     }
 }
 

@@ -46,7 +46,7 @@ pub use attention::{AttentionWorkspace, GraphAttention};
 pub use buffer::ReusableBuffer;
 pub use categorical::CategoricalBatch;
 pub use cnn::{CnnEncoder, CnnWorkspace, PAPER_CONVOLUTIONS};
-pub use conv::{ChannelOrder, Conv2d, ConvSpec, ImageShape};
+pub use conv::{ChannelOrder, Conv2d, ConvSpec, ConvWorkspace, ImageShape};
 pub use error::NnError;
 pub use graph::{AgentGraph, Neighbours};
 pub use init::Init;

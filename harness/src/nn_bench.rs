@@ -8,7 +8,7 @@
 //! Clocks: the rollout and every one-thread figure are this thread's CPU time, which a machine
 //! shared with builds does not inflate. Parallel figures (the update and the peak with the
 //! pool's threads) can only be wall time; they are the best of several repetitions, and are
-//! pessimistic on a busy machine.
+//! pessimistic on a busy machine, so they come with the cores the process actually got.
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -22,7 +22,7 @@ use policies::nn::{
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use crate::cpu_clock::thread_cpu_time;
+use crate::cpu_clock::{process_cpu_time, thread_cpu_time};
 
 /// Policy forwards per training episode (T).
 pub const ROLLOUT_STEPS: usize = 1000;
@@ -38,6 +38,9 @@ const PEAK_SIDE: usize = 2048;
 pub struct Timing {
     pub best: Duration,
     pub median: Duration,
+    /// For wall-time measurements, the process's CPU time per wall second over all of them:
+    /// the cores the work actually got (below the pool size on a busy machine).
+    pub cores_used: Option<f64>,
 }
 
 impl Timing {
@@ -46,6 +49,7 @@ impl Timing {
         Timing {
             best: samples[0],
             median: samples[samples.len() / 2],
+            cores_used: None,
         }
     }
 }
@@ -84,6 +88,7 @@ impl ModelMeasurement {
 pub struct Peak {
     pub one_thread: f64,
     pub parallel: f64,
+    pub parallel_cores_used: f64,
 }
 
 /// What the benchmark runs on.
@@ -105,6 +110,7 @@ impl NetworkBench {
         Peak {
             one_thread: flops / one.best.as_secs_f64() / 1e9,
             parallel: flops / parallel.best.as_secs_f64() / 1e9,
+            parallel_cores_used: parallel.cores_used.unwrap_or(1.0),
         }
     }
 
@@ -174,14 +180,20 @@ impl NetworkBench {
     /// One warm-up call, then `repeats` timed calls in wall time.
     fn wall_timed(&self, mut work: impl FnMut()) -> Timing {
         work();
-        let samples = (0..self.repeats)
+        let cpu_start = process_cpu_time();
+        let samples: Vec<Duration> = (0..self.repeats)
             .map(|_| {
                 let start = Instant::now();
                 work();
                 start.elapsed()
             })
             .collect();
-        Timing::of(samples)
+        let cpu = process_cpu_time() - cpu_start;
+        let wall: Duration = samples.iter().sum();
+        Timing {
+            cores_used: Some(cpu.as_secs_f64() / wall.as_secs_f64()),
+            ..Timing::of(samples)
+        }
     }
 }
 

@@ -96,8 +96,8 @@ fn run_network(args: &NetworkArgs) -> anyhow::Result<()> {
         bench.threads, bench.repeats
     );
     println!(
-        "peak f32 GEMM: {:.1} GFLOP/s on one thread, {:.1} GFLOP/s on {}",
-        peak.one_thread, peak.parallel, bench.threads
+        "peak f32 GEMM: {:.1} GFLOP/s on one thread, {:.1} GFLOP/s on {} (got {:.2} cores)",
+        peak.one_thread, peak.parallel, bench.threads, peak.parallel_cores_used
     );
     for architecture in NetworkBench::architectures() {
         print_model(&bench.measure_model(architecture), &peak, bench.agents);
@@ -113,8 +113,11 @@ fn print_model(m: &ModelMeasurement, peak: &Peak, agents: usize) {
         ("1 thread", m.update_one_thread, peak.one_thread),
         ("parallel", m.update_parallel, peak.parallel),
     ] {
+        let cores = timing
+            .cores_used
+            .map_or(String::new(), |c| format!(" (got {c:.2} cores)"));
         println!(
-            "  update pass, {label:<8} {:>8.1} ms ({:>6.1} ms)  {:>6.1} GFLOP/s = {:.2} x peak",
+            "  update pass, {label:<8} {:>8.1} ms ({:>6.1} ms)  {:>6.1} GFLOP/s = {:.2} x peak{cores}",
             ms(timing.best),
             ms(timing.median),
             gflops(timing.best),

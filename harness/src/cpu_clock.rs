@@ -7,14 +7,24 @@ use std::time::Duration;
 
 /// CPU time this thread has used so far.
 pub fn thread_cpu_time() -> Duration {
+    cpu_time(libc::CLOCK_THREAD_CPUTIME_ID)
+}
+
+/// CPU time all threads of this process have used so far: over a parallel section, divided by
+/// its wall time, it tells how many cores the section actually got.
+pub fn process_cpu_time() -> Duration {
+    cpu_time(libc::CLOCK_PROCESS_CPUTIME_ID)
+}
+
+fn cpu_time(clock: libc::clockid_t) -> Duration {
     let mut now = libc::timespec {
         tv_sec: 0,
         tv_nsec: 0,
     };
-    // SAFETY: `now` is a valid, writable timespec, and CLOCK_THREAD_CPUTIME_ID is always
+    // SAFETY: `now` is a valid, writable timespec, and both CPU-time clocks are always
     // supported on Linux.
-    let status = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut now) };
-    assert_eq!(status, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed");
+    let status = unsafe { libc::clock_gettime(clock, &mut now) };
+    assert_eq!(status, 0, "clock_gettime({clock}) failed");
     Duration::new(now.tv_sec as u64, now.tv_nsec as u32)
 }
 

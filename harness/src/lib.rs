@@ -4,6 +4,7 @@ pub mod atomic_file;
 pub mod baseline_sweep;
 pub mod cli;
 pub mod cpu_clock;
+pub mod nn_bench;
 pub mod policy_bench;
 pub mod replay;
 pub mod runner;

@@ -210,3 +210,136 @@ fn learning_rate(config: &TrainingConfig, first: u64) -> f64 {
         config.learning_rate
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use world::{Map, WorldParams};
+
+    use super::*;
+    use crate::checkpoint;
+
+    fn tiny_world() -> Arc<World> {
+        let text = "########\n#..#...#\n#......#\n#..#...#\n#..#...#\n########\n";
+        let map = Map::parse_text("tiny", text, Path::new("tiny.txt")).unwrap();
+        World::new(map, WorldParams::new(5, 1.0, 40.0).unwrap())
+    }
+
+    /// Tiny everything, with every feature that touches determinism switched on: an agent
+    /// count range, several environments, shuffled minibatches, annealing, clipping.
+    fn tiny_config(overrides: &[&str]) -> TrainingConfig {
+        let base = [
+            "network={\"custom\":{\"convolutions\":[{\"out_channels\":3,\"kernel\":3,\"stride\":2,\"padding\":1}],\"hidden\":[8]}}",
+            "heads=2",
+            "agents={\"min\":1,\"max\":3}",
+            "episodes=8",
+            "steps_per_episode=12",
+            "environments=2",
+            "epochs=2",
+            "minibatches=3",
+            "learning_rate=0.01",
+        ];
+        let overrides: Vec<&str> = base
+            .iter()
+            .copied()
+            .chain(overrides.iter().copied())
+            .collect();
+        TrainingConfig::profile(crate::ppo::Profile::Fast)
+            .with_overrides(&overrides)
+            .unwrap()
+    }
+
+    fn weights(state: &TrainingState) -> Vec<u32> {
+        state
+            .model
+            .params()
+            .values()
+            .iter()
+            .map(|v| v.to_bits())
+            .collect()
+    }
+
+    fn penalties(records: &[EpisodeRecord]) -> Vec<(u64, usize, f64)> {
+        records
+            .iter()
+            .map(|r| (r.episode, r.agents, r.penalty))
+            .collect()
+    }
+
+    #[test]
+    fn a_resumed_run_continues_bit_for_bit() {
+        for profile in [
+            &[][..],
+            &[
+                "profile=paper",
+                "advantage=monte_carlo",
+                "normalise_returns=true",
+            ][..],
+        ] {
+            let config = tiny_config(profile);
+            let mut straight = Trainer::new(tiny_world(), config.clone(), 9).unwrap();
+            let all = straight.train(8, &mut |_| ()).unwrap();
+            let mut first = Trainer::new(tiny_world(), config, 9).unwrap();
+            let mut records = first.train(4, &mut |_| ()).unwrap();
+            let files = checkpoint::save(first.state());
+            let metadata = checkpoint::read_metadata(&files.metadata).unwrap();
+            let state =
+                checkpoint::load_state(&metadata, &files.weights, &files.optimizer).unwrap();
+            let mut resumed = Trainer::resume(tiny_world(), state).unwrap();
+            records.extend(resumed.train(8, &mut |_| ()).unwrap());
+            assert_eq!(penalties(&records), penalties(&all));
+            assert_eq!(weights(resumed.state()), weights(straight.state()));
+            assert_eq!(resumed.state().adam.steps(), straight.state().adam.steps());
+            assert!(all.iter().any(|r| r.agents == 1) && all.iter().any(|r| r.agents == 3));
+        }
+    }
+
+    #[test]
+    fn thread_count_does_not_change_the_weights() {
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut trainer = Trainer::new(tiny_world(), tiny_config(&[]), 4).unwrap();
+                let records = trainer.train(6, &mut |_| ()).unwrap();
+                (penalties(&records), weights(trainer.state()))
+            })
+        };
+        let (one, two) = (run(1), run(2));
+        assert_eq!(one, two);
+        let initial = Trainer::new(tiny_world(), tiny_config(&[]), 4).unwrap();
+        assert_ne!(one.1, weights(initial.state()), "training moved the weights");
+        assert_eq!(one.0.len(), 6);
+    }
+
+    #[test]
+    fn checkpoints_round_trip_bit_for_bit_and_name_pytorch_tensors() {
+        let mut trainer = Trainer::new(tiny_world(), tiny_config(&[]), 1).unwrap();
+        trainer.train(2, &mut |_| ()).unwrap();
+        let state = trainer.state();
+        let files = checkpoint::save(state);
+        let metadata = checkpoint::read_metadata(&files.metadata).unwrap();
+        assert_eq!(metadata.episodes_done, 2);
+        let model = checkpoint::load_model(&metadata, &files.weights).unwrap();
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(model.params().values()), weights(state));
+        let loaded = checkpoint::load_state(&metadata, &files.weights, &files.optimizer).unwrap();
+        assert_eq!(bits(loaded.adam.moments().0), bits(state.adam.moments().0));
+        assert_eq!(bits(loaded.adam.moments().1), bits(state.adam.moments().1));
+        let tensors = safetensors::SafeTensors::deserialize(&files.weights).unwrap();
+        let first = tensors.tensor("actor.cnn.0.weight").unwrap();
+        assert_eq!(first.shape(), &[3, 2, 3, 3]);
+        let broken = files
+            .metadata
+            .replace("\"format_version\": 1", "\"format_version\": 99");
+        assert!(checkpoint::read_metadata(&broken).is_err());
+        let error = checkpoint::load_model(&metadata, &files.weights[..40]).unwrap_err();
+        assert!(
+            error.to_string().contains(checkpoint::WEIGHTS_FILE),
+            "{error}"
+        );
+    }
+}

@@ -2,6 +2,7 @@
 
 mod bench;
 mod run;
+mod train;
 
 use clap::{Parser, Subcommand};
 
@@ -20,6 +21,8 @@ pub struct Cli {
 enum Command {
     /// Run one episode and print its cumulative penalty.
     Run(run::RunArgs),
+    /// Train MA-G-PPO or MA-PPO; writes a checkpoint and the training log.
+    Train(train::TrainArgs),
     /// Measure speed against in-process baselines and print the ratios.
     Bench(bench::BenchArgs),
 }
@@ -33,6 +36,7 @@ impl Cli {
     pub fn run(self) -> anyhow::Result<()> {
         match self.command {
             Command::Run(args) => run::run(args),
+            Command::Train(args) => train::run(args),
             Command::Bench(args) => bench::run(args),
         }
     }

@@ -311,7 +311,11 @@ mod tests {
         let (one, two) = (run(1), run(2));
         assert_eq!(one, two);
         let initial = Trainer::new(tiny_world(), tiny_config(&[]), 4).unwrap();
-        assert_ne!(one.1, weights(initial.state()), "training moved the weights");
+        assert_ne!(
+            one.1,
+            weights(initial.state()),
+            "training moved the weights"
+        );
         assert_eq!(one.0.len(), 6);
     }
 

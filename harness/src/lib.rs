@@ -2,6 +2,7 @@
 
 pub mod atomic_file;
 pub mod baseline_sweep;
+pub mod checkpoint_dir;
 pub mod cli;
 pub mod cpu_clock;
 pub mod nn_bench;
@@ -10,4 +11,5 @@ pub mod replay;
 pub mod runner;
 pub mod stats;
 pub mod trace;
+pub mod training_log;
 pub mod world_bench;

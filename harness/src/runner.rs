@@ -58,3 +58,29 @@ pub fn run_episode(
         steps,
     })
 }
+
+/// The mean cumulative penalty of `episodes` test episodes of `steps` steps; episode `k` is
+/// seeded by child `k` of `seed` (the paper reports means over 10).
+pub fn mean_penalty(
+    world: &Arc<World>,
+    agents: usize,
+    policy: &mut dyn Policy,
+    steps: usize,
+    episodes: u64,
+    seed: Seed,
+) -> Result<f64, StartError> {
+    let mut total = 0.0;
+    for k in 0..episodes {
+        let outcome = run_episode(
+            world,
+            agents,
+            policy,
+            seed.child(k),
+            None,
+            steps,
+            &mut |_, _| (),
+        )?;
+        total += outcome.cumulative_penalty;
+    }
+    Ok(total / episodes.max(1) as f64)
+}

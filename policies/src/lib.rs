@@ -1,13 +1,16 @@
 //! Policies.
 pub mod baseline;
+pub mod checkpoint;
 pub mod closed_walk;
 pub mod cover;
 pub mod error;
 pub mod gcs;
+pub mod learned;
 pub mod nn;
 pub mod partition;
 pub mod patrol;
 pub mod policy;
+pub mod ppo;
 pub mod random;
 pub mod route;
 pub mod static_coverage;
@@ -17,5 +20,6 @@ pub mod viewpoints;
 
 pub use baseline::Baseline;
 pub use error::PlanError;
+pub use learned::{ActionChoice, LearnedPolicy};
 pub use policy::Policy;
 pub use random::RandomPolicy;

@@ -14,8 +14,10 @@ pub const AGENT_CODE: f32 = 200.0;
 /// The code of the other agents on the mini-map, when they are marked (the released code).
 pub const OTHER_AGENT_CODE: f32 = 100.0;
 
-/// Which images a policy gets (the paper's RQ2 compares the three).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+/// Which images a policy gets (the paper's RQ2 compares the three). Named in training
+/// configurations, hence serde.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Channels {
     Local,
     Mini,

@@ -17,6 +17,8 @@ pub mod purpose {
     pub const STARTS: u64 = 1;
     /// The policy's own draws (one child per agent below it where agents draw independently).
     pub const POLICY: u64 = 2;
+    /// The number of agents, where an episode draws it (training over a range of team sizes).
+    pub const AGENT_COUNT: u64 = 3;
 }
 
 impl Seed {

@@ -3,6 +3,7 @@
 mod baselines;
 mod bench;
 mod run;
+mod train;
 
 use clap::{Parser, Subcommand};
 
@@ -21,6 +22,8 @@ pub struct Cli {
 enum Command {
     /// Run one episode and print its cumulative penalty.
     Run(run::RunArgs),
+    /// Train MA-G-PPO or MA-PPO; writes a checkpoint and the training log.
+    Train(train::TrainArgs),
     /// Measure speed against in-process baselines and print the ratios.
     Bench(bench::BenchArgs),
     /// Summarise every baseline's cumulative penalty over maps and agent counts (Markdown).
@@ -36,6 +39,7 @@ impl Cli {
     pub fn run(self) -> anyhow::Result<()> {
         match self.command {
             Command::Run(args) => run::run(args),
+            Command::Train(args) => train::run(args),
             Command::Bench(args) => bench::run(args),
             Command::Baselines(args) => baselines::run(args),
         }

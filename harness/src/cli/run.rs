@@ -3,11 +3,12 @@
 use std::path::PathBuf;
 
 use crate::atomic_file::write_atomic;
+use crate::checkpoint_dir;
 use crate::replay::{ReplayPolicy, parse_actions, parse_starts};
 use crate::runner::run_episode;
 use crate::trace::Trace;
 use anyhow::Context;
-use policies::{Baseline, Policy};
+use policies::{ActionChoice, Baseline, Policy};
 use world::Seed;
 
 use super::WorldArgs;
@@ -19,9 +20,12 @@ pub struct RunArgs {
     /// Number of agents.
     #[arg(long)]
     agents: usize,
-    /// Policy: a baseline name. Ignored with --actions.
+    /// Policy: a baseline name, or checkpoint:DIR for a trained one. Ignored with --actions.
     #[arg(long, default_value = "random")]
     policy: String,
+    /// A trained policy takes its most probable action instead of sampling.
+    #[arg(long)]
+    greedy: bool,
     /// Steps after the start (T). With --actions, defaults to the number of rows.
     #[arg(long)]
     steps: Option<usize>,
@@ -64,10 +68,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             );
             (Box::new(ReplayPolicy::new(rows)), steps)
         }
-        None => {
-            let baseline: Baseline = args.policy.parse()?;
-            (baseline.build(&world)?, args.steps.unwrap_or(2000))
-        }
+        None => (policy_by_name(&args, &world)?, args.steps.unwrap_or(2000)),
     };
     let mut trace = args.trace.as_ref().map(|_| Trace::new(args.agents));
     let outcome = run_episode(
@@ -96,4 +97,21 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         args.seed
     );
     Ok(())
+}
+
+/// A baseline by name, or the learned policy of a `checkpoint:DIR`.
+fn policy_by_name(
+    args: &RunArgs,
+    world: &std::sync::Arc<world::World>,
+) -> anyhow::Result<Box<dyn Policy>> {
+    if let Some(dir) = checkpoint_dir::policy_dir(&args.policy) {
+        let choice = if args.greedy {
+            ActionChoice::Greedy
+        } else {
+            ActionChoice::Sampled
+        };
+        return Ok(Box::new(checkpoint_dir::load_policy(&dir, world, choice)?));
+    }
+    let baseline: Baseline = args.policy.parse()?;
+    Ok(baseline.build(world)?)
 }

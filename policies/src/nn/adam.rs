@@ -45,6 +45,21 @@ impl<T: Real> Adam<T> {
         }
     }
 
+    /// State saved by a checkpoint: the step count and both moments (as long as the model).
+    pub fn from_state(
+        config: AdamConfig,
+        steps: u64,
+        first_moment: Vec<T>,
+        second_moment: Vec<T>,
+    ) -> Self {
+        Adam {
+            config,
+            steps,
+            first_moment,
+            second_moment,
+        }
+    }
+
     pub fn steps(&self) -> u64 {
         self.steps
     }

@@ -38,7 +38,7 @@ pub mod real;
 pub mod softmax;
 
 #[cfg(test)]
-mod gradient_check;
+pub(crate) mod gradient_check;
 
 pub use activation::{LeakyRelu, RELU};
 pub use adam::{Adam, AdamConfig};

@@ -1,0 +1,252 @@
+//! `harness train`: trains MA-G-PPO or MA-PPO, writing a checkpoint and the training log to a
+//! folder every so often and at the end; `--resume` continues from that folder.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use polars::prelude::DataFrame;
+use policies::ppo::{AgentCount, EpisodeRecord, Profile, Trainer, TrainingConfig};
+use policies::{ActionChoice, LearnedPolicy, RandomPolicy};
+use world::Seed;
+
+use super::WorldArgs;
+use crate::atomic_file::write_atomic;
+use crate::checkpoint_dir;
+use crate::runner::mean_penalty;
+use crate::training_log;
+
+const LOG_FILE: &str = "training.parquet";
+
+#[derive(clap::Args)]
+pub struct TrainArgs {
+    #[command(flatten)]
+    world: WorldArgs,
+    /// Agents per training episode: N, or A..B to draw each episode's count from A..=B.
+    #[arg(long)]
+    agents: Option<String>,
+    #[arg(long, value_parser = ["ma-g-ppo", "ma-ppo"])]
+    architecture: Option<String>,
+    #[arg(long, value_parser = ["both", "local", "mini"])]
+    channels: Option<String>,
+    #[arg(long, value_parser = ["fast", "paper"], default_value = "fast")]
+    profile: String,
+    /// Train until this many episodes are done (the learning rate anneals over them).
+    #[arg(long)]
+    episodes: Option<u64>,
+    /// Training seed: weights, episodes and minibatch order all derive from it.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Folder for checkpoint.safetensors, checkpoint.optimizer.safetensors, checkpoint.json
+    /// and training.parquet.
+    #[arg(long)]
+    out: PathBuf,
+    /// Override any configuration field: key=value, the value as JSON or a bare word.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    overrides: Vec<String>,
+    /// Stop after this many episodes, as an interruption would (resume with --resume).
+    #[arg(long)]
+    until: Option<u64>,
+    /// Continue the run saved in --out.
+    #[arg(long)]
+    resume: bool,
+    /// Write the checkpoint and the log every this many episodes.
+    #[arg(long, default_value_t = 100)]
+    checkpoint_every: u64,
+    /// After training, the mean penalty of this many test episodes (greedy and sampled, and
+    /// Random for comparison).
+    #[arg(long, default_value_t = 0)]
+    test_episodes: u64,
+    /// Steps of a test episode.
+    #[arg(long, default_value_t = 2000)]
+    test_steps: usize,
+    /// Agents of a test episode (default: the training maximum).
+    #[arg(long)]
+    test_agents: Option<usize>,
+}
+
+impl TrainArgs {
+    /// The named flags as overrides, before the free-form `--set`s.
+    fn overrides(&self) -> anyhow::Result<Vec<String>> {
+        let mut overrides = Vec::new();
+        if let Some(agents) = &self.agents {
+            let count = parse_agents(agents)?;
+            overrides.push(format!("agents={}", serde_json::to_string(&count)?));
+        }
+        if let Some(architecture) = &self.architecture {
+            overrides.push(format!("architecture={}", architecture.replace('-', "_")));
+        }
+        if let Some(channels) = &self.channels {
+            overrides.push(format!("channels={channels}"));
+        }
+        if let Some(episodes) = self.episodes {
+            overrides.push(format!("episodes={episodes}"));
+        }
+        overrides.extend(self.overrides.iter().cloned());
+        Ok(overrides)
+    }
+}
+
+/// `N` or `A..B`.
+fn parse_agents(text: &str) -> anyhow::Result<AgentCount> {
+    let number = |s: &str| {
+        s.trim()
+            .parse::<usize>()
+            .with_context(|| format!("--agents {text:?}: expected N or A..B"))
+    };
+    Ok(match text.split_once("..") {
+        Some((min, max)) => AgentCount {
+            min: number(min)?,
+            max: number(max)?,
+        },
+        None => AgentCount::fixed(number(text)?),
+    })
+}
+
+pub fn run(args: TrainArgs) -> anyhow::Result<()> {
+    let world = args.world.load()?;
+    let overrides = args.overrides()?;
+    let (mut trainer, mut log) = if args.resume {
+        let mut state = checkpoint_dir::read_state(&args.out)?;
+        state.config = state.config.with_overrides(&overrides)?;
+        let log_path = args.out.join(LOG_FILE);
+        let bytes =
+            std::fs::read(&log_path).with_context(|| format!("reading {}", log_path.display()))?;
+        let log = training_log::from_parquet(&bytes)
+            .with_context(|| format!("reading {}", log_path.display()))?;
+        let first = state.episodes_done;
+        let log = training_log::append(&log, first, &[])?;
+        (Trainer::resume(world.clone(), state)?, log)
+    } else {
+        let profile = match args.profile.as_str() {
+            "paper" => Profile::Paper,
+            _ => Profile::Fast,
+        };
+        let config = TrainingConfig::profile(profile).with_overrides(&overrides)?;
+        let trainer = Trainer::new(world.clone(), config, args.seed)?;
+        (trainer, training_log::to_frame(&[])?)
+    };
+    let configured = trainer.state().config.episodes;
+    let total = args.until.map_or(configured, |until| until.min(configured));
+    let progress = progress_bar(total, trainer.state().episodes_done);
+    let mut timing = Timing::default();
+    while trainer.state().episodes_done < total {
+        let stop = (trainer.state().episodes_done / args.checkpoint_every.max(1) + 1)
+            * args.checkpoint_every.max(1);
+        let first = trainer.state().episodes_done;
+        let records = trainer.train(stop, &mut |record| {
+            show(&progress, record);
+            timing.add(record);
+        })?;
+        log = training_log::append(&log, first, &records)?;
+        save(&args.out, &trainer, &mut log)?;
+    }
+    progress.finish();
+    save(&args.out, &trainer, &mut log)?;
+    timing.print();
+    if args.test_episodes > 0 {
+        test(&args, &world, trainer)?;
+    }
+    Ok(())
+}
+
+/// Mean seconds of a round's rollout and update over this run's episodes.
+#[derive(Default)]
+struct Timing {
+    episodes: u64,
+    rollout: f64,
+    update: f64,
+    penalty_last: f64,
+}
+
+impl Timing {
+    fn add(&mut self, record: &EpisodeRecord) {
+        self.episodes += 1;
+        self.rollout += record.rollout_seconds;
+        self.update += record.update_seconds;
+        self.penalty_last = record.penalty;
+    }
+
+    fn print(&self) {
+        if self.episodes > 0 {
+            let n = self.episodes as f64;
+            println!(
+                "{} episodes: {:.3} s rollout and {:.3} s update per round; \
+                 last episode's penalty {:.4} x 10^6",
+                self.episodes,
+                self.rollout / n,
+                self.update / n,
+                self.penalty_last / 1e6
+            );
+        }
+    }
+}
+
+fn save(out: &Path, trainer: &Trainer, log: &mut DataFrame) -> anyhow::Result<()> {
+    checkpoint_dir::write(out, trainer.state())?;
+    let path = out.join(LOG_FILE);
+    let bytes = training_log::to_parquet(log)?;
+    write_atomic(&path, &bytes).with_context(|| format!("writing {}", path.display()))
+}
+
+fn progress_bar(total: u64, done: u64) -> ProgressBar {
+    let bar = ProgressBar::new(total);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} episodes, eta {eta} {msg}",
+        )
+        .expect("the template is valid")
+        .progress_chars("=> "),
+    );
+    bar.set_position(done);
+    bar
+}
+
+fn show(bar: &ProgressBar, record: &EpisodeRecord) {
+    bar.set_position(record.episode + 1);
+    bar.set_message(format!(
+        "penalty {:.3} x 10^6, entropy {:.3}, {:.0} steps/s",
+        record.penalty / 1e6,
+        record.update.loss.entropy,
+        record.steps_per_second
+    ));
+}
+
+/// Prints the mean test penalty of the trained policy (greedy and sampled) and of Random.
+fn test(
+    args: &TrainArgs,
+    world: &std::sync::Arc<world::World>,
+    trainer: Trainer,
+) -> anyhow::Result<()> {
+    let state = trainer.into_state();
+    let agents = args.test_agents.unwrap_or(state.config.agents.max);
+    let seed = Seed::new(args.seed).child(u64::MAX);
+    let evaluate = |policy: &mut dyn policies::Policy| {
+        mean_penalty(
+            world,
+            agents,
+            policy,
+            args.test_steps,
+            args.test_episodes,
+            seed,
+        )
+    };
+    println!(
+        "mean test penalty over {} episodes of {} steps, {agents} agents (x 10^6):",
+        args.test_episodes, args.test_steps
+    );
+    for choice in [ActionChoice::Greedy, ActionChoice::Sampled] {
+        let mut policy = LearnedPolicy::new(world, state.model.clone(), &state.config, choice)?;
+        println!(
+            "  {:<8} {:.4}",
+            format!("{choice:?}").to_lowercase(),
+            evaluate(&mut policy)? / 1e6
+        );
+    }
+    println!(
+        "  {:<8} {:.4}",
+        "random",
+        evaluate(&mut RandomPolicy::new())? / 1e6
+    );
+    Ok(())
+}

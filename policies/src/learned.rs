@@ -1,0 +1,144 @@
+//! MA-G-PPO and MA-PPO as policies: observations of every agent, one batched forward pass of
+//! the actor, an action per agent. The weights are shared by all agents, so a policy trained
+//! with N agents runs with any number.
+
+use rand::RngExt;
+use rand_pcg::Pcg64Mcg;
+use world::seed::purpose;
+use world::{Action, Cell, Episode, ObservationConfig, Observer, Seed, World};
+
+use crate::nn::{ActorCritic, AgentGraph, CategoricalBatch, ModelWorkspace, Neighbours};
+use crate::policy::Policy;
+use crate::ppo::config::{ArchitectureName, ConfigError, TrainingConfig};
+
+/// How an action is read from the policy's distribution.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ActionChoice {
+    /// Drawn from the distribution (training, and the paper's tests).
+    Sampled,
+    /// The most probable action.
+    Greedy,
+}
+
+impl ActionChoice {
+    /// The action of batch row `row`; draws from `stream` only when sampling.
+    pub fn pick(self, policy: &CategoricalBatch<f32>, row: usize, stream: &mut Pcg64Mcg) -> usize {
+        match self {
+            ActionChoice::Sampled => policy.sample(row, stream.random::<f64>()),
+            ActionChoice::Greedy => {
+                let log_probs = policy.log_probs();
+                let row = log_probs.row(row);
+                // The first of equal maxima, so ties break the same way everywhere.
+                (0..row.len()).fold(0, |best, a| if row[a] > row[best] { a } else { best })
+            }
+        }
+    }
+}
+
+/// The observation settings a configuration trains with.
+pub fn observation_config(config: &TrainingConfig) -> ObservationConfig {
+    ObservationConfig {
+        channels: config.channels,
+        mark_others_on_mini: config.mark_others_on_mini,
+    }
+}
+
+/// Appends one group (the agents of one environment at one step) to an attention graph.
+pub fn push_agents(
+    graph: &mut AgentGraph,
+    rule: Neighbours,
+    positions: &[Cell],
+    scratch: &mut Vec<[f64; 2]>,
+) {
+    scratch.clear();
+    scratch.extend(positions.iter().map(|c| [c.x as f64, c.y as f64]));
+    graph.push_group(rule, scratch);
+}
+
+/// A trained actor driving every agent of an episode.
+#[derive(Debug)]
+pub struct LearnedPolicy {
+    name: &'static str,
+    model: ActorCritic<f32>,
+    neighbours: Neighbours,
+    choice: ActionChoice,
+    observer: Observer,
+    workspace: ModelWorkspace<f32>,
+    graph: AgentGraph,
+    observations: Vec<f32>,
+    points: Vec<[f64; 2]>,
+    streams: Vec<Pcg64Mcg>,
+}
+
+impl LearnedPolicy {
+    /// Fails when the model was built for images of another side than `world` gives.
+    pub fn new(
+        world: &World,
+        model: ActorCritic<f32>,
+        config: &TrainingConfig,
+        choice: ActionChoice,
+    ) -> Result<Self, ConfigError> {
+        let observer = Observer::new(world, observation_config(config));
+        let expected = model.config().image_side;
+        if observer.side() != expected {
+            return Err(ConfigError::Invalid {
+                field: "network",
+                reason: format!(
+                    "the model was trained on {expected} x {expected} images; map `{}` with \
+                     L = {} gives {s} x {s}",
+                    world.map().name(),
+                    world.params().fov(),
+                    s = observer.side()
+                ),
+            });
+        }
+        let name = match config.architecture {
+            ArchitectureName::MaGPpo => "ma-g-ppo",
+            ArchitectureName::MaPpo => "ma-ppo",
+        };
+        Ok(LearnedPolicy {
+            name,
+            model,
+            neighbours: config.neighbours.to_nn(),
+            choice,
+            observer,
+            workspace: ModelWorkspace::default(),
+            graph: AgentGraph::new(),
+            observations: Vec::new(),
+            points: Vec::new(),
+            streams: Vec::new(),
+        })
+    }
+}
+
+impl Policy for LearnedPolicy {
+    fn name(&self) -> &str {
+        self.name
+    }
+
+    fn reset(&mut self, episode: &Episode, seed: Seed) {
+        let policy = seed.child(purpose::POLICY);
+        self.streams = (0..episode.agents() as u64)
+            .map(|agent| policy.child(agent).rng())
+            .collect();
+        self.observations
+            .resize(episode.agents() * self.observer.per_agent(), 0.0);
+    }
+
+    fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
+        self.observer.write(episode, &mut self.observations);
+        self.graph.clear();
+        push_agents(
+            &mut self.graph,
+            self.neighbours,
+            episode.positions(),
+            &mut self.points,
+        );
+        self.model
+            .forward_policy(&mut self.workspace, &self.observations, &self.graph);
+        let policy = self.workspace.policy();
+        for (row, (action, stream)) in actions.iter_mut().zip(&mut self.streams).enumerate() {
+            *action = Action::ALL[self.choice.pick(policy, row, stream)];
+        }
+    }
+}

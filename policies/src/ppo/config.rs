@@ -1,0 +1,486 @@
+//! The training configuration: one plain struct, filled from a named profile and then
+//! overridden field by field, checked once before training starts.
+//!
+//! Overrides go through serde (`key=value`, the value read as JSON when it parses, else as a
+//! string), so every field can be overridden by the same code that a scenario file will use,
+//! and unknown keys are rejected by name.
+
+use serde::{Deserialize, Serialize};
+use world::Channels;
+
+use crate::nn::model::{PAPER_HEADS, PAPER_HIDDEN};
+use crate::nn::{
+    ACTIONS, Architecture, ConvSpec, InitScheme, ModelConfig, Neighbours, PAPER_CONVOLUTIONS,
+};
+
+/// The two presets the issue names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Profile {
+    /// The released code's hyper-parameters exactly.
+    Paper,
+    /// Our default: GAE, advantage normalisation, minibatches, annealed larger learning rate,
+    /// gradient clipping, several environments in parallel.
+    Fast,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ArchitectureName {
+    /// MA-G-PPO: graph attention between the agents.
+    MaGPpo,
+    /// MA-PPO: no communication.
+    MaPpo,
+}
+
+/// Who an agent attends to in MA-G-PPO.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NeighbourRule {
+    /// Every other agent (the paper).
+    AllOthers,
+    /// Every agent, itself included (the released code).
+    AllAgents,
+    /// Other agents within this Euclidean distance, in cells.
+    WithinRadius(f64),
+}
+
+impl NeighbourRule {
+    pub fn to_nn(self) -> Neighbours {
+        match self {
+            NeighbourRule::AllOthers => Neighbours::AllOthers,
+            NeighbourRule::AllAgents => Neighbours::AllAgents,
+            NeighbourRule::WithinRadius(r) => Neighbours::WithinRadius(r),
+        }
+    }
+}
+
+/// One convolution of a custom feature extractor (ReLU follows each).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConvLayer {
+    pub out_channels: usize,
+    pub kernel: usize,
+    pub stride: usize,
+    pub padding: usize,
+}
+
+/// The network's shapes. The paper's extractor needs 25 x 25 images (the paper's maps with
+/// L = 25); smaller maps need `compact` or a custom stack, chosen explicitly.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Network {
+    /// The released network: 8x8/4, 4x4/2, 3x3/1 convolutions; MLPs 500 -> 256.
+    Paper,
+    /// For small images (side 8 to 12): two 3x3 stride-2 convolutions (16, 32 channels);
+    /// MLPs 256 -> 128.
+    Compact,
+    Custom {
+        convolutions: Vec<ConvLayer>,
+        hidden: Vec<usize>,
+    },
+}
+
+const COMPACT_HIDDEN: [usize; 2] = [256, 128];
+
+impl Network {
+    fn shapes(&self) -> (Vec<ConvSpec>, Vec<usize>) {
+        let compact = |out_channels| ConvSpec {
+            out_channels,
+            kernel: 3,
+            stride: 2,
+            padding: 1,
+        };
+        match self {
+            Network::Paper => (PAPER_CONVOLUTIONS.to_vec(), PAPER_HIDDEN.to_vec()),
+            Network::Compact => (vec![compact(16), compact(32)], COMPACT_HIDDEN.to_vec()),
+            Network::Custom {
+                convolutions,
+                hidden,
+            } => (
+                convolutions
+                    .iter()
+                    .map(|c| ConvSpec {
+                        out_channels: c.out_channels,
+                        kernel: c.kernel,
+                        stride: c.stride,
+                        padding: c.padding,
+                    })
+                    .collect(),
+                hidden.clone(),
+            ),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InitName {
+    /// PyTorch's layer defaults (the released code).
+    Pytorch,
+    /// Orthogonal, gains sqrt 2 / 0.01 / 1 (the usual PPO choice).
+    Orthogonal,
+}
+
+/// How advantages are estimated.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AdvantageEstimator {
+    /// The released code: Monte-Carlo returns to the episode's end, advantage = return - V with
+    /// V from the current parameters at every epoch.
+    MonteCarlo,
+    /// Generalised advantage estimation from the rollout's values, bootstrapped from the value
+    /// of the state after the last step (episodes end by a time limit, not a terminal state).
+    Gae { lambda: f64 },
+}
+
+/// How the environment's reward is scaled before learning.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RewardScale {
+    /// As the world returns it (the released code; its returns are normalised afterwards).
+    Raw,
+    /// Divided by (free cells x Rmax): the mean penalty per cell in [-1, 0], so values and
+    /// their loss have the same scale on every map.
+    PerCell,
+}
+
+/// Agents per training episode: fixed (`min == max`) or drawn uniformly from `min..=max`
+/// for every episode (the released code drew 2..=10).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AgentCount {
+    pub min: usize,
+    pub max: usize,
+}
+
+impl AgentCount {
+    pub fn fixed(agents: usize) -> Self {
+        AgentCount {
+            min: agents,
+            max: agents,
+        }
+    }
+}
+
+/// Everything that decides a training run, besides the world and the seed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrainingConfig {
+    /// The preset the other fields started from (for the record).
+    pub profile: Profile,
+    pub architecture: ArchitectureName,
+    /// Attention heads (MA-G-PPO).
+    pub heads: usize,
+    pub neighbours: NeighbourRule,
+    pub channels: Channels,
+    pub mark_others_on_mini: bool,
+    pub network: Network,
+    pub init: InitName,
+    pub agents: AgentCount,
+    /// Training length; the learning rate anneals over it.
+    pub episodes: u64,
+    /// T of a training episode.
+    pub steps_per_episode: usize,
+    /// Episodes run in parallel; one update follows each round of them.
+    pub environments: usize,
+    pub epochs: usize,
+    /// Minibatches per epoch (whole environment steps are never split).
+    pub minibatches: usize,
+    pub learning_rate: f64,
+    /// Linearly down to 0 at `episodes`.
+    pub anneal_learning_rate: bool,
+    pub adam_beta1: f64,
+    pub adam_beta2: f64,
+    pub adam_epsilon: f64,
+    pub gamma: f64,
+    pub advantage: AdvantageEstimator,
+    pub reward_scale: RewardScale,
+    /// Monte-Carlo returns to zero mean and unit variance over the batch.
+    pub normalise_returns: bool,
+    /// Advantages to zero mean and unit variance per minibatch.
+    pub normalise_advantages: bool,
+    pub clip: f64,
+    pub entropy_coefficient: f64,
+    pub value_coefficient: f64,
+    pub attention_entropy_coefficient: f64,
+    /// Clip the global gradient norm to this; `null` for no clipping.
+    pub max_grad_norm: Option<f64>,
+}
+
+/// A configuration that cannot be trained, naming the field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    #[error("training configuration: {field}: {reason}")]
+    Invalid { field: &'static str, reason: String },
+    #[error("training configuration: override `{given}` is not of the form key=value")]
+    OverrideSyntax { given: String },
+    #[error("training configuration: {0}")]
+    Override(String),
+}
+
+fn invalid(field: &'static str, reason: impl Into<String>) -> ConfigError {
+    ConfigError::Invalid {
+        field,
+        reason: reason.into(),
+    }
+}
+
+impl TrainingConfig {
+    pub fn profile(profile: Profile) -> Self {
+        match profile {
+            Profile::Paper => Self::paper(),
+            Profile::Fast => Self::fast(),
+        }
+    }
+
+    /// The released hyper-parameters: Adam 2e-6, one update per 1000-step episode on one
+    /// minibatch of 1000 x N samples, 4 epochs, normalised Monte-Carlo returns.
+    fn paper() -> Self {
+        TrainingConfig {
+            profile: Profile::Paper,
+            architecture: ArchitectureName::MaGPpo,
+            heads: PAPER_HEADS,
+            neighbours: NeighbourRule::AllOthers,
+            channels: Channels::Both,
+            mark_others_on_mini: false,
+            network: Network::Paper,
+            init: InitName::Pytorch,
+            agents: AgentCount::fixed(4),
+            episodes: 30_000,
+            steps_per_episode: 1000,
+            environments: 1,
+            epochs: 4,
+            minibatches: 1,
+            learning_rate: 2e-6,
+            anneal_learning_rate: false,
+            adam_beta1: 0.9,
+            adam_beta2: 0.999,
+            adam_epsilon: 1e-8,
+            gamma: 0.99,
+            advantage: AdvantageEstimator::MonteCarlo,
+            reward_scale: RewardScale::Raw,
+            normalise_returns: true,
+            normalise_advantages: false,
+            clip: 0.2,
+            entropy_coefficient: 0.01,
+            value_coefficient: 0.5,
+            attention_entropy_coefficient: 0.01,
+            max_grad_norm: None,
+        }
+    }
+
+    fn fast() -> Self {
+        TrainingConfig {
+            profile: Profile::Fast,
+            init: InitName::Orthogonal,
+            episodes: 3000,
+            environments: 8,
+            minibatches: 4,
+            learning_rate: 3e-4,
+            anneal_learning_rate: true,
+            advantage: AdvantageEstimator::Gae { lambda: 0.95 },
+            reward_scale: RewardScale::PerCell,
+            normalise_returns: false,
+            normalise_advantages: true,
+            max_grad_norm: Some(0.5),
+            ..Self::paper()
+        }
+    }
+
+    /// This configuration with `key=value` overrides applied in order, then checked.
+    pub fn with_overrides<S: AsRef<str>>(&self, overrides: &[S]) -> Result<Self, ConfigError> {
+        let mut tree = serde_json::to_value(self).expect("the configuration serialises");
+        let fields = tree.as_object_mut().expect("the configuration is a map");
+        for given in overrides {
+            let given = given.as_ref();
+            let (key, value) =
+                given
+                    .split_once('=')
+                    .ok_or_else(|| ConfigError::OverrideSyntax {
+                        given: given.to_owned(),
+                    })?;
+            let value = serde_json::from_str(value)
+                .unwrap_or_else(|_| serde_json::Value::String(value.to_owned()));
+            fields.insert(key.trim().to_owned(), value);
+        }
+        let config: Self =
+            serde_json::from_value(tree).map_err(|e| ConfigError::Override(e.to_string()))?;
+        config.check()?;
+        Ok(config)
+    }
+
+    /// Rejects values no run could use; the network's fit to the images is checked by
+    /// [`TrainingConfig::model_config`].
+    pub fn check(&self) -> Result<(), ConfigError> {
+        let positive = [
+            ("heads", self.heads),
+            ("steps_per_episode", self.steps_per_episode),
+            ("environments", self.environments),
+            ("epochs", self.epochs),
+            ("minibatches", self.minibatches),
+        ];
+        for (field, value) in positive {
+            if value == 0 {
+                return Err(invalid(field, "must be at least 1"));
+            }
+        }
+        if self.agents.min == 0 || self.agents.min > self.agents.max {
+            return Err(invalid("agents", "needs 1 <= min <= max"));
+        }
+        let unit = [
+            ("gamma", self.gamma),
+            ("adam_beta1", self.adam_beta1),
+            ("adam_beta2", self.adam_beta2),
+        ];
+        for (field, value) in unit {
+            if !(0.0..1.0).contains(&value) {
+                return Err(invalid(field, format!("{value} is not in [0, 1)")));
+            }
+        }
+        if let AdvantageEstimator::Gae { lambda } = self.advantage
+            && !(0.0..=1.0).contains(&lambda)
+        {
+            return Err(invalid(
+                "advantage",
+                format!("lambda {lambda} is not in [0, 1]"),
+            ));
+        }
+        let non_negative = [
+            ("learning_rate", self.learning_rate),
+            ("clip", self.clip),
+            ("entropy_coefficient", self.entropy_coefficient),
+            ("value_coefficient", self.value_coefficient),
+            (
+                "attention_entropy_coefficient",
+                self.attention_entropy_coefficient,
+            ),
+            ("adam_epsilon", self.adam_epsilon),
+        ];
+        for (field, value) in non_negative {
+            if !(value >= 0.0 && value.is_finite()) {
+                return Err(invalid(field, format!("{value} must be finite and >= 0")));
+            }
+        }
+        if let Some(norm) = self.max_grad_norm
+            && (norm.is_nan() || norm <= 0.0)
+        {
+            return Err(invalid("max_grad_norm", format!("{norm} must be > 0")));
+        }
+        if let NeighbourRule::WithinRadius(radius) = self.neighbours
+            && (radius.is_nan() || radius < 0.0)
+        {
+            return Err(invalid(
+                "neighbours",
+                format!("radius {radius} must be >= 0"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The model for images of side `image_side`; fails, naming the field `network`, when the
+    /// convolutions do not fit those images.
+    pub fn model_config(&self, image_side: usize) -> Result<ModelConfig, ConfigError> {
+        let (convolutions, hidden) = self.network.shapes();
+        let architecture = match self.architecture {
+            ArchitectureName::MaGPpo => Architecture::MaGPpo { heads: self.heads },
+            ArchitectureName::MaPpo => Architecture::MaPpo,
+        };
+        let init = match self.init {
+            InitName::Pytorch => InitScheme::PyTorchDefault,
+            InitName::Orthogonal => InitScheme::orthogonal_ppo(),
+        };
+        check_convolutions(&convolutions, image_side, &self.network)?;
+        Ok(ModelConfig {
+            architecture,
+            in_channels: self.channels.count(),
+            image_side,
+            convolutions,
+            hidden,
+            actions: ACTIONS,
+            init,
+        })
+    }
+
+    /// Samples per update: every agent of every environment at every step.
+    pub fn max_batch(&self) -> usize {
+        self.environments * self.steps_per_episode * self.agents.max
+    }
+}
+
+/// Follows the image side through the convolutions, so that a misfit names the network and
+/// the side instead of failing deep in a layer.
+fn check_convolutions(
+    convolutions: &[ConvSpec],
+    image_side: usize,
+    network: &Network,
+) -> Result<(), ConfigError> {
+    let mut side = image_side;
+    for (k, c) in convolutions.iter().enumerate() {
+        let padded = side + 2 * c.padding;
+        if c.kernel == 0 || c.stride == 0 || c.out_channels == 0 || c.kernel > padded {
+            return Err(invalid(
+                "network",
+                format!(
+                    "{network:?} does not fit {image_side} x {image_side} images: convolution {k} \
+                     (kernel {}, stride {}, padding {}) gets {side} x {side}; \
+                     use `compact` or a custom network for small maps",
+                    c.kernel, c.stride, c.padding
+                ),
+            ));
+        }
+        side = (padded - c.kernel) / c.stride + 1;
+    }
+    if convolutions.is_empty() {
+        return Err(invalid("network", "needs at least one convolution"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overrides_change_named_fields_and_reject_unknown_ones() {
+        let paper = TrainingConfig::profile(Profile::Paper);
+        let changed = paper
+            .with_overrides(&[
+                "learning_rate=0.001",
+                "agents={\"min\":2,\"max\":10}",
+                "network=compact",
+                "advantage={\"gae\":{\"lambda\":0.9}}",
+                "max_grad_norm=null",
+            ])
+            .unwrap();
+        assert_eq!(changed.learning_rate, 1e-3);
+        assert_eq!(changed.agents, AgentCount { min: 2, max: 10 });
+        assert_eq!(changed.network, Network::Compact);
+        assert_eq!(changed.advantage, AdvantageEstimator::Gae { lambda: 0.9 });
+        let unknown = paper.with_overrides(&["learning_rat=1"]).unwrap_err();
+        assert!(unknown.to_string().contains("learning_rat"), "{unknown}");
+        let bad = paper.with_overrides(&["gamma=1.5"]).unwrap_err();
+        assert!(bad.to_string().contains("gamma"), "{bad}");
+        assert!(paper.with_overrides(&["epochs"]).is_err());
+    }
+
+    #[test]
+    fn the_papers_network_needs_the_papers_images() {
+        let paper = TrainingConfig::profile(Profile::Paper);
+        assert_eq!(paper.model_config(25).unwrap().convolutions.len(), 3);
+        let error = paper.model_config(8).unwrap_err().to_string();
+        assert!(
+            error.contains("network") && error.contains("8 x 8"),
+            "{error}"
+        );
+        let compact = paper.with_overrides(&["network=compact"]).unwrap();
+        assert_eq!(compact.model_config(8).unwrap().image_side, 8);
+    }
+
+    #[test]
+    fn configurations_round_trip_through_json() {
+        let fast = TrainingConfig::profile(Profile::Fast);
+        let text = serde_json::to_string(&fast).unwrap();
+        assert_eq!(serde_json::from_str::<TrainingConfig>(&text).unwrap(), fast);
+    }
+}

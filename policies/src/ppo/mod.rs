@@ -1,0 +1,19 @@
+//! Proximal policy optimisation for MA-G-PPO and MA-PPO.
+//!
+//! - `config`: the training configuration, its two profiles (`paper`, `fast`) and overrides.
+//! - `rollout`: environments run in parallel, one batched actor pass per step.
+//! - `advantage`: Monte-Carlo returns, GAE, normalisation.
+//! - `loss`: the clipped surrogate, value and entropy terms, and their output gradients.
+//! - `update`: epochs of minibatches, backward passes and Adam steps.
+//! - `trainer`: the loop, per-episode records, resumable state.
+
+pub mod advantage;
+pub mod config;
+pub mod loss;
+pub mod rollout;
+pub mod trainer;
+pub mod update;
+
+pub use config::{AgentCount, ConfigError, Profile, TrainingConfig};
+pub use trainer::{EpisodeRecord, TrainError, Trainer, TrainingState};
+pub use update::UpdateStats;

@@ -1,0 +1,166 @@
+//! Episodes of several environments run side by side: every step, the environments observe
+//! and step in parallel (rayon), and the actor runs once on all agents of all environments.
+//!
+//! Every environment owns its episode's record, so parallel writes never share a buffer, and
+//! its random streams come from its episode's seed, so the thread count changes nothing.
+
+use std::sync::Arc;
+
+use rand::RngExt;
+use rand_pcg::Pcg64Mcg;
+use rayon::prelude::*;
+use world::seed::purpose;
+use world::{Action, Episode, Observer, Seed, StartError, World};
+
+use crate::learned::{ActionChoice, observation_config, push_agents};
+use crate::nn::{ActorCritic, AgentGraph, ModelWorkspace, Neighbours};
+use crate::ppo::config::{RewardScale, TrainingConfig};
+
+/// One environment's episode and its record, `[step][agent]` throughout.
+#[derive(Debug)]
+pub struct EnvironmentRollout {
+    episode: Episode,
+    observer: Observer,
+    streams: Vec<Pcg64Mcg>,
+    current: Vec<Action>,
+    reward_scale: f32,
+    pub agents: usize,
+    pub steps: usize,
+    /// `steps + 1` observations per agent: the last one bootstraps GAE.
+    pub observations: Vec<f32>,
+    /// Agent positions at each of the `steps + 1` observations, for the attention graph.
+    pub positions: Vec<world::Cell>,
+    pub actions: Vec<u8>,
+    pub log_probs: Vec<f32>,
+    /// One scaled reward per step, shared by the team.
+    pub rewards: Vec<f32>,
+    /// The paper's metric: the sum of |reward| over steps 1..=T.
+    pub penalty: f64,
+}
+
+impl EnvironmentRollout {
+    /// An episode of training episode index `seed`, with its agent count drawn from the
+    /// configured range, reset to its start.
+    pub fn new(
+        world: &Arc<World>,
+        config: &TrainingConfig,
+        seed: Seed,
+    ) -> Result<Self, StartError> {
+        let (min, max) = (config.agents.min, config.agents.max);
+        let agents = seed
+            .child(purpose::AGENT_COUNT)
+            .rng()
+            .random_range(min..=max);
+        let mut episode = Episode::new(world.clone(), agents)?;
+        episode.reset(seed);
+        let observer = Observer::new(world, observation_config(config));
+        let policy = seed.child(purpose::POLICY);
+        let streams = (0..agents as u64).map(|a| policy.child(a).rng()).collect();
+        let steps = config.steps_per_episode;
+        let reward_scale = match config.reward_scale {
+            RewardScale::Raw => 1.0,
+            RewardScale::PerCell => {
+                1.0 / (world.map().free_cells().len() as f32 * world.params().rmax())
+            }
+        };
+        let mut rollout = EnvironmentRollout {
+            observations: vec![0.0; (steps + 1) * agents * observer.per_agent()],
+            positions: Vec::with_capacity((steps + 1) * agents),
+            actions: vec![0; steps * agents],
+            log_probs: vec![0.0; steps * agents],
+            rewards: vec![0.0; steps],
+            penalty: 0.0,
+            episode,
+            observer,
+            streams,
+            current: vec![Action::Stay; agents],
+            reward_scale,
+            agents,
+            steps,
+        };
+        rollout.observe(0);
+        Ok(rollout)
+    }
+
+    /// Floats per agent observation.
+    pub fn per_agent(&self) -> usize {
+        self.observer.per_agent()
+    }
+
+    /// All agents' observations at step `t`.
+    pub fn observation(&self, t: usize) -> &[f32] {
+        let len = self.agents * self.per_agent();
+        &self.observations[t * len..(t + 1) * len]
+    }
+
+    pub fn positions_at(&self, t: usize) -> &[world::Cell] {
+        &self.positions[t * self.agents..(t + 1) * self.agents]
+    }
+
+    fn observe(&mut self, t: usize) {
+        let len = self.agents * self.observer.per_agent();
+        let out = &mut self.observations[t * len..(t + 1) * len];
+        self.observer.write(&self.episode, out);
+        self.positions.extend_from_slice(self.episode.positions());
+    }
+
+    /// Draws step `t`'s actions from rows `first..` of the batch's policy.
+    fn choose(&mut self, t: usize, policy: &crate::nn::CategoricalBatch<f32>, first: usize) {
+        let log_probs = policy.log_probs();
+        for agent in 0..self.agents {
+            let row = first + agent;
+            let action = ActionChoice::Sampled.pick(policy, row, &mut self.streams[agent]);
+            self.current[agent] = Action::ALL[action];
+            self.actions[t * self.agents + agent] = action as u8;
+            self.log_probs[t * self.agents + agent] = log_probs[[row, action]];
+        }
+    }
+
+    fn advance(&mut self, t: usize) {
+        let reward = self.episode.step(&self.current);
+        self.penalty -= reward;
+        self.rewards[t] = reward as f32 * self.reward_scale;
+        self.observe(t + 1);
+    }
+}
+
+/// The actor's batch buffers, reused across steps and rounds.
+#[derive(Debug, Default)]
+pub struct RolloutWorkspace {
+    observations: Vec<f32>,
+    graph: AgentGraph,
+    points: Vec<[f64; 2]>,
+    model: ModelWorkspace<f32>,
+}
+
+impl RolloutWorkspace {
+    /// Runs every environment to the end of its episode.
+    pub fn run(
+        &mut self,
+        model: &ActorCritic<f32>,
+        neighbours: Neighbours,
+        environments: &mut [EnvironmentRollout],
+    ) {
+        let steps = environments.first().map_or(0, |e| e.steps);
+        for t in 0..steps {
+            self.observations.clear();
+            self.graph.clear();
+            for env in environments.iter() {
+                self.observations.extend_from_slice(env.observation(t));
+                push_agents(
+                    &mut self.graph,
+                    neighbours,
+                    env.positions_at(t),
+                    &mut self.points,
+                );
+            }
+            model.forward_policy(&mut self.model, &self.observations, &self.graph);
+            let mut first = 0;
+            for env in environments.iter_mut() {
+                env.choose(t, self.model.policy(), first);
+                first += env.agents;
+            }
+            environments.par_iter_mut().for_each(|env| env.advance(t));
+        }
+    }
+}

@@ -1,6 +1,7 @@
 //! Command-line parsing; each subcommand lives in its own module.
 
 mod bench;
+mod curve;
 mod run;
 mod train;
 
@@ -23,6 +24,8 @@ enum Command {
     Run(run::RunArgs),
     /// Train MA-G-PPO or MA-PPO; writes a checkpoint and the training log.
     Train(train::TrainArgs),
+    /// Print the learning curve of a training folder.
+    Curve(curve::CurveArgs),
     /// Measure speed against in-process baselines and print the ratios.
     Bench(bench::BenchArgs),
 }
@@ -37,6 +40,7 @@ impl Cli {
         match self.command {
             Command::Run(args) => run::run(args),
             Command::Train(args) => train::run(args),
+            Command::Curve(args) => curve::run(args),
             Command::Bench(args) => bench::run(args),
         }
     }

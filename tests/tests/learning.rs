@@ -36,7 +36,7 @@ fn the_fast_profile_halves_randoms_penalty_on_a_small_two_room_map() {
     assert_eq!(records.len(), 400);
 
     let test_seed = Seed::new(2024);
-    let mut evaluate = |policy: &mut dyn policies::Policy| {
+    let evaluate = |policy: &mut dyn policies::Policy| {
         mean_penalty(&world, AGENTS, policy, STEPS, TEST_EPISODES, test_seed).unwrap()
     };
     let random = evaluate(&mut RandomPolicy::new());

@@ -2,6 +2,7 @@
 
 mod baselines;
 mod bench;
+mod curve;
 mod run;
 mod train;
 
@@ -24,6 +25,8 @@ enum Command {
     Run(run::RunArgs),
     /// Train MA-G-PPO or MA-PPO; writes a checkpoint and the training log.
     Train(train::TrainArgs),
+    /// Print the learning curve of a training folder.
+    Curve(curve::CurveArgs),
     /// Measure speed against in-process baselines and print the ratios.
     Bench(bench::BenchArgs),
     /// Summarise every baseline's cumulative penalty over maps and agent counts (Markdown).
@@ -40,6 +43,7 @@ impl Cli {
         match self.command {
             Command::Run(args) => run::run(args),
             Command::Train(args) => train::run(args),
+            Command::Curve(args) => curve::run(args),
             Command::Bench(args) => bench::run(args),
             Command::Baselines(args) => baselines::run(args),
         }

@@ -1,7 +1,11 @@
 //! Command-line parsing; each subcommand lives in its own module.
 
+mod audit;
 mod bench;
+mod check;
+mod merge;
 mod run;
+mod sweep;
 
 use clap::{Parser, Subcommand};
 
@@ -22,6 +26,14 @@ enum Command {
     Run(run::RunArgs),
     /// Measure speed against in-process baselines and print the ratios.
     Bench(bench::BenchArgs),
+    /// Run a scenario's sweep into a results store (finished cells are never recomputed).
+    Sweep(sweep::SweepArgs),
+    /// Validate a scenario and print its cells and their cost.
+    Check(check::CheckArgs),
+    /// Join shard output folders into one store.
+    Merge(merge::MergeArgs),
+    /// Play stored test episodes again and fail on any difference.
+    Audit(audit::AuditArgs),
 }
 
 /// Parses the process's arguments and runs the command.
@@ -34,6 +46,10 @@ impl Cli {
         match self.command {
             Command::Run(args) => run::run(args),
             Command::Bench(args) => bench::run(args),
+            Command::Sweep(args) => sweep::run(args),
+            Command::Check(args) => check::run(args),
+            Command::Merge(args) => merge::run(args),
+            Command::Audit(args) => audit::run(args),
         }
     }
 }

@@ -4,8 +4,8 @@
 use std::sync::Arc;
 use std::time::{Instant, SystemTime};
 
-use policies::Policy;
 use policies::baseline::UnknownBaseline;
+use policies::{PlanError, Policy};
 use world::{StartError, World};
 
 use crate::cell::{Cell, CellConfig};
@@ -22,6 +22,8 @@ pub enum CellError {
     LearnedUnavailable(String),
     #[error(transparent)]
     Policy(#[from] UnknownBaseline),
+    #[error(transparent)]
+    Plan(#[from] PlanError),
     #[error(transparent)]
     Start(#[from] StartError),
     #[error(transparent)]
@@ -81,7 +83,7 @@ pub fn run_cell(
 pub fn build_policy(spec: &PolicySpec, world: &Arc<World>) -> Result<Box<dyn Policy>, CellError> {
     match spec {
         PolicySpec::Baseline(baseline) => {
-            Ok(baseline.name.parse::<policies::Baseline>()?.build(world))
+            Ok(baseline.name.parse::<policies::Baseline>()?.build(world)?)
         }
         PolicySpec::MaGPpo(_) | PolicySpec::MaPpo(_) => {
             Err(CellError::LearnedUnavailable(spec.label()))

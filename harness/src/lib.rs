@@ -3,11 +3,15 @@
 
 pub mod atomic_file;
 pub mod audit;
+pub mod baseline_sweep;
 pub mod cell;
 pub mod cli;
 pub mod code_version;
+pub mod cpu_clock;
 pub mod execution;
 pub mod merge;
+pub mod nn_bench;
+pub mod policy_bench;
 pub mod progress;
 pub mod provenance;
 pub mod replay;

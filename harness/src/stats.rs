@@ -27,6 +27,14 @@ pub enum StatsError {
     NotFinite { index: usize, value: f64 },
 }
 
+/// A mean with a confidence interval around it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Summary {
+    pub mean: f64,
+    pub low: f64,
+    pub high: f64,
+}
+
 /// A statistic of a set of values, for the bootstrap.
 pub type Statistic = fn(&[f64]) -> Result<f64, StatsError>;
 
@@ -61,6 +69,28 @@ pub fn iqm(values: &[f64]) -> Result<f64, StatsError> {
     let sorted = sorted(values)?;
     let cut = sorted.len() / 4;
     mean(&sorted[cut..sorted.len() - cut])
+}
+
+/// The percentile bootstrap interval of the mean at `confidence` (0.95 for 95 %): draw
+/// `resamples` sets of the same size with replacement from `seed`'s stream, and take the
+/// quantiles of their means (nearest rank).
+pub fn bootstrap_interval(
+    values: &[f64],
+    confidence: f64,
+    resamples: usize,
+    seed: Seed,
+) -> Result<(f64, f64), StatsError> {
+    stratified_bootstrap_interval(&[values], mean, confidence, resamples, seed)
+}
+
+/// Mean and 95 % percentile bootstrap interval with [`RESAMPLES`] resamples.
+pub fn summarize(values: &[f64], seed: Seed) -> Result<Summary, StatsError> {
+    let (low, high) = bootstrap_interval(values, 0.95, RESAMPLES, seed)?;
+    Ok(Summary {
+        mean: mean(values)?,
+        low,
+        high,
+    })
 }
 
 /// The percentile bootstrap interval of `statistic` at `confidence` (0.95 for 95 %), with
@@ -163,6 +193,26 @@ mod tests {
     }
 
     #[test]
+    fn constant_values_have_a_point_interval() {
+        let summary = summarize(&[4.0; 10], Seed::new(1)).unwrap();
+        assert_eq!((summary.mean, summary.low, summary.high), (4.0, 4.0, 4.0));
+    }
+
+    #[test]
+    fn summary_interval_brackets_the_mean_and_is_seeded() {
+        let values: Vec<f64> = (0..10).map(|i| (i * i) as f64).collect();
+        let summary = summarize(&values, Seed::new(2)).unwrap();
+        assert!(summary.low < summary.mean && summary.mean < summary.high);
+        assert!(summary.low >= 0.0 && summary.high <= 81.0);
+        assert_eq!(summarize(&values, Seed::new(2)).unwrap(), summary);
+        assert_ne!(summarize(&values, Seed::new(3)).unwrap(), summary);
+        assert!(matches!(
+            summarize(&[1.0, f64::NAN], Seed::new(2)),
+            Err(StatsError::NotFinite { index: 1, .. })
+        ));
+    }
+
+    #[test]
     fn strata_keep_their_share_in_every_replicate() {
         // Two runs whose episodes never vary: every replicate holds both runs whole, so the
         // stratified interval of the mean is a point, where pooled resampling would spread.
@@ -189,8 +239,7 @@ mod tests {
         // 400 values alternating 0 and 1: mean 0.5, standard error 0.025, so the 95 % interval
         // is about 0.5 ± 0.049.
         let values: Vec<f64> = (0..400).map(|i| (i % 2) as f64).collect();
-        let (low, high) =
-            stratified_bootstrap_interval(&[&values], mean, 0.95, 4000, Seed::new(4)).unwrap();
+        let (low, high) = bootstrap_interval(&values, 0.95, 4000, Seed::new(4)).unwrap();
         assert!((low - 0.451).abs() < 0.01, "{low}");
         assert!((high - 0.549).abs() < 0.01, "{high}");
     }

@@ -6,9 +6,11 @@
 
 use std::hint::black_box;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use policies::{Policy, RandomPolicy};
+
+use crate::cpu_clock::thread_cpu_time;
 use world::reference::ReferenceEpisode;
 use world::{Action, Episode, ObservationConfig, Observer, Seed, World};
 
@@ -20,7 +22,8 @@ pub struct Measurement {
     pub steps_per_second: f64,
 }
 
-/// Runs each variant for about `budget` and returns steps per second, the reference first.
+/// Runs each variant for about `budget` of CPU time and returns steps per CPU-second of the
+/// benchmark thread, the reference first.
 pub fn measure(world: &Arc<World>, agents: usize, budget: Duration) -> Vec<Measurement> {
     vec![
         Measurement {
@@ -47,20 +50,15 @@ fn fast(
     budget: Duration,
     obs: Option<ObservationConfig>,
 ) -> f64 {
-    let mut episode = Episode::new(world.clone(), agents).expect("benchmark map fits its agents");
+    let mut driver = RandomDriver::new(world, agents);
     let mut observer = obs.map(|config| Observer::new(world, config));
     let mut buffer = vec![0.0f32; observer.as_ref().map_or(0, |o| o.per_agent() * agents)];
-    let mut policy = RandomPolicy::new();
-    let mut actions = vec![Action::Stay; agents];
     timed(budget, |round| {
-        let seed = Seed::new(round as u64);
-        episode.reset(seed);
-        policy.reset(&episode, seed);
+        driver.restart(round);
         for _ in 0..EPISODE {
-            policy.act(&episode, &mut actions);
-            black_box(episode.step(&actions));
+            black_box(driver.step());
             if let Some(observer) = observer.as_mut() {
-                observer.write(&episode, &mut buffer);
+                observer.write(&driver.episode, &mut buffer);
                 black_box(&buffer);
             }
         }
@@ -69,32 +67,63 @@ fn fast(
 }
 
 fn reference(world: &Arc<World>, agents: usize, budget: Duration) -> f64 {
-    let mut episode = Episode::new(world.clone(), agents).expect("benchmark map fits its agents");
-    let mut policy = RandomPolicy::new();
-    let mut actions = vec![Action::Stay; agents];
+    let mut driver = RandomDriver::new(world, agents);
     timed(budget, |round| {
-        let seed = Seed::new(round as u64);
-        episode.reset(seed);
-        policy.reset(&episode, seed);
-        let params = *world.params();
-        // The random policy reads no state, so the fast episode only lends it the agent count.
-        let (mut slow, _) = ReferenceEpisode::new(world.map().clone(), params, episode.positions());
+        driver.restart(round);
+        let (map, params) = (world.map().clone(), *world.params());
+        let (mut slow, _) = ReferenceEpisode::new(map, params, driver.episode.positions());
         for _ in 0..EPISODE / 10 {
-            policy.act(&episode, &mut actions);
-            black_box(slow.step(&actions));
+            black_box(slow.step(driver.next_actions()));
         }
         EPISODE / 10
     })
 }
 
-/// Calls `round` until `budget` has passed (at least once); returns steps per second.
+/// Random joint actions for a seeded episode. The reference benchmark only borrows the agent
+/// count and start cells from its episode: the random policy reads no state.
+struct RandomDriver {
+    episode: Episode,
+    policy: RandomPolicy,
+    actions: Vec<Action>,
+}
+
+impl RandomDriver {
+    fn new(world: &Arc<World>, agents: usize) -> Self {
+        let episode = Episode::new(world.clone(), agents).expect("benchmark map fits its agents");
+        Self {
+            episode,
+            policy: RandomPolicy::new(),
+            actions: vec![Action::Stay; agents],
+        }
+    }
+
+    fn restart(&mut self, round: usize) {
+        let seed = Seed::new(round as u64);
+        self.episode.reset(seed);
+        self.policy.reset(&self.episode, seed);
+    }
+
+    fn next_actions(&mut self) -> &[Action] {
+        self.policy.act(&self.episode, &mut self.actions);
+        &self.actions
+    }
+
+    /// Steps the driver's own episode with fresh random actions.
+    fn step(&mut self) -> f64 {
+        self.policy.act(&self.episode, &mut self.actions);
+        self.episode.step(&self.actions)
+    }
+}
+
+/// Calls `round` until `budget` of this thread's CPU time has passed (at least once); returns
+/// steps per CPU-second.
 fn timed(budget: Duration, mut round: impl FnMut(usize) -> usize) -> f64 {
-    let start = Instant::now();
+    let start = thread_cpu_time();
     let mut steps = 0;
     let mut rounds = 0;
-    while rounds == 0 || start.elapsed() < budget {
+    while rounds == 0 || thread_cpu_time() - start < budget {
         steps += round(rounds);
         rounds += 1;
     }
-    steps as f64 / start.elapsed().as_secs_f64()
+    steps as f64 / (thread_cpu_time() - start).as_secs_f64()
 }

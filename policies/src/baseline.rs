@@ -5,28 +5,57 @@ use std::sync::Arc;
 
 use world::World;
 
+use crate::error::PlanError;
+use crate::gcs::{Gcs, Retarget, default_radius};
+use crate::partition::Partition;
 use crate::policy::Policy;
 use crate::random::RandomPolicy;
+use crate::static_coverage::StaticCoverage;
+use crate::tspc::Tspc;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Baseline {
     Random,
+    Gcs,
+    GcsOnArrival,
+    Tspc,
+    Partition,
+    Static,
 }
 
 impl Baseline {
-    pub const ALL: [Baseline; 1] = [Baseline::Random];
+    pub const ALL: [Baseline; 6] = [
+        Baseline::Random,
+        Baseline::Gcs,
+        Baseline::GcsOnArrival,
+        Baseline::Tspc,
+        Baseline::Partition,
+        Baseline::Static,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             Baseline::Random => "random",
+            Baseline::Gcs => "gcs",
+            Baseline::GcsOnArrival => "gcs-arrival",
+            Baseline::Tspc => "tspc",
+            Baseline::Partition => "partition",
+            Baseline::Static => "static",
         }
     }
 
-    /// Builds the policy for `world`; any per-map precomputation happens here, once.
-    pub fn build(self, _world: &Arc<World>) -> Box<dyn Policy> {
-        match self {
+    /// Builds the policy for `world`; any per-map precomputation happens here, once. Tours
+    /// cannot be planned on maps whose free cells are not connected.
+    pub fn build(self, world: &Arc<World>) -> Result<Box<dyn Policy>, PlanError> {
+        let radius = default_radius(world);
+        Ok(match self {
             Baseline::Random => Box::new(RandomPolicy::new()),
-        }
+            Baseline::Gcs => Box::new(Gcs::new(world, radius, Retarget::WhenSeen)),
+            Baseline::GcsOnArrival => Box::new(Gcs::new(world, radius, Retarget::OnArrival)),
+            Baseline::Tspc => Box::new(Tspc::new(world)?),
+            Baseline::Partition => Box::new(Partition::new(world)?),
+            Baseline::Static => Box::new(StaticCoverage::new(world)),
+        })
     }
 }
 

@@ -1,11 +1,21 @@
 //! Policies.
 pub mod baseline;
+pub mod closed_walk;
 pub mod cover;
+pub mod error;
+pub mod gcs;
 pub mod nn;
+pub mod partition;
+pub mod patrol;
 pub mod policy;
 pub mod random;
+pub mod route;
+pub mod static_coverage;
 pub mod tour;
+pub mod tspc;
+pub mod viewpoints;
 
 pub use baseline::Baseline;
+pub use error::PlanError;
 pub use policy::Policy;
 pub use random::RandomPolicy;

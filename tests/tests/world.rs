@@ -108,6 +108,19 @@ fn fast_simulator_matches_the_reference_with_odd_sides_and_small_windows() {
     }
 }
 
+#[test]
+fn fast_simulator_matches_the_reference_when_lane_sums_are_flushed_every_row() {
+    // 1000 columns with Rmax = 10^6 could overflow exact f32 lane sums within one row, so the
+    // update moves them into f64 after every row.
+    let row: String = (0..1000)
+        .map(|x| if x % 97 == 13 { '#' } else { '.' })
+        .collect();
+    let text = format!("{row}\n{row}\n{row}\n");
+    let map = Map::parse_text("wide", &text, Path::new("wide.txt")).unwrap();
+    let world = World::new(map, WorldParams::new(3, 1.0, 1e6).unwrap());
+    assert_same_as_reference(&world, 3, 40, 5);
+}
+
 /// A random map: a grid of the given size with obstacles, at least `agents` free cells.
 fn arbitrary_world() -> impl Strategy<Value = (Arc<World>, usize, u64)> {
     (

@@ -10,6 +10,7 @@ pub mod error;
 pub mod map;
 pub mod observation;
 pub mod params;
+pub mod paths;
 pub mod penalty;
 pub mod polygon;
 pub mod reference;

@@ -41,9 +41,13 @@ pub struct PenaltyGrid {
     height: usize,
     pad: usize,
     stride: usize,
-    /// Bit of the seen mask that holds column 0 of the map: a multiple of 8 at least as wide
-    /// as the window's half, so each group of LANES cells is one whole byte of the mask.
+    /// Bit of the seen mask that holds column 0 of the map: a multiple of 64 at least as wide
+    /// as the window's half, so each 64 cells of a row are one word of the mask and each
+    /// group of LANES cells one byte of it.
     seen_offset: usize,
+    /// Rows whose lane-wise `f32` sums stay exact (below 2^24 for integer penalties) before
+    /// they are moved into `f64`.
+    rows_per_flush: usize,
     decay: f32,
     /// Penalty (<= 0) of free cells, `OBSTACLE_CODE` elsewhere; padded layout.
     codes: Vec<f32>,
@@ -67,7 +71,9 @@ impl PenaltyGrid {
             .iter()
             .map(|&f| if f == OBSTACLE_CODE { f } else { 0.0 })
             .collect();
-        let seen_offset = params.half_fov().next_multiple_of(LANES);
+        let seen_offset = params.half_fov().next_multiple_of(64);
+        let largest_row_lane_sum = map.width().div_ceil(LANES) as f64 * params.rmax() as f64;
+        let rows_per_flush = ((1u64 << 24) as f64 / largest_row_lane_sum).max(1.0) as usize;
         Self {
             width: map.width(),
             height: map.height(),
@@ -77,6 +83,7 @@ impl PenaltyGrid {
             codes,
             floor,
             seen_offset,
+            rows_per_flush,
             seen: SeenMask::new(seen_offset + map.width() + params.half_fov() + LANES, rows),
         }
     }
@@ -91,7 +98,6 @@ impl PenaltyGrid {
     /// Marks what agents at `positions` see, then updates every cell; returns the step's reward,
     /// the sum of the penalties of all free cells (<= 0).
     pub fn update(&mut self, visibility: &Visibility, positions: &[Cell]) -> f64 {
-        self.seen.clear();
         let half = visibility.fov() / 2;
         for &at in positions {
             let bottom = at.y as usize + self.pad - half;
@@ -104,22 +110,21 @@ impl PenaltyGrid {
             );
         }
         let groups = self.width.div_ceil(LANES);
-        let mut reward = 0.0f64;
+        let (mut total, mut lanes) = (0.0f64, f32x8::ZERO);
+        let mut rows_to_flush = self.rows_per_flush;
         for y in 0..self.height {
             let start = (y + self.pad) * self.stride + self.pad;
             let end = start + groups * LANES;
-            let seen_row = self.seen.row(y + self.pad);
+            let seen_row = &mut self.seen.row_mut(y + self.pad)[self.seen_offset / 64..];
             let codes = &mut self.codes[start..end];
-            let first_byte = self.seen_offset / LANES;
-            reward += decay_row(
-                codes,
-                &self.floor[start..end],
-                seen_row,
-                first_byte,
-                self.decay,
-            );
+            lanes += decay_row(codes, &self.floor[start..end], seen_row, self.decay);
+            rows_to_flush -= 1;
+            if rows_to_flush == 0 {
+                total += lane_sum(lanes);
+                (lanes, rows_to_flush) = (f32x8::ZERO, self.rows_per_flush);
+            }
         }
-        reward
+        total + lane_sum(lanes)
     }
 
     /// The penalty of a free cell (<= 0), or `OBSTACLE_CODE` for an obstacle.
@@ -146,31 +151,34 @@ impl PenaltyGrid {
     }
 }
 
-/// Updates one row in groups of LANES cells and returns the row's sum of penalties.
+/// Updates one row in groups of LANES cells and returns the row's lane-wise sums of penalties;
+/// bit i of `seen` is cell i of the row. Clears the seen words it reads: windows mark only
+/// cells of the map, so this leaves the whole mask clear for the next step.
 ///
 /// Lane-wise `f32` partial sums keep the loop in vector registers; each lane adds at most
-/// width / LANES values of at most Rmax, so with integer penalties every sum is exact. Adding +0
-/// turns the -0 that a negative penalty times a zero factor gives into +0.
-fn decay_row(codes: &mut [f32], floor: &[f32], seen: &[u64], first_byte: usize, decay: f32) -> f64 {
+/// width / LANES values of at most Rmax per row, and the caller moves the sums into `f64`
+/// before they could reach 2^24, so with integer penalties every sum is exact. Adding +0 turns the -0 that a negative penalty times a zero
+/// factor gives into +0.
+fn decay_row(codes: &mut [f32], floor: &[f32], seen: &mut [u64], decay: f32) -> f32x8 {
     let (decay, zero) = (f32x8::splat(decay), f32x8::ZERO);
     let mut lanes = f32x8::ZERO;
-    for (group, (codes, floor)) in codes
-        .chunks_exact_mut(LANES)
-        .zip(floor.chunks_exact(LANES))
-        .enumerate()
-    {
-        let keep = f32x8::from(KEEP_FACTORS[seen_byte(seen, first_byte + group)]);
-        let decayed = (f32x8::from(&*codes) - decay).fast_max(f32x8::from(floor));
-        let value = decayed * keep + zero;
-        codes.copy_from_slice(value.as_array());
-        lanes += value.fast_min(zero);
+    let blocks = codes.chunks_mut(64).zip(floor.chunks(64)).zip(seen);
+    for ((codes, floor), bits) in blocks {
+        let (codes, _) = codes.as_chunks_mut::<LANES>();
+        let (floor, _) = floor.as_chunks::<LANES>();
+        for (group, (codes, floor)) in codes.iter_mut().zip(floor).enumerate() {
+            let keep = f32x8::from(KEEP_FACTORS[(*bits >> (LANES * group)) as u8 as usize]);
+            let value = (f32x8::from(*codes) - decay).fast_max(f32x8::from(*floor)) * keep + zero;
+            *codes = value.to_array();
+            lanes += value.fast_min(zero);
+        }
+        *bits = 0;
     }
-    lanes.as_array().iter().map(|&s| s as f64).sum()
+    lanes
 }
 
-/// Byte `index` of a bit row (bits 8 * index up to 8 * index + 7).
-fn seen_byte(words: &[u64], index: usize) -> usize {
-    (words[index / 8] >> (8 * (index % 8)) & 0xff) as usize
+fn lane_sum(lanes: f32x8) -> f64 {
+    lanes.as_array().iter().map(|&s| s as f64).sum()
 }
 
 /// One bit per cell of the padded grid: which cells some agent sees this step.
@@ -190,24 +198,20 @@ impl SeenMask {
         }
     }
 
-    fn clear(&mut self) {
-        self.words.fill(0);
-    }
-
-    fn row(&self, row: usize) -> &[u64] {
-        &self.words[row * self.words_per_row..(row + 1) * self.words_per_row]
+    fn row_mut(&mut self, row: usize) -> &mut [u64] {
+        &mut self.words[row * self.words_per_row..(row + 1) * self.words_per_row]
     }
 
     /// ORs a window (rows of `window_words` words each) in with its bottom-left at (left, bottom).
     fn mark(&mut self, window: &[u64], window_words: usize, bottom: usize, left: usize) {
-        let (word, shift) = (left / 64, left % 64);
-        for (r, bits) in window.chunks_exact(window_words).enumerate() {
-            let row = &mut self.words[(bottom + r) * self.words_per_row..][..self.words_per_row];
+        let (word, shift) = (left / 64, (left % 64) as u32);
+        let rows = self.words.chunks_exact_mut(self.words_per_row).skip(bottom);
+        for (row, bits) in rows.zip(window.chunks_exact(window_words)) {
+            let row = &mut row[word..=word + window_words];
             for (k, &b) in bits.iter().enumerate() {
-                row[word + k] |= b << shift;
-                if shift > 0 {
-                    row[word + k + 1] |= b >> (64 - shift);
-                }
+                row[k] |= b << shift;
+                // A shift by 64 would overflow: `checked_shr` gives nothing to carry instead.
+                row[k + 1] |= b.checked_shr(64 - shift).unwrap_or(0);
             }
         }
     }
@@ -242,10 +246,15 @@ mod tests {
     }
 
     #[test]
-    fn bytes_are_read_in_bit_order_across_words() {
-        let words = [0xabu64 << 56 | 0x12, 0xcd];
-        assert_eq!(seen_byte(&words, 0), 0x12);
-        assert_eq!(seen_byte(&words, 7), 0xab);
-        assert_eq!(seen_byte(&words, 8), 0xcd);
+    fn a_row_wider_than_a_word_zeroes_exactly_its_seen_cells() {
+        let mut codes = vec![-3.0f32; 72];
+        let floor = vec![-5.0f32; 72];
+        let mut seen = [1u64 << 63 | 1 << 8, 1 << 7];
+        let sums = decay_row(&mut codes, &floor, &mut seen, 1.0);
+        assert_eq!(seen, [0, 0], "consumed words are cleared");
+        let zeroed: Vec<usize> = (0..72).filter(|&i| codes[i] == 0.0).collect();
+        assert_eq!(zeroed, [8, 63, 71]);
+        assert!(codes.iter().all(|&c| c == 0.0 || c == -4.0));
+        assert_eq!(sums.as_array().iter().sum::<f32>(), -4.0 * 69.0);
     }
 }

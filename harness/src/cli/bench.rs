@@ -1,31 +1,70 @@
 //! `harness bench`: speed as ratios against baselines measured in the same process.
 
+use std::sync::Arc;
 use std::time::Duration;
 
+use anyhow::Context;
+
+use crate::nn_bench::{ModelMeasurement, NetworkBench, Peak, ROLLOUT_STEPS, UPDATE_PASSES};
+use crate::policy_bench;
 use crate::world_bench::{PYTHON_STEPS_PER_SECOND, measure};
+use world::World;
 
 use super::WorldArgs;
 
 #[derive(clap::Args)]
+#[command(subcommand_negates_reqs = true)]
 pub struct BenchArgs {
+    #[command(subcommand)]
+    network: Option<BenchTarget>,
     #[command(flatten)]
-    world: WorldArgs,
+    world: Option<WorldArgs>,
     #[arg(long, default_value_t = 4)]
     agents: usize,
     /// Seconds to spend on each measurement.
     #[arg(long, default_value_t = 2.0)]
     seconds: f64,
+    /// Measure each baseline's decision time per step instead of world speed.
+    #[arg(long)]
+    policies: bool,
+}
+
+#[derive(clap::Subcommand)]
+enum BenchTarget {
+    /// The networks instead of the world: the paper profile's rollout and update.
+    Network(NetworkArgs),
+}
+
+#[derive(clap::Args)]
+struct NetworkArgs {
+    /// Agents per environment.
+    #[arg(long, default_value_t = 4)]
+    agents: usize,
+    /// Timed repetitions of each measurement (the best counts).
+    #[arg(long, default_value_t = 5)]
+    repeats: usize,
+    /// Threads of the parallel measurements (default: rayon's, one per core).
+    #[arg(long)]
+    threads: Option<usize>,
 }
 
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
-    let world = args.world.load()?;
+    if let Some(BenchTarget::Network(network)) = args.network {
+        return run_network(&network);
+    }
+    let world_args = args.world.as_ref().context("--map is required")?;
+    let world = world_args.load()?;
     world
         .map()
-        .check_agents(args.agents, std::path::Path::new(&args.world.map))?;
-    let rows = measure(&world, args.agents, Duration::from_secs_f64(args.seconds));
+        .check_agents(args.agents, std::path::Path::new(&world_args.map))?;
+    let budget = Duration::from_secs_f64(args.seconds);
+    if args.policies {
+        return print_decision_times(&world, args.agents, budget);
+    }
+    let rows = measure(&world, args.agents, budget);
     let baseline = rows[0].steps_per_second;
     println!(
-        "world steps per second, map {}, {} random agents, L = {}",
+        "world steps per CPU-second (one thread), map {}, {} random agents, L = {}",
         world.map().name(),
         args.agents,
         world.params().fov()
@@ -44,4 +83,86 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+fn print_decision_times(world: &Arc<World>, agents: usize, budget: Duration) -> anyhow::Result<()> {
+    let (step, decisions) = policy_bench::measure(world, agents, budget)?;
+    println!(
+        "decision time per step, map {}, {agents} agents; one world step takes {:.2} us",
+        world.map().name(),
+        step * 1e6
+    );
+    println!("{:<14} {:>14} {:>14}", "policy", "us/step", "x world step");
+    for row in &decisions {
+        println!(
+            "{:<14} {:>14.2} {:>14.2}",
+            row.policy,
+            row.seconds_per_step * 1e6,
+            row.seconds_per_step / step
+        );
+    }
+    Ok(())
+}
+
+fn run_network(args: &NetworkArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.agents >= 1, "--agents must be positive");
+    anyhow::ensure!(args.repeats >= 1, "--repeats must be positive");
+    let bench = NetworkBench {
+        agents: args.agents,
+        threads: args.threads.unwrap_or_else(rayon::current_num_threads),
+        repeats: args.repeats,
+    };
+    let peak = bench.measure_peak();
+    println!(
+        "network speed, paper profile: {} agents, rollout {ROLLOUT_STEPS} steps, update \
+         {UPDATE_PASSES} passes over {} samples; {} threads",
+        bench.agents,
+        ROLLOUT_STEPS * bench.agents,
+        bench.threads
+    );
+    println!(
+        "one thread: thread CPU time; {} threads: wall time; best (median) of {}",
+        bench.threads, bench.repeats
+    );
+    println!(
+        "peak f32 GEMM: {:.1} GFLOP/s on one thread, {:.1} GFLOP/s on {} (got {:.2} cores)",
+        peak.one_thread, peak.parallel, bench.threads, peak.parallel_cores_used
+    );
+    for architecture in NetworkBench::architectures() {
+        print_model(&bench.measure_model(architecture), &peak, bench.agents);
+    }
+    Ok(())
+}
+
+fn print_model(m: &ModelMeasurement, peak: &Peak, agents: usize) {
+    let gflops = |t: Duration| m.update_flops / t.as_secs_f64() / 1e9;
+    let ms = |t: Duration| t.as_secs_f64() * 1e3;
+    println!("{}: update pass {:.1} GFLOP", m.name, m.update_flops / 1e9);
+    for (label, timing, peak) in [
+        ("1 thread", m.update_one_thread, peak.one_thread),
+        ("parallel", m.update_parallel, peak.parallel),
+    ] {
+        let cores = timing
+            .cores_used
+            .map_or(String::new(), |c| format!(" (got {c:.2} cores)"));
+        println!(
+            "  update pass, {label:<8} {:>8.1} ms ({:>6.1} ms)  {:>6.1} GFLOP/s = {:.2} x peak{cores}",
+            ms(timing.best),
+            ms(timing.median),
+            gflops(timing.best),
+            gflops(timing.best) / peak
+        );
+    }
+    println!(
+        "  rollout step ({} agents)  {:>8.1} us ({:>6.1} us)",
+        agents,
+        m.rollout_step.best.as_secs_f64() * 1e6,
+        m.rollout_step.median.as_secs_f64() * 1e6
+    );
+    println!(
+        "  episode estimate {:.3} s = rollout {:.3} s + update {:.3} s",
+        m.episode_seconds(),
+        m.rollout_seconds(),
+        m.update_seconds()
+    );
 }

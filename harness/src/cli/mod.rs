@@ -1,6 +1,7 @@
 //! Command-line parsing; each subcommand lives in its own module.
 
 mod audit;
+mod baselines;
 mod bench;
 mod check;
 mod merge;
@@ -26,6 +27,8 @@ enum Command {
     Run(run::RunArgs),
     /// Measure speed against in-process baselines and print the ratios.
     Bench(bench::BenchArgs),
+    /// Summarise every baseline's cumulative penalty over maps and agent counts (Markdown).
+    Baselines(baselines::BaselinesArgs),
     /// Run a scenario's sweep into a results store (finished cells are never recomputed).
     Sweep(sweep::SweepArgs),
     /// Validate a scenario and print its cells and their cost.
@@ -46,6 +49,7 @@ impl Cli {
         match self.command {
             Command::Run(args) => run::run(args),
             Command::Bench(args) => bench::run(args),
+            Command::Baselines(args) => baselines::run(args),
             Command::Sweep(args) => sweep::run(args),
             Command::Check(args) => check::run(args),
             Command::Merge(args) => merge::run(args),

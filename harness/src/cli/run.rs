@@ -66,7 +66,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         None => {
             let baseline: Baseline = args.policy.parse()?;
-            (baseline.build(&world), args.steps.unwrap_or(2000))
+            (baseline.build(&world)?, args.steps.unwrap_or(2000))
         }
     };
     let mut trace = args.trace.as_ref().map(|_| Trace::new(args.agents));

@@ -6,7 +6,6 @@
 //! `a^m . [x || y]` splits into a receiver part `a_l . x` and a sender part `a_r . y`, computed
 //! once per agent instead of once per edge.
 
-use ndarray::linalg::general_mat_mul;
 use ndarray::{ArrayView2, ArrayViewMut2};
 use rand::Rng;
 
@@ -15,6 +14,7 @@ use super::buffer::ReusableBuffer;
 use super::error::NnError;
 use super::graph::AgentGraph;
 use super::init::Init;
+use super::matmul::{matmul, matmul_add};
 use super::params::{ParamSlot, ParamStore};
 use super::real::Real;
 use super::softmax::{log_softmax_backward_in_place, log_softmax_in_place};
@@ -138,13 +138,10 @@ impl GraphAttention {
     ) {
         let (batch, width) = (h.nrows(), self.heads * self.out_features);
         (ws.batch, ws.heads, ws.edges) = (batch, self.heads, graph.edges());
-        let mut projected = ws.projected.matrix_mut(batch, width);
-        general_mat_mul(
-            T::one(),
-            &h,
-            &self.weight(params).t(),
-            T::zero(),
-            &mut projected,
+        matmul(
+            h,
+            self.weight(params).t(),
+            ws.projected.matrix_mut(batch, width),
         );
         self.project_scores(params, ws);
         self.normalise_scores(ws, graph);
@@ -223,7 +220,7 @@ impl GraphAttention {
         graph: &AgentGraph,
         d_out: ArrayView2<T>,
         entropy_grad: T,
-        mut dh: ArrayViewMut2<T>,
+        dh: ArrayViewMut2<T>,
     ) {
         let (batch, width) = (ws.batch, self.heads * self.out_features);
         ws.d_projected.slice_mut(batch * width).fill(T::zero());
@@ -231,20 +228,8 @@ impl GraphAttention {
         self.backward_scores(ws, graph, entropy_grad);
         self.backward_score_projections(params, grads, ws);
         let d_projected = ws.d_projected.matrix(batch, width);
-        general_mat_mul(
-            T::one(),
-            &d_projected.t(),
-            &h,
-            T::one(),
-            &mut self.weight_mut(grads),
-        );
-        general_mat_mul(
-            T::one(),
-            &d_projected,
-            &self.weight(params),
-            T::zero(),
-            &mut dh,
-        );
+        matmul_add(d_projected.t(), h, self.weight_mut(grads));
+        matmul(d_projected, self.weight(params), dh);
     }
 
     /// Through `h_i' = mean_m sum_j alpha W^m h_j`: into `W h` of the senders, and into the

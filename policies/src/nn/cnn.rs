@@ -6,7 +6,7 @@ use rand::Rng;
 
 use super::activation::RELU;
 use super::buffer::{AlternatingBuffers, ReusableBuffer};
-use super::conv::{Conv2d, ConvSpec, ImageShape};
+use super::conv::{Conv2d, ConvSpec, ConvWorkspace, ImageShape};
 use super::error::NnError;
 use super::init::Init;
 use super::params::ParamStore;
@@ -40,12 +40,11 @@ pub struct CnnEncoder {
     convs: Vec<Conv2d>,
 }
 
-/// Patch matrices and outputs of every convolution, and the gradient buffers of the backward
-/// pass.
+/// Every convolution's workspace and output, and the gradient buffers of the backward pass.
 #[derive(Debug, Clone, Default)]
 pub struct CnnWorkspace<T> {
     batch: usize,
-    patches: Vec<ReusableBuffer<T>>,
+    convs: Vec<ConvWorkspace<T>>,
     outputs: Vec<ReusableBuffer<T>>,
     grads: AlternatingBuffers<T>,
 }
@@ -104,7 +103,7 @@ impl CnnEncoder {
         batch: usize,
     ) -> ArrayView2<'w, T> {
         ws.batch = batch;
-        ws.patches.resize_with(self.convs.len(), Default::default);
+        ws.convs.resize_with(self.convs.len(), Default::default);
         ws.outputs.resize_with(self.convs.len(), Default::default);
         for (k, conv) in self.convs.iter().enumerate() {
             let (done, rest) = ws.outputs.split_at_mut(k);
@@ -114,7 +113,7 @@ impl CnnEncoder {
             };
             let out = conv.output_shape();
             let mut y = rest[0].matrix_mut(batch * out.height * out.width, out.channels);
-            conv.forward(params, input, batch, &mut ws.patches[k], y.view_mut());
+            conv.forward(params, input, batch, &mut ws.convs[k], y.view_mut());
             RELU.forward_in_place(y.as_slice_mut().expect("buffer views are contiguous"));
         }
         self.output(ws)
@@ -129,7 +128,6 @@ impl CnnEncoder {
     /// input gradient to `dx` when given. Consumes the workspace's patch matrices.
     pub fn backward<T: Real>(
         &self,
-        params: &[T],
         grads: &mut [T],
         ws: &mut CnnWorkspace<T>,
         d_features: ArrayView2<T>,
@@ -152,13 +150,13 @@ impl CnnEncoder {
             let (current, previous) = ws.grads.output_and_input_grads(k);
             let out = conv.output_shape();
             let d_output = current.matrix(batch * out.height * out.width, out.channels);
-            let patches = &mut ws.patches[k];
+            let conv_ws = &mut ws.convs[k];
             let Some(below) = k.checked_sub(1) else {
-                conv.backward(params, grads, batch, patches, d_output, dx.take());
+                conv.backward(grads, batch, conv_ws, d_output, dx.take());
                 continue;
             };
             let d_input = previous.slice_mut(batch * conv.input_shape().len());
-            conv.backward(params, grads, batch, patches, d_output, Some(&mut *d_input));
+            conv.backward(grads, batch, conv_ws, d_output, Some(&mut *d_input));
             RELU.backward_in_place(ws.outputs[below].slice(d_input.len()), d_input);
         }
     }
@@ -235,7 +233,7 @@ mod tests {
         cnn.forward(&params, &mut ws, &x, batch);
         let mut dx = vec![0.0; x.len()];
         let dy = ArrayView2::from_shape((batch, features), &upstream[..]).unwrap();
-        cnn.backward(&params, store.grads_mut(), &mut ws, dy, Some(&mut dx));
+        cnn.backward(store.grads_mut(), &mut ws, dy, Some(&mut dx));
         assert_gradients_match(&params, store.grads(), |p| loss(p, &x));
         assert_gradients_match(&x, &dx, |x| loss(&params, x));
     }

@@ -2,6 +2,12 @@
 //! (`[batch, out_h, out_w, channels]`, which is the GEMM's natural `[batch * positions,
 //! channels]` result); inputs may be either order, so observations can arrive as channel
 //! planes. The weight keeps PyTorch's `[out, in, kh, kw]` layout.
+//!
+//! A patch's columns follow the input's memory order, `(channel, ky, kx)` for channel planes
+//! and `(ky, kx, channel)` for channels-last inputs, so that im2col copies long contiguous runs
+//! (a whole kernel row of every channel at once for channels-last) instead of single values.
+//! The GEMM reads a copy of the weight permuted to that order, and the weight gradient is
+//! permuted back; both copies are a few thousand values per batch.
 
 use ndarray::{ArrayView2, ArrayViewMut2};
 use rand::Rng;
@@ -11,6 +17,8 @@ use super::buffer::ReusableBuffer;
 use super::error::NnError;
 use super::init::Init;
 use super::linear::Linear;
+use super::matmul::matmul;
+use super::matmul::matmul_add;
 use super::params::ParamStore;
 use super::real::Real;
 
@@ -73,7 +81,19 @@ pub struct Conv2d {
     /// Computed once so that im2col is a series of slice copies and its adjoint of slice sums.
     patch_runs: Vec<PatchRun>,
     patch_len_per_sample: usize,
+    /// For each element of the GEMM's weight `[patch columns, out]` (row-major), its position
+    /// in the stored `[out, in, kh, kw]` weight.
+    weight_order: Vec<usize>,
     dense: Linear,
+}
+
+/// One convolution's activations: the patch matrix of the last forward pass, and the weight
+/// and its gradient in the GEMM's order.
+#[derive(Debug, Clone, Default)]
+pub struct ConvWorkspace<T> {
+    patches: ReusableBuffer<T>,
+    weight: ReusableBuffer<T>,
+    weight_grad: ReusableBuffer<T>,
 }
 
 impl Conv2d {
@@ -98,11 +118,13 @@ impl Conv2d {
             init,
             rng,
         )?;
+        let taps = patch_taps(input, spec);
         Ok(Conv2d {
             input,
             output,
-            patch_runs: patch_runs(input, output, spec),
+            patch_runs: patch_runs(input, output, spec, &taps),
             patch_len_per_sample: output.height * output.width * patch_len,
+            weight_order: weight_order(input, spec, &taps),
             dense,
         })
     }
@@ -124,17 +146,23 @@ impl Conv2d {
     }
 
     /// `y [batch * positions, out_channels]` from `x` (`batch` samples of the input shape).
-    /// Keeps the patch matrix in `patches` for the backward pass.
+    /// Keeps the patch matrix and the weight in `ws` for the backward pass.
     pub fn forward<T: Real>(
         &self,
         params: &[T],
         x: &[T],
         batch: usize,
-        patches: &mut ReusableBuffer<T>,
-        y: ArrayViewMut2<T>,
+        ws: &mut ConvWorkspace<T>,
+        mut y: ArrayViewMut2<T>,
     ) {
+        let stored = self.dense.weight_slot().of(params);
+        let weight = ws.weight.slice_mut(self.weight_order.len());
+        weight
+            .iter_mut()
+            .zip(&self.weight_order)
+            .for_each(|(w, &source)| *w = stored[source]);
         let per_sample = self.patch_len_per_sample;
-        patches
+        ws.patches
             .slice_mut(batch * per_sample)
             .par_chunks_mut(per_sample)
             .zip(x.par_chunks(self.input.len()))
@@ -150,32 +178,56 @@ impl Conv2d {
                     rest = tail;
                 }
             });
-        let rows = batch * self.positions();
-        self.dense
-            .forward(params, patches.matrix(rows, self.dense.inputs()), y);
+        self.dense.fill_with_bias(params, y.view_mut());
+        matmul_add(self.patch_matrix(ws, batch), self.gemm_weight(ws), y);
+    }
+
+    fn patch_matrix<'w, T: Real>(
+        &self,
+        ws: &'w ConvWorkspace<T>,
+        batch: usize,
+    ) -> ArrayView2<'w, T> {
+        ws.patches
+            .matrix(batch * self.positions(), self.dense.inputs())
+    }
+
+    fn gemm_weight<'w, T: Real>(&self, ws: &'w ConvWorkspace<T>) -> ArrayView2<'w, T> {
+        ws.weight.matrix(self.dense.inputs(), self.dense.outputs())
     }
 
     /// Accumulates the parameter gradients from `dy` (as `y`) and, when `dx` is given, writes
-    /// the input gradient there. Consumes `patches`: the input gradient overwrites them.
+    /// the input gradient there. Consumes the patches: the input gradient overwrites them.
     pub fn backward<T: Real>(
         &self,
-        params: &[T],
         grads: &mut [T],
         batch: usize,
-        patches: &mut ReusableBuffer<T>,
+        ws: &mut ConvWorkspace<T>,
         dy: ArrayView2<T>,
         dx: Option<&mut [T]>,
     ) {
-        let rows = batch * self.positions();
-        let patch_len = self.dense.inputs();
-        self.dense
-            .accumulate_param_grads(grads, patches.matrix(rows, patch_len), dy);
+        let (patch_len, outputs) = (self.dense.inputs(), self.dense.outputs());
+        // Computed as `[out, patch columns]`: the product's long reduction then runs along
+        // both operands' rows, which `gemm` handles faster than the transposed shape.
+        let mut weight_grad = ws.weight_grad.matrix_mut(outputs, patch_len);
+        matmul(
+            dy.t(),
+            ws.patches.matrix(batch * self.positions(), patch_len),
+            weight_grad.view_mut(),
+        );
+        let stored = self.dense.weight_slot().of_mut(grads);
+        weight_grad
+            .t()
+            .iter()
+            .zip(&self.weight_order)
+            .for_each(|(&g, &target)| stored[target] += g);
+        self.dense.accumulate_bias_grad(grads, dy);
         let Some(dx) = dx else { return };
-        self.dense
-            .input_grad(params, dy, patches.matrix_mut(rows, patch_len));
+        let rows = batch * self.positions();
+        let weight = ws.weight.matrix(patch_len, outputs);
+        matmul(dy, weight.t(), ws.patches.matrix_mut(rows, patch_len));
         let per_sample = self.patch_len_per_sample;
         dx.par_chunks_mut(self.input.len())
-            .zip(patches.slice(rows * patch_len).par_chunks(per_sample))
+            .zip(ws.patches.slice(rows * patch_len).par_chunks(per_sample))
             .with_min_len(SAMPLES_PER_TASK)
             .for_each(|(sample_dx, sample_patches)| {
                 sample_dx.fill(T::zero());
@@ -223,10 +275,40 @@ struct PatchRun {
     len: usize,
 }
 
-/// Patch matrix columns are ordered (channel, ky, kx) to match the weight layout; elements are
-/// merged into a run while both they and their sources are consecutive.
-fn patch_runs(input: ImageShape, output: ImageShape, spec: ConvSpec) -> Vec<PatchRun> {
-    let k = spec.kernel;
+/// A kernel tap: (channel, ky, kx).
+type Tap = (usize, usize, usize);
+
+/// The taps in patch column order: the input's memory order, so that consecutive columns read
+/// consecutive input elements wherever they can.
+fn patch_taps(input: ImageShape, spec: ConvSpec) -> Vec<Tap> {
+    let (channels, k) = (input.channels, spec.kernel);
+    let mut taps = Vec::with_capacity(channels * k * k);
+    match input.order {
+        ChannelOrder::First => {
+            for c in 0..channels {
+                for ky in 0..k {
+                    taps.extend((0..k).map(|kx| (c, ky, kx)));
+                }
+            }
+        }
+        ChannelOrder::Last => {
+            for ky in 0..k {
+                for kx in 0..k {
+                    taps.extend((0..channels).map(|c| (c, ky, kx)));
+                }
+            }
+        }
+    }
+    taps
+}
+
+/// Elements are merged into a run while both they and their sources are consecutive.
+fn patch_runs(
+    input: ImageShape,
+    output: ImageShape,
+    spec: ConvSpec,
+    taps: &[Tap],
+) -> Vec<PatchRun> {
     let inside = |position: usize, tap: usize, size: usize| {
         (position * spec.stride + tap)
             .checked_sub(spec.padding)
@@ -235,19 +317,25 @@ fn patch_runs(input: ImageShape, output: ImageShape, spec: ConvSpec) -> Vec<Patc
     let mut runs: Vec<PatchRun> = Vec::new();
     for oy in 0..output.height {
         for ox in 0..output.width {
-            for c in 0..input.channels {
-                for ky in 0..k {
-                    for kx in 0..k {
-                        let source = inside(oy, ky, input.height)
-                            .zip(inside(ox, kx, input.width))
-                            .map(|(y, x)| input.offset(c, y, x));
-                        extend_runs(&mut runs, source);
-                    }
-                }
+            for &(c, ky, kx) in taps {
+                let source = inside(oy, ky, input.height)
+                    .zip(inside(ox, kx, input.width))
+                    .map(|(y, x)| input.offset(c, y, x));
+                extend_runs(&mut runs, source);
             }
         }
     }
     runs
+}
+
+/// The stored weight's index of each element of the GEMM weight `[taps, out]`.
+fn weight_order(input: ImageShape, spec: ConvSpec, taps: &[Tap]) -> Vec<usize> {
+    let k = spec.kernel;
+    taps.iter()
+        .flat_map(|&(c, ky, kx)| {
+            (0..spec.out_channels).map(move |o| ((o * input.channels + c) * k + ky) * k + kx)
+        })
+        .collect()
 }
 
 fn extend_runs(runs: &mut Vec<PatchRun>, source: Option<usize>) {
@@ -297,40 +385,39 @@ mod tests {
             params,
             x,
             batch,
-            &mut ReusableBuffer::default(),
+            &mut ConvWorkspace::default(),
             view.unwrap(),
         );
         y
     }
 
     #[test]
-    fn matches_a_direct_convolution() {
-        let mut rng = Pcg64Mcg::seed_from_u64(20);
-        let mut store = ParamStore::new();
-        let conv = layer(ChannelOrder::First, &mut store, &mut rng);
-        let x = values_away_from_zero(2 * 60, &mut rng);
-        let y = forward(&conv, store.values(), &x, 2);
-        let (w, b) = store.values().split_at(3 * 2 * 9);
-        let out = conv.output_shape();
-        assert_eq!((out.height, out.width), (3, 3));
-        for (s, o, oy, ox) in (0..2).flat_map(|s| {
-            (0..3)
-                .flat_map(move |o| (0..3).flat_map(move |oy| (0..3).map(move |ox| (s, o, oy, ox))))
-        }) {
-            let mut expected = b[o];
-            for c in 0..2 {
-                for ky in 0..3 {
-                    for kx in 0..3 {
-                        let (iy, ix) = ((oy * 2 + ky) as isize - 1, (ox * 2 + kx) as isize - 1);
-                        if (0..6).contains(&iy) && (0..5).contains(&ix) {
-                            let input = x[s * 60 + c * 30 + iy as usize * 5 + ix as usize];
-                            expected += w[((o * 2 + c) * 3 + ky) * 3 + kx] * input;
-                        }
+    fn matches_a_direct_convolution_in_both_channel_orders() {
+        for order in [ChannelOrder::First, ChannelOrder::Last] {
+            let mut rng = Pcg64Mcg::seed_from_u64(20);
+            let mut store = ParamStore::new();
+            let conv = layer(order, &mut store, &mut rng);
+            let x = values_away_from_zero(2 * 60, &mut rng);
+            let y = forward(&conv, store.values(), &x, 2);
+            let (w, b) = store.values().split_at(3 * 2 * 9);
+            let out = conv.output_shape();
+            assert_eq!((out.height, out.width), (3, 3));
+            for (s, o, oy, ox) in (0..2).flat_map(|s| {
+                (0..3).flat_map(move |o| {
+                    (0..3).flat_map(move |oy| (0..3).map(move |ox| (s, o, oy, ox)))
+                })
+            }) {
+                let mut expected = b[o];
+                for (c, ky, kx) in patch_taps(conv.input_shape(), SPEC) {
+                    let (iy, ix) = ((oy * 2 + ky) as isize - 1, (ox * 2 + kx) as isize - 1);
+                    if (0..6).contains(&iy) && (0..5).contains(&ix) {
+                        let offset = conv.input_shape().offset(c, iy as usize, ix as usize);
+                        expected += w[((o * 2 + c) * 3 + ky) * 3 + kx] * x[s * 60 + offset];
                     }
                 }
+                let got = y[((s * 3 + oy) * 3 + ox) * 3 + o];
+                assert!((got - expected).abs() < 1e-12, "{got} vs {expected}");
             }
-            let got = y[((s * 3 + oy) * 3 + ox) * 3 + o];
-            assert!((got - expected).abs() < 1e-12, "{got} vs {expected}");
         }
     }
 
@@ -344,20 +431,13 @@ mod tests {
             let x = values_away_from_zero(batch * 60, &mut rng);
             let upstream = values_away_from_zero(batch * 27, &mut rng);
             let params = store.values().to_vec();
-            let mut patches = ReusableBuffer::default();
+            let mut ws = ConvWorkspace::default();
             let mut y = vec![0.0; batch * 27];
             let y_view = ArrayViewMut2::from_shape((batch * 9, 3), &mut y[..]).unwrap();
-            conv.forward(&params, &x, batch, &mut patches, y_view);
+            conv.forward(&params, &x, batch, &mut ws, y_view);
             let dy = ArrayView2::from_shape((batch * 9, 3), &upstream[..]).unwrap();
             let mut dx = vec![0.0; x.len()];
-            conv.backward(
-                &params,
-                store.grads_mut(),
-                batch,
-                &mut patches,
-                dy,
-                Some(&mut dx),
-            );
+            conv.backward(store.grads_mut(), batch, &mut ws, dy, Some(&mut dx));
             let loss = |p: &[f64], x: &[f64]| dot(&forward(&conv, p, x, batch), &upstream);
             assert_gradients_match(&params, store.grads(), |p| loss(p, &x));
             assert_gradients_match(&x, &dx, |x| loss(&params, x));

@@ -1,12 +1,12 @@
-//! Fully connected layer `y = x W^T + b` on a whole batch at once (one GEMM). It is also the
-//! dense core of the convolution, which runs it on image patches.
+//! Fully connected layer `y = x W^T + b` on a whole batch at once (one GEMM). It also holds the
+//! convolution's parameters, whose GEMM runs on image patches.
 
-use ndarray::linalg::general_mat_mul;
 use ndarray::{ArrayView2, ArrayViewMut2, Axis};
 use rand::Rng;
 
 use super::error::NnError;
 use super::init::Init;
+use super::matmul::{matmul, matmul_add};
 use super::params::{ParamSlot, ParamStore};
 use super::real::Real;
 
@@ -83,11 +83,16 @@ impl Linear {
 
     /// `y [batch, outputs] = x [batch, inputs] W^T + b`.
     pub fn forward<T: Real>(&self, params: &[T], x: ArrayView2<T>, mut y: ArrayViewMut2<T>) {
+        self.fill_with_bias(params, y.view_mut());
+        matmul_add(x, self.weight(params).t(), y);
+    }
+
+    /// Writes the bias into every row of `y [batch, outputs]`, for a product to add to.
+    pub(crate) fn fill_with_bias<T: Real>(&self, params: &[T], mut y: ArrayViewMut2<T>) {
         let bias = self.bias.of(params);
         y.rows_mut()
             .into_iter()
             .for_each(|mut row| row.as_slice_mut().unwrap().copy_from_slice(bias));
-        general_mat_mul(T::one(), &x, &self.weight(params).t(), T::one(), &mut y);
     }
 
     /// Adds `dy^T x` to the weight gradient and the column sums of `dy` to the bias gradient.
@@ -97,16 +102,26 @@ impl Linear {
         x: ArrayView2<T>,
         dy: ArrayView2<T>,
     ) {
-        general_mat_mul(T::one(), &dy.t(), &x, T::one(), &mut self.weight_mut(grads));
+        matmul_add(dy.t(), x, self.weight_mut(grads));
+        self.accumulate_bias_grad(grads, dy);
+    }
+
+    /// Adds the column sums of `dy [batch, outputs]` to the bias gradient.
+    pub(crate) fn accumulate_bias_grad<T: Real>(&self, grads: &mut [T], dy: ArrayView2<T>) {
         let bias_grad = self.bias.of_mut(grads);
         for row in dy.axis_iter(Axis(0)) {
             bias_grad.iter_mut().zip(row).for_each(|(g, &d)| *g += d);
         }
     }
 
+    /// Where the weight `[outputs, inputs]` lives in the flat buffers.
+    pub(crate) fn weight_slot(&self) -> ParamSlot {
+        self.weight
+    }
+
     /// Writes `dx = dy W`.
-    pub fn input_grad<T: Real>(&self, params: &[T], dy: ArrayView2<T>, mut dx: ArrayViewMut2<T>) {
-        general_mat_mul(T::one(), &dy, &self.weight(params), T::zero(), &mut dx);
+    pub fn input_grad<T: Real>(&self, params: &[T], dy: ArrayView2<T>, dx: ArrayViewMut2<T>) {
+        matmul(dy, self.weight(params), dx);
     }
 }
 

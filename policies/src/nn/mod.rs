@@ -1,6 +1,6 @@
 //! A small neural-network library written for the paper's models: hand-written forward and
-//! backward passes over whole batches, GEMMs through `ndarray` (matrixmultiply), f32 for
-//! training and f64 for gradient checks.
+//! backward passes over whole batches, GEMMs through [`matmul`] (the `gemm` crate) on `ndarray`
+//! views, f32 for training and f64 for gradient checks.
 //!
 //! How the pieces fit:
 //! - Parameters and gradients live in one [`ParamStore`] per model (one flat `Vec` each, plus a
@@ -17,7 +17,7 @@
 //!   consecutive rows, described for graph attention by an [`AgentGraph`].
 //! - All randomness comes from the caller's generator; results do not depend on the number of
 //!   threads (every output element is reduced by one thread in a fixed order, in our loops and
-//!   in matrixmultiply's, which splits only the output among threads).
+//!   in `gemm`'s, which splits only the output among threads).
 
 pub mod activation;
 pub mod adam;
@@ -30,6 +30,7 @@ pub mod error;
 pub mod graph;
 pub mod init;
 pub mod linear;
+pub mod matmul;
 pub mod mlp;
 pub mod model;
 pub mod params;
@@ -45,7 +46,7 @@ pub use attention::{AttentionWorkspace, GraphAttention};
 pub use buffer::ReusableBuffer;
 pub use categorical::CategoricalBatch;
 pub use cnn::{CnnEncoder, CnnWorkspace, PAPER_CONVOLUTIONS};
-pub use conv::{ChannelOrder, Conv2d, ConvSpec, ImageShape};
+pub use conv::{ChannelOrder, Conv2d, ConvSpec, ConvWorkspace, ImageShape};
 pub use error::NnError;
 pub use graph::{AgentGraph, Neighbours};
 pub use init::Init;

@@ -381,7 +381,7 @@ impl<T: Real> ActorCritic<T> {
         }
         let d_features = ws.d_features.matrix(batch, f);
         self.actor_cnn
-            .backward(params, grads, &mut ws.actor_cnn, d_features, None);
+            .backward(grads, &mut ws.actor_cnn, d_features, None);
         let critic_features = self.critic_cnn.output(&ws.critic_cnn);
         let d_values =
             ArrayView2::from_shape((batch, 1), output_grads.values).expect("one value per sample");
@@ -397,7 +397,7 @@ impl<T: Real> ActorCritic<T> {
         );
         let d_features = ws.d_features.matrix(batch, critic_f);
         self.critic_cnn
-            .backward(params, grads, &mut ws.critic_cnn, d_features, None);
+            .backward(grads, &mut ws.critic_cnn, d_features, None);
     }
 }
 

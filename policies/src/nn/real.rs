@@ -20,6 +20,7 @@ pub trait Real:
     + Debug
     + Send
     + Sync
+    + 'static
 {
     /// Rounds a constant or an `f64` draw to this type, so that the same seed gives the same
     /// initial weights (up to rounding) in every precision.

@@ -1,0 +1,141 @@
+//! The baselines on the shipped maps: legal moves, complete tours, the paper's ordering against
+//! Random, and reproducible sweeps.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use harness::baseline_sweep::Sweep;
+use harness::runner::run_episode;
+use policies::tspc::Tspc;
+use policies::{Baseline, Policy};
+use world::paths::move_between;
+use world::{Map, Seed, World, WorldParams};
+
+fn maps_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/maps")
+}
+
+fn shipped_world(name: &str) -> Arc<World> {
+    let map = Map::load_text(&maps_dir().join(format!("{name}.txt"))).unwrap();
+    World::new(map, WorldParams::paper())
+}
+
+const SHIPPED: [&str; 4] = ["open", "two_room", "four_room", "eight_room"];
+
+/// Mean cumulative penalty over `episodes` seeded episodes.
+fn mean_penalty(world: &Arc<World>, policy: &mut dyn Policy, agents: usize, episodes: u64) -> f64 {
+    let total: f64 = (0..episodes)
+        .map(|e| {
+            let seed = Seed::new(0).child(e);
+            run_episode(world, agents, policy, seed, None, 2000, &mut |_, _| {})
+                .unwrap()
+                .cumulative_penalty
+        })
+        .sum();
+    total / episodes as f64
+}
+
+#[test]
+fn agents_never_enter_obstacles_and_move_one_cell_at_most() {
+    for name in SHIPPED {
+        let world = shipped_world(name);
+        let map = world.map();
+        for baseline in Baseline::ALL {
+            let mut policy = baseline.build(&world).unwrap();
+            for agents in [3, 10] {
+                let mut previous: Option<Vec<world::Cell>> = None;
+                let mut check = |episode: &world::Episode, _: Option<&[world::Action]>| {
+                    let positions = episode.positions();
+                    for (agent, &cell) in positions.iter().enumerate() {
+                        assert!(map.is_free(cell), "{name} {baseline:?}: {cell:?}");
+                        if let Some(before) = &previous {
+                            let stayed = before[agent] == cell;
+                            assert!(stayed || move_between(before[agent], cell).is_some());
+                        }
+                    }
+                    previous = Some(positions.to_vec());
+                };
+                run_episode(
+                    &world,
+                    agents,
+                    policy.as_mut(),
+                    Seed::new(7),
+                    None,
+                    300,
+                    &mut check,
+                )
+                .unwrap();
+            }
+        }
+    }
+}
+
+#[test]
+fn tspc_walk_is_closed_and_sees_every_free_cell() {
+    for name in SHIPPED {
+        let world = shipped_world(name);
+        let walk = Tspc::new(&world).unwrap().walk().clone();
+        for position in 0..walk.len() {
+            let (here, next) = (walk.cell(position), walk.cell(position + 1));
+            assert!(
+                move_between(here, next).is_some(),
+                "{name}: {here:?} -> {next:?}"
+            );
+        }
+        let visibility = world.visibility();
+        for &cell in world.map().free_cells() {
+            let seen = walk.cells().iter().any(|&at| visibility.sees(at, cell));
+            assert!(seen, "{name}: {cell:?} never seen from the walk");
+        }
+    }
+}
+
+#[test]
+fn gcs_and_tspc_beat_random_widely_on_four_room() {
+    let world = shipped_world("four_room");
+    let mean = |baseline: Baseline| {
+        let mut policy = baseline.build(&world).unwrap();
+        mean_penalty(&world, policy.as_mut(), 2, 4)
+    };
+    let random = mean(Baseline::Random);
+    let gcs = mean(Baseline::Gcs);
+    let tspc = mean(Baseline::Tspc);
+    assert!(gcs < 0.5 * random, "gcs {gcs} vs random {random}");
+    assert!(tspc < 0.1 * random, "tspc {tspc} vs random {random}");
+}
+
+#[test]
+fn sweeps_do_not_depend_on_the_thread_count() {
+    let sweep = Sweep {
+        worlds: vec![shipped_world("two_room")],
+        agents: vec![2, 5],
+        baselines: Baseline::ALL.to_vec(),
+        episodes: 2,
+        steps: 150,
+        seed: Seed::new(11),
+    };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let results = pool.install(|| sweep.run()).unwrap();
+        let penalties: Vec<Vec<u64>> = results
+            .iter()
+            .map(|r| r.penalties.iter().map(|p| p.to_bits()).collect())
+            .collect();
+        (penalties, sweep.markdown(&results))
+    };
+    assert_eq!(run(1), run(3));
+}
+
+#[test]
+fn tours_cannot_be_planned_on_disconnected_maps() {
+    let map = Map::parse_text("split", "..#..\n..#..\n", Path::new("split.txt")).unwrap();
+    let world = World::new(map, WorldParams::new(3, 1.0, 400.0).unwrap());
+    for baseline in [Baseline::Tspc, Baseline::Partition] {
+        let error = baseline.build(&world).err().expect("disconnected");
+        assert!(error.to_string().contains("connected"), "{error}");
+    }
+    assert!(Baseline::Gcs.build(&world).is_ok());
+}

@@ -1,15 +1,28 @@
-//! The research harness: runs episodes of any policy in any world, reproducibly.
+//! The research harness: runs episodes of any policy in any world, reproducibly, and sweeps
+//! of them into a results store.
 
 pub mod atomic_file;
+pub mod audit;
 pub mod baseline_sweep;
+pub mod cell;
 pub mod checkpoint_dir;
 pub mod cli;
+pub mod code_version;
 pub mod cpu_clock;
+pub mod execution;
+pub mod merge;
 pub mod nn_bench;
 pub mod policy_bench;
+pub mod progress;
+pub mod provenance;
 pub mod replay;
 pub mod runner;
+pub mod scenario;
+pub mod shard;
 pub mod stats;
+pub mod store;
+pub mod summary;
+pub mod sweep;
 pub mod trace;
 pub mod training_log;
 pub mod world_bench;

@@ -1,8 +1,11 @@
-//! Summaries of a handful of episode results: the mean and a percentile bootstrap interval.
+//! Summaries of episode results: mean, spread, robust centres (median, interquartile mean) and
+//! percentile bootstrap intervals, plain or stratified.
 //!
 //! Ten test episodes are too few to trust a normal approximation, and penalties are skewed
-//! (one bad episode can dominate), so the interval is the spread of means of resampled sets
-//! rather than mean ± 1.96 standard errors.
+//! (one bad episode can dominate), so intervals are the spread of statistics of resampled sets
+//! rather than mean ± 1.96 standard errors. With several training runs the resampling is
+//! stratified (rliable, Agarwal et al. 2021): episodes are drawn within each run, so every
+//! replicate keeps every run and the interval reflects the spread between runs.
 
 use rand::RngExt;
 use thiserror::Error;
@@ -32,9 +35,40 @@ pub struct Summary {
     pub high: f64,
 }
 
+/// A statistic of a set of values, for the bootstrap.
+pub type Statistic = fn(&[f64]) -> Result<f64, StatsError>;
+
 pub fn mean(values: &[f64]) -> Result<f64, StatsError> {
     check(values)?;
     Ok(values.iter().sum::<f64>() / values.len() as f64)
+}
+
+/// The sample standard deviation (divisor n - 1); 0 for a single value.
+pub fn standard_deviation(values: &[f64]) -> Result<f64, StatsError> {
+    let centre = mean(values)?;
+    if values.len() == 1 {
+        return Ok(0.0);
+    }
+    let squares: f64 = values.iter().map(|v| (v - centre).powi(2)).sum();
+    Ok((squares / (values.len() - 1) as f64).sqrt())
+}
+
+pub fn median(values: &[f64]) -> Result<f64, StatsError> {
+    let sorted = sorted(values)?;
+    let half = sorted.len() / 2;
+    Ok(if sorted.len() % 2 == 1 {
+        sorted[half]
+    } else {
+        (sorted[half - 1] + sorted[half]) / 2.0
+    })
+}
+
+/// The interquartile mean: the mean of the middle half, dropping the lowest and the highest
+/// quarter (`floor(n / 4)` values each, as scipy's `trim_mean(x, 0.25)` that rliable uses).
+pub fn iqm(values: &[f64]) -> Result<f64, StatsError> {
+    let sorted = sorted(values)?;
+    let cut = sorted.len() / 4;
+    mean(&sorted[cut..sorted.len() - cut])
 }
 
 /// The percentile bootstrap interval of the mean at `confidence` (0.95 for 95 %): draw
@@ -46,26 +80,7 @@ pub fn bootstrap_interval(
     resamples: usize,
     seed: Seed,
 ) -> Result<(f64, f64), StatsError> {
-    check(values)?;
-    if !(confidence > 0.0 && confidence < 1.0) {
-        return Err(StatsError::Confidence(confidence));
-    }
-    if resamples == 0 {
-        return Err(StatsError::NoResamples);
-    }
-    let mut rng = seed.rng();
-    let mut means: Vec<f64> = (0..resamples)
-        .map(|_| {
-            let sum: f64 = (0..values.len())
-                .map(|_| values[rng.random_range(0..values.len())])
-                .sum();
-            sum / values.len() as f64
-        })
-        .collect();
-    means.sort_unstable_by(f64::total_cmp);
-    let tail = (1.0 - confidence) / 2.0;
-    let quantile = |q: f64| means[(q * (resamples - 1) as f64).round() as usize];
-    Ok((quantile(tail), quantile(1.0 - tail)))
+    stratified_bootstrap_interval(&[values], mean, confidence, resamples, seed)
 }
 
 /// Mean and 95 % percentile bootstrap interval with [`RESAMPLES`] resamples.
@@ -76,6 +91,49 @@ pub fn summarize(values: &[f64], seed: Seed) -> Result<Summary, StatsError> {
         low,
         high,
     })
+}
+
+/// The percentile bootstrap interval of `statistic` at `confidence` (0.95 for 95 %), with
+/// resampling within strata: each of `resamples` replicates draws, from `seed`'s stream and
+/// with replacement, as many values from every stratum as it holds, pools them and takes the
+/// statistic; the interval is the replicates' quantiles (nearest rank).
+pub fn stratified_bootstrap_interval(
+    strata: &[&[f64]],
+    statistic: Statistic,
+    confidence: f64,
+    resamples: usize,
+    seed: Seed,
+) -> Result<(f64, f64), StatsError> {
+    let pooled = strata.concat();
+    check(&pooled)?;
+    if !(confidence > 0.0 && confidence < 1.0) {
+        return Err(StatsError::Confidence(confidence));
+    }
+    if resamples == 0 {
+        return Err(StatsError::NoResamples);
+    }
+    let mut rng = seed.rng();
+    let mut replicate = Vec::with_capacity(pooled.len());
+    let mut statistics = Vec::with_capacity(resamples);
+    for _ in 0..resamples {
+        replicate.clear();
+        for stratum in strata.iter().filter(|s| !s.is_empty()) {
+            replicate
+                .extend((0..stratum.len()).map(|_| stratum[rng.random_range(0..stratum.len())]));
+        }
+        statistics.push(statistic(&replicate)?);
+    }
+    statistics.sort_unstable_by(f64::total_cmp);
+    let tail = (1.0 - confidence) / 2.0;
+    let quantile = |q: f64| statistics[(q * (resamples - 1) as f64).round() as usize];
+    Ok((quantile(tail), quantile(1.0 - tail)))
+}
+
+fn sorted(values: &[f64]) -> Result<Vec<f64>, StatsError> {
+    check(values)?;
+    let mut sorted = values.to_vec();
+    sorted.sort_unstable_by(f64::total_cmp);
+    Ok(sorted)
 }
 
 fn check(values: &[f64]) -> Result<(), StatsError> {
@@ -96,24 +154,40 @@ mod tests {
     use super::*;
 
     #[test]
-    fn mean_of_values() {
+    fn centres_and_spread_of_known_values() {
+        let values = [4.0, 1.0, 3.0, 2.0, 100.0, 5.0, 6.0, 7.0];
         assert_eq!(mean(&[1.0, 2.0, 6.0]), Ok(3.0));
+        assert_eq!(median(&values), Ok(4.5));
+        assert_eq!(median(&[3.0, 1.0, 2.0]), Ok(2.0));
+        // Sorted 1..7, 100: the middle half is 3, 4, 5, 6.
+        assert_eq!(iqm(&values), Ok(4.5));
+        assert_eq!(
+            iqm(&[2.0, 9.0, 4.0]),
+            Ok(5.0),
+            "fewer than four values: no trimming"
+        );
+        assert_eq!(
+            standard_deviation(&[2.0, 4.0, 4.0, 4.0, 5.0, 5.0, 7.0, 9.0]),
+            Ok((32.0f64 / 7.0).sqrt())
+        );
+        assert_eq!(standard_deviation(&[3.0]), Ok(0.0));
     }
 
     #[test]
     fn bad_input_is_an_error() {
         let seed = Seed::new(0);
         assert_eq!(mean(&[]), Err(StatsError::Empty));
+        assert_eq!(iqm(&[]), Err(StatsError::Empty));
         assert_eq!(
-            bootstrap_interval(&[1.0], 1.0, 10, seed),
+            stratified_bootstrap_interval(&[&[1.0]], mean, 1.0, 10, seed),
             Err(StatsError::Confidence(1.0))
         );
         assert_eq!(
-            bootstrap_interval(&[1.0], 0.9, 0, seed),
+            stratified_bootstrap_interval(&[&[1.0]], mean, 0.9, 0, seed),
             Err(StatsError::NoResamples)
         );
         assert!(matches!(
-            summarize(&[1.0, f64::NAN], seed),
+            median(&[1.0, f64::NAN]),
             Err(StatsError::NotFinite { index: 1, .. })
         ));
     }
@@ -125,13 +199,39 @@ mod tests {
     }
 
     #[test]
-    fn interval_brackets_the_mean_and_is_seeded() {
+    fn summary_interval_brackets_the_mean_and_is_seeded() {
         let values: Vec<f64> = (0..10).map(|i| (i * i) as f64).collect();
         let summary = summarize(&values, Seed::new(2)).unwrap();
         assert!(summary.low < summary.mean && summary.mean < summary.high);
         assert!(summary.low >= 0.0 && summary.high <= 81.0);
         assert_eq!(summarize(&values, Seed::new(2)).unwrap(), summary);
         assert_ne!(summarize(&values, Seed::new(3)).unwrap(), summary);
+        assert!(matches!(
+            summarize(&[1.0, f64::NAN], Seed::new(2)),
+            Err(StatsError::NotFinite { index: 1, .. })
+        ));
+    }
+
+    #[test]
+    fn strata_keep_their_share_in_every_replicate() {
+        // Two runs whose episodes never vary: every replicate holds both runs whole, so the
+        // stratified interval of the mean is a point, where pooled resampling would spread.
+        let (a, b) = ([1.0; 5], [3.0; 5]);
+        let interval = stratified_bootstrap_interval(&[&a, &b], mean, 0.95, 500, Seed::new(1));
+        assert_eq!(interval, Ok((2.0, 2.0)));
+    }
+
+    #[test]
+    fn interval_brackets_the_statistic_and_is_seeded() {
+        let values: Vec<f64> = (0..10).map(|i| (i * i) as f64).collect();
+        let strata: [&[f64]; 2] = [&values[..5], &values[5..]];
+        let interval =
+            |seed| stratified_bootstrap_interval(&strata, iqm, 0.95, 2000, Seed::new(seed));
+        let (low, high) = interval(2).unwrap();
+        let centre = iqm(&values).unwrap();
+        assert!(low < centre && centre < high, "{low} {centre} {high}");
+        assert_eq!(interval(2), Ok((low, high)));
+        assert_ne!(interval(3), Ok((low, high)));
     }
 
     #[test]

@@ -1,9 +1,13 @@
 //! Command-line parsing; each subcommand lives in its own module.
 
+mod audit;
 mod baselines;
 mod bench;
+mod check;
 mod curve;
+mod merge;
 mod run;
+mod sweep;
 mod train;
 
 use clap::{Parser, Subcommand};
@@ -31,6 +35,14 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Summarise every baseline's cumulative penalty over maps and agent counts (Markdown).
     Baselines(baselines::BaselinesArgs),
+    /// Run a scenario's sweep into a results store (finished cells are never recomputed).
+    Sweep(sweep::SweepArgs),
+    /// Validate a scenario and print its cells and their cost.
+    Check(check::CheckArgs),
+    /// Join shard output folders into one store.
+    Merge(merge::MergeArgs),
+    /// Play stored test episodes again and fail on any difference.
+    Audit(audit::AuditArgs),
 }
 
 /// Parses the process's arguments and runs the command.
@@ -46,6 +58,10 @@ impl Cli {
             Command::Curve(args) => curve::run(args),
             Command::Bench(args) => bench::run(args),
             Command::Baselines(args) => baselines::run(args),
+            Command::Sweep(args) => sweep::run(args),
+            Command::Check(args) => check::run(args),
+            Command::Merge(args) => merge::run(args),
+            Command::Audit(args) => audit::run(args),
         }
     }
 }

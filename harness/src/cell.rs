@@ -1,0 +1,142 @@
+//! Cells: the unit a sweep runs, caches and shards. A cell is one training run (map, policy,
+//! N_train, training seed) plus its evaluations at every N_test; a baseline does not train,
+//! so its cells have no N_train.
+
+use serde::{Deserialize, Serialize};
+use world::Seed;
+
+use crate::code_version::code_version;
+use crate::scenario::{PolicySpec, Scenario, WorldConfig};
+
+/// Branches of the scenario's seed tree, so training and testing never share a stream.
+mod branch {
+    pub const TRAINING: u64 = 1;
+    pub const TESTING: u64 = 2;
+}
+
+/// Everything that determines a cell's result, and nothing else (not the scenario's name, not
+/// where the map file lives), so that equal work in two scenarios has one key.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellConfig {
+    pub map: MapIdentity,
+    pub world: WorldConfig,
+    pub policy: PolicySpec,
+    pub n_train: Option<u32>,
+    pub n_test: Vec<u32>,
+    pub repetition: u32,
+    pub training_seed: u64,
+    /// Root of the test episodes' seeds: episode e with n agents uses `descend([n, e])`.
+    pub test_seed: u64,
+    pub test_episodes: u32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MapIdentity {
+    pub name: String,
+    pub hash: String,
+}
+
+/// A cell of a sweep: its place in the scenario's expansion, its key and its config.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cell {
+    pub index: usize,
+    /// Which of the scenario's maps.
+    pub map_index: usize,
+    pub key: String,
+    pub config: CellConfig,
+}
+
+/// What a cell or a sweep costs, in episodes and environment steps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Cost {
+    pub training_episodes: u64,
+    pub test_episodes: u64,
+    pub env_steps: u64,
+}
+
+impl CellConfig {
+    /// The content address: blake3 of the code version and the config's JSON.
+    pub fn key(&self) -> String {
+        let json = serde_json::to_string(self).expect("a cell config serialises");
+        let mut hasher = blake3::Hasher::new();
+        hasher.update(code_version().as_bytes());
+        hasher.update(b"\n");
+        hasher.update(json.as_bytes());
+        hasher.finalize().to_hex()[..20].to_owned()
+    }
+
+    /// The seed of test episode `episode` with `agents` agents.
+    pub fn episode_seed(&self, agents: u32, episode: u32) -> Seed {
+        Seed::new(self.test_seed).descend(&[agents as u64, episode as u64])
+    }
+
+    pub fn cost(&self) -> Cost {
+        let training_episodes = self.policy.learned().map_or(0, |l| l.episodes as u64);
+        let test_episodes = self.n_test.len() as u64 * self.test_episodes as u64;
+        Cost {
+            training_episodes,
+            test_episodes,
+            env_steps: training_episodes * self.world.train_steps as u64
+                + test_episodes * self.world.test_steps as u64,
+        }
+    }
+}
+
+impl std::ops::Add for Cost {
+    type Output = Cost;
+
+    fn add(self, other: Cost) -> Cost {
+        Cost {
+            training_episodes: self.training_episodes + other.training_episodes,
+            test_episodes: self.test_episodes + other.test_episodes,
+            env_steps: self.env_steps + other.env_steps,
+        }
+    }
+}
+
+impl Scenario {
+    /// The grid of cells, in a fixed order: map, policy, N_train, repetition.
+    ///
+    /// Seeds depend on the repetition only, so every policy and map meets the same training
+    /// seeds and the same test starts (common random numbers make comparisons paired), and
+    /// adding a map or a policy to a scenario changes no other cell.
+    pub fn cells(&self) -> Vec<Cell> {
+        let mut cells = Vec::new();
+        for (map_index, map) in self.maps.iter().enumerate() {
+            for policy in &self.policies {
+                let n_trains: Vec<Option<u32>> = match policy.learned() {
+                    Some(_) => self.train_agents.iter().copied().map(Some).collect(),
+                    None => vec![None],
+                };
+                for n_train in n_trains {
+                    for repetition in 0..self.repetitions {
+                        let root = Seed::new(self.seed);
+                        let config = CellConfig {
+                            map: MapIdentity {
+                                name: map.map.name().to_owned(),
+                                hash: map.hash.clone(),
+                            },
+                            world: self.world,
+                            policy: policy.clone(),
+                            n_train,
+                            n_test: self.test_agents.clone(),
+                            repetition,
+                            training_seed: root
+                                .descend(&[branch::TRAINING, repetition as u64])
+                                .value(),
+                            test_seed: root.descend(&[branch::TESTING, repetition as u64]).value(),
+                            test_episodes: self.test_episodes,
+                        };
+                        cells.push(Cell {
+                            index: cells.len(),
+                            map_index,
+                            key: config.key(),
+                            config,
+                        });
+                    }
+                }
+            }
+        }
+        cells
+    }
+}

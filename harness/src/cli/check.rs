@@ -1,0 +1,57 @@
+//! `harness check FILE`: validates a scenario and prints its cells and their cost.
+
+use std::path::PathBuf;
+
+use crate::cell::Cost;
+use crate::scenario::Scenario;
+
+#[derive(clap::Args)]
+pub struct CheckArgs {
+    /// Scenario file (YAML).
+    scenario: PathBuf,
+}
+
+pub fn run(args: CheckArgs) -> anyhow::Result<()> {
+    let scenario = Scenario::load(&args.scenario)?;
+    let cells = scenario.cells();
+    println!(
+        "scenario {} ({}): {} maps, {} policies, N_train {:?}, N_test {:?}, {} repetitions, {} test episodes",
+        scenario.name,
+        args.scenario.display(),
+        scenario.maps.len(),
+        scenario.policies.len(),
+        scenario.train_agents,
+        scenario.test_agents,
+        scenario.repetitions,
+        scenario.test_episodes
+    );
+    println!(
+        "{:>5}  {:<20}  {:<12}  {:<16}  {:>7}  {:>3}  {:>17}  {:>15}",
+        "cell", "key", "map", "policy", "N_train", "rep", "training episodes", "env steps"
+    );
+    let mut total = Cost::default();
+    for cell in &cells {
+        let c = &cell.config;
+        let cost = c.cost();
+        total = total + cost;
+        println!(
+            "{:>5}  {:<20}  {:<12}  {:<16}  {:>7}  {:>3}  {:>17}  {:>15}",
+            cell.index,
+            cell.key,
+            c.map.name,
+            c.policy.label(),
+            c.n_train.map_or("-".to_owned(), |n| n.to_string()),
+            c.repetition,
+            cost.training_episodes,
+            cost.env_steps
+        );
+    }
+    println!(
+        "total: {} cells, {} training episodes, {} test episodes, {} env steps",
+        cells.len(),
+        total.training_episodes,
+        total.test_episodes,
+        total.env_steps
+    );
+    Ok(())
+}

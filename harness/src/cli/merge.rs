@@ -1,0 +1,36 @@
+//! `harness merge --out DIR SHARD...`: joins shard folders into one store.
+
+use std::path::PathBuf;
+
+use crate::merge::merge;
+use crate::store::Store;
+
+#[derive(clap::Args)]
+pub struct MergeArgs {
+    /// The merged store's folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Shard output folders (`harness sweep --shard i/n --out ...`).
+    #[arg(required = true)]
+    shards: Vec<PathBuf>,
+}
+
+pub fn run(args: MergeArgs) -> anyhow::Result<()> {
+    let shards: Vec<Store> = args.shards.iter().map(|s| Store::new(s)).collect();
+    let report = merge(&Store::new(&args.out), &shards)?;
+    println!(
+        "merged {} shards into {}: {} of {} cells ({} copied)",
+        shards.len(),
+        args.out.display(),
+        report.present,
+        report.total,
+        report.copied
+    );
+    anyhow::ensure!(
+        report.present == report.total,
+        "{} cells are missing from the shards (first: {})",
+        report.total - report.present,
+        report.missing.first().map_or("", String::as_str)
+    );
+    Ok(())
+}

@@ -1,0 +1,65 @@
+//! `harness sweep FILE`: runs a scenario's unfinished cells into a results store.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+
+use crate::scenario::Scenario;
+use crate::shard::Shard;
+use crate::store::Store;
+use crate::sweep::{SweepOptions, run_sweep};
+
+#[derive(clap::Args)]
+pub struct SweepArgs {
+    /// Scenario file (YAML).
+    scenario: PathBuf,
+    /// Output folder; default results/NAME, NAME being the scenario's name.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Cells run at once; default one per core.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    jobs: Option<u16>,
+    /// Run only the i-th of n slices of the cell list (1 <= i <= n), e.g. 2/8.
+    #[arg(long)]
+    shard: Option<Shard>,
+}
+
+pub fn run(args: SweepArgs) -> anyhow::Result<()> {
+    let text = std::fs::read_to_string(&args.scenario)
+        .with_context(|| format!("{}: cannot read", args.scenario.display()))?;
+    let scenario = Scenario::parse(&text, &args.scenario)?;
+    let out = args
+        .out
+        .unwrap_or_else(|| PathBuf::from("results").join(&scenario.name));
+    let jobs = match args.jobs {
+        Some(jobs) => jobs as usize,
+        None => std::thread::available_parallelism().map_or(1, usize::from),
+    };
+    let options = SweepOptions {
+        jobs,
+        shard: args.shard,
+    };
+    let report = run_sweep(&scenario, &text, &Store::new(&out), &options)?;
+    let shard = args
+        .shard
+        .map_or(String::new(), |s| format!(" (shard {s})"));
+    println!(
+        "sweep {}{shard}: {} cells, {} already finished, {} computed, {} failed; tables of {} cells in {}",
+        scenario.name,
+        report.selected,
+        report.already_finished,
+        report.computed,
+        report.failed.len(),
+        report.tabled,
+        out.display()
+    );
+    for (key, error) in &report.failed {
+        eprintln!("cell {key} failed: {error}");
+    }
+    anyhow::ensure!(
+        report.failed.is_empty(),
+        "{} cells failed",
+        report.failed.len()
+    );
+    Ok(())
+}

@@ -1,0 +1,233 @@
+//! The scenario file as written: YAML mapped onto these types by serde, unknown keys refused.
+//!
+//! Values that need a check beyond their type carry their location (`Spanned`), so that the
+//! checks in `scenario::check` can name the line. Defaults are the paper's values.
+
+use serde::{Deserialize, Serialize};
+use serde_saphyr::{Location, Spanned};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioFile {
+    /// Names the sweep: the default output folder and the `scenario` column.
+    pub name: Spanned<String>,
+    #[serde(default)]
+    pub description: String,
+    pub maps: Spanned<Vec<Spanned<MapSpec>>>,
+    #[serde(default)]
+    pub world: WorldSpec,
+    pub policies: Spanned<Vec<Spanned<PolicySpec>>>,
+    pub agents: AgentsSpec,
+    /// Root of the scenario's seed tree.
+    pub seed: u64,
+    /// Training runs per (map, policy, N_train), each with its own training seed.
+    #[serde(default = "one")]
+    pub repetitions: Spanned<u32>,
+    /// Test episodes per (cell, N_test).
+    pub test_episodes: Spanned<u32>,
+    /// The sweep-level tables to build; the per-cell results are always kept.
+    #[serde(default = "Output::all")]
+    pub outputs: Spanned<Vec<Output>>,
+}
+
+/// A map by file (relative to the scenario file; `FILE#NAME` picks a polygon map) or inline.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "snake_case")]
+pub enum MapSpec {
+    File(String),
+    Inline { name: String, grid: String },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorldSpec {
+    /// Side L of the field of view.
+    #[serde(default = "paper_fov")]
+    pub fov: Spanned<usize>,
+    #[serde(default = "paper_decay")]
+    pub decay: Spanned<f32>,
+    #[serde(default = "paper_rmax")]
+    pub rmax: Spanned<f32>,
+    /// Steps per training episode (T = 1000 in the paper).
+    #[serde(default = "paper_train_steps")]
+    pub train_steps: Spanned<u32>,
+    /// Steps per test episode (T = 2000 in the paper).
+    #[serde(default = "paper_test_steps")]
+    pub test_steps: Spanned<u32>,
+}
+
+impl Default for WorldSpec {
+    fn default() -> Self {
+        Self {
+            fov: paper_fov(),
+            decay: paper_decay(),
+            rmax: paper_rmax(),
+            train_steps: paper_train_steps(),
+            test_steps: paper_test_steps(),
+        }
+    }
+}
+
+/// Agent counts: every learned policy is trained with each `train` count and every cell is
+/// tested with each `test` count. Baselines do not train, so `train` may be left out when
+/// there is no learned policy.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AgentsSpec {
+    #[serde(default = "nothing")]
+    pub train: Spanned<Vec<Spanned<u32>>>,
+    pub test: Spanned<Vec<Spanned<u32>>>,
+}
+
+/// One policy of the sweep: a baseline by name, or a learned architecture with its training.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub enum PolicySpec {
+    Baseline(BaselineSpec),
+    #[serde(rename = "ma-g-ppo")]
+    MaGPpo(LearnedSpec),
+    MaPpo(LearnedSpec),
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct BaselineSpec {
+    pub name: String,
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LearnedSpec {
+    /// A named set of training hyperparameters (`paper`, or a smaller one for smoke runs).
+    #[serde(default = "paper_profile")]
+    pub profile: String,
+    /// The images the policy sees: `[local, mini]` (the paper's full model), `[local]` or
+    /// `[mini]` (RQ2).
+    #[serde(default = "both_channels")]
+    pub channels: Vec<Channel>,
+    /// Training episodes.
+    pub episodes: u32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Channel {
+    Local,
+    Mini,
+}
+
+/// The sweep-level tables.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Output {
+    Episodes,
+    Training,
+    Cells,
+    Summary,
+}
+
+impl Output {
+    pub const ALL: [Output; 4] = [
+        Output::Episodes,
+        Output::Training,
+        Output::Cells,
+        Output::Summary,
+    ];
+
+    /// The table's file name, without extension.
+    pub fn name(self) -> &'static str {
+        match self {
+            Output::Episodes => "episodes",
+            Output::Training => "training",
+            Output::Cells => "cells",
+            Output::Summary => "summary",
+        }
+    }
+
+    fn all() -> Spanned<Vec<Output>> {
+        unplaced(Self::ALL.to_vec())
+    }
+}
+
+impl PolicySpec {
+    /// The name in tables: the baseline's name, or the architecture with its non-default
+    /// channels and profile (`ma-g-ppo`, `ma-g-ppo[mini]`, `ma-ppo@smoke`).
+    pub fn label(&self) -> String {
+        match self {
+            PolicySpec::Baseline(baseline) => baseline.name.clone(),
+            PolicySpec::MaGPpo(learned) => learned.label("ma-g-ppo"),
+            PolicySpec::MaPpo(learned) => learned.label("ma-ppo"),
+        }
+    }
+
+    pub fn learned(&self) -> Option<&LearnedSpec> {
+        match self {
+            PolicySpec::Baseline(_) => None,
+            PolicySpec::MaGPpo(learned) | PolicySpec::MaPpo(learned) => Some(learned),
+        }
+    }
+}
+
+impl LearnedSpec {
+    fn label(&self, architecture: &str) -> String {
+        let mut label = architecture.to_owned();
+        if self.channels != both_channels() {
+            let names: Vec<&str> = self.channels.iter().map(|c| c.name()).collect();
+            label += &format!("[{}]", names.join("+"));
+        }
+        if self.profile != paper_profile() {
+            label += &format!("@{}", self.profile);
+        }
+        label
+    }
+}
+
+impl Channel {
+    pub fn name(self) -> &'static str {
+        match self {
+            Channel::Local => "local",
+            Channel::Mini => "mini",
+        }
+    }
+}
+
+/// A default value, which has no place in the file.
+fn unplaced<T>(value: T) -> Spanned<T> {
+    Spanned::new(value, Location::UNKNOWN, Location::UNKNOWN)
+}
+
+fn one() -> Spanned<u32> {
+    unplaced(1)
+}
+
+fn nothing<T>() -> Spanned<Vec<T>> {
+    unplaced(Vec::new())
+}
+
+fn paper_fov() -> Spanned<usize> {
+    unplaced(world::params::PAPER_FOV)
+}
+
+fn paper_decay() -> Spanned<f32> {
+    unplaced(world::params::PAPER_DECAY)
+}
+
+fn paper_rmax() -> Spanned<f32> {
+    unplaced(world::params::PAPER_RMAX)
+}
+
+fn paper_train_steps() -> Spanned<u32> {
+    unplaced(1000)
+}
+
+fn paper_test_steps() -> Spanned<u32> {
+    unplaced(2000)
+}
+
+fn paper_profile() -> String {
+    "paper".to_owned()
+}
+
+fn both_channels() -> Vec<Channel> {
+    vec![Channel::Local, Channel::Mini]
+}

@@ -1,0 +1,212 @@
+//! Scenarios: one YAML file describes an experiment, checked once when loaded and expanded
+//! into the grid of cells a sweep runs.
+
+mod check;
+pub mod error;
+pub mod format;
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use world::{Map, WorldParams};
+
+pub use error::ScenarioError;
+pub use format::{Output, PolicySpec};
+
+/// A checked scenario: every map loaded, every value possible.
+#[derive(Debug)]
+pub struct Scenario {
+    pub name: String,
+    pub description: String,
+    /// The file it was read from, for messages.
+    pub file: PathBuf,
+    pub maps: Vec<ScenarioMap>,
+    pub world: WorldConfig,
+    pub policies: Vec<PolicySpec>,
+    pub train_agents: Vec<u32>,
+    pub test_agents: Vec<u32>,
+    pub seed: u64,
+    pub repetitions: u32,
+    pub test_episodes: u32,
+    pub outputs: Vec<Output>,
+}
+
+/// A map of the scenario with where it came from and the hash of its contents.
+#[derive(Debug)]
+pub struct ScenarioMap {
+    pub map: Map,
+    /// The map as the scenario names it (file spec as written, or `inline`).
+    pub source: String,
+    /// blake3 of the map's canonical text: what a cell's key depends on.
+    pub hash: String,
+}
+
+/// The world parameters shared by every cell of a scenario.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WorldConfig {
+    pub fov: usize,
+    pub decay: f32,
+    pub rmax: f32,
+    pub train_steps: u32,
+    pub test_steps: u32,
+}
+
+impl WorldConfig {
+    /// Checked when the scenario was loaded, and again here for configs read back from a store.
+    pub fn params(&self) -> Result<WorldParams, world::ParamError> {
+        WorldParams::new(self.fov, self.decay, self.rmax)
+    }
+}
+
+impl ScenarioMap {
+    pub fn new(map: Map, source: String) -> Self {
+        let hash = map_hash(&map);
+        Self { map, source, hash }
+    }
+}
+
+/// The content hash of a map (of its canonical text, so a polygon map and its rasterised text
+/// are the same map).
+pub fn map_hash(map: &Map) -> String {
+    blake3::hash(map.to_text().as_bytes()).to_hex()[..20].to_owned()
+}
+
+impl Scenario {
+    /// Reads and checks a scenario file; map files are relative to its folder.
+    pub fn load(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| ScenarioError::new(path, None, "", format!("cannot read: {e}")))?;
+        Self::parse(&text, path)
+    }
+
+    /// Checks a scenario held in memory; `file` names it in errors and anchors map paths.
+    pub fn parse(text: &str, file: &Path) -> Result<Self, ScenarioError> {
+        let spec: format::ScenarioFile = serde_saphyr::from_str(text).map_err(|e| {
+            let line = e.location().and_then(error::line_of);
+            ScenarioError::new(file, line, "", problem_of(&e.to_string()))
+        })?;
+        check::check(spec, file)
+    }
+
+    pub fn has_learned_policies(&self) -> bool {
+        self.policies.iter().any(|p| p.learned().is_some())
+    }
+}
+
+/// The problem alone from a serde-saphyr message (`error: line 3 column 1: unknown field ...`
+/// and a source snippet): the location is reported apart.
+fn problem_of(message: &str) -> String {
+    let first = message.lines().next().unwrap_or_default();
+    first
+        .strip_prefix("error: ")
+        .and_then(|rest| rest.split_once(": "))
+        .filter(|(location, _)| location.starts_with("line "))
+        .map_or(first, |(_, problem)| problem)
+        .to_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GRID: &str = "      grid: |\n        ......\n        ..#...\n        ......\n";
+
+    fn scenario(extra_policies: &str, maps: &str) -> String {
+        format!(
+            "name: unit\nseed: 3\nmaps:\n{maps}world: {{fov: 3, test_steps: 20, train_steps: 10}}\n\
+             policies:\n  - baseline: {{name: random}}\n{extra_policies}\
+             agents: {{train: [2, 3], test: [1, 2]}}\nrepetitions: 2\ntest_episodes: 4\n"
+        )
+    }
+
+    fn inline(name: &str) -> String {
+        format!("  - inline:\n      name: {name}\n{GRID}")
+    }
+
+    fn parse(text: &str) -> Result<Scenario, ScenarioError> {
+        Scenario::parse(text, Path::new("unit.yaml"))
+    }
+
+    #[test]
+    fn expands_baselines_once_and_learned_policies_per_training_count() {
+        let learned = "  - ma-ppo: {profile: smoke, episodes: 5}\n";
+        let s = parse(&scenario(learned, &inline("a"))).unwrap();
+        let cells = s.cells();
+        // random: 2 repetitions; ma-ppo: 2 training counts x 2 repetitions.
+        assert_eq!(cells.len(), 2 + 4);
+        assert_eq!(cells[0].config.n_train, None);
+        assert_eq!(cells[2].config.n_train, Some(2));
+        assert_eq!(cells[2].config.policy.label(), "ma-ppo@smoke");
+        let keys: std::collections::HashSet<_> = cells.iter().map(|c| &c.key).collect();
+        assert_eq!(keys.len(), cells.len());
+        let cost: crate::cell::Cost = cells
+            .iter()
+            .fold(Default::default(), |a, c| a + c.config.cost());
+        assert_eq!(cost.training_episodes, 4 * 5);
+        assert_eq!(cost.test_episodes, 6 * 2 * 4);
+        assert_eq!(cost.env_steps, 4 * 5 * 10 + 6 * 2 * 4 * 20);
+    }
+
+    #[test]
+    fn a_cell_does_not_change_when_the_scenario_grows() {
+        let one = parse(&scenario("", &inline("a"))).unwrap().cells();
+        let maps = format!("{}{}", inline("b"), inline("a"));
+        let two = parse(&scenario("", &maps)).unwrap().cells();
+        assert_eq!(two.len(), 2 * one.len());
+        assert_eq!(one[0].key, two[2].key, "same map, policy and repetition");
+        assert_ne!(one[0].key, one[1].key, "repetitions differ");
+    }
+
+    #[test]
+    fn bad_values_name_file_line_and_field() {
+        let cases = [
+            (
+                scenario("", &inline("a")).replace("fov: 3", "fov: 4"),
+                "unit.yaml:10: world.fov: fov (L) must be odd",
+            ),
+            (
+                scenario("", &inline("a")).replace("test: [1, 2]", "test: [1, 19]"),
+                "agents.test[1]: 19 agents do not fit on map \"a\" (17 free cells)",
+            ),
+            (
+                scenario("", &inline("a")).replace("test: [1, 2]", "test: []"),
+                "agents.test: the list is empty",
+            ),
+            (
+                scenario("", &inline("a")).replace("test_episodes: 4", "test_episodes: 0"),
+                "unit.yaml:15: test_episodes: must be at least 1",
+            ),
+            (
+                scenario("", &inline("a")).replace("name: random", "name: nope"),
+                "unit.yaml:12: policies[0]: unknown policy \"nope\"",
+            ),
+            (
+                scenario("  - baseline: {name: random}\n", &inline("a")),
+                "unit.yaml:13: policies[1]: policy \"random\" is listed twice",
+            ),
+            (
+                scenario("", &format!("{}{}", inline("a"), inline("a"))),
+                "unit.yaml:10: maps[1]: a second map named \"a\"",
+            ),
+        ];
+        for (text, expected) in cases {
+            let error = parse(&text).unwrap_err().to_string();
+            assert!(error.contains(expected), "{error}\n  expected: {expected}");
+        }
+    }
+
+    #[test]
+    fn unknown_keys_and_wrong_types_are_placed() {
+        let unknown = scenario("", &inline("a")).replace("seed: 3", "seed: 3\nseeds: 4");
+        let error = parse(&unknown).unwrap_err();
+        assert_eq!(error.line, Some(3), "{error}");
+        assert!(error.to_string().contains("seeds"), "{error}");
+        let wrong = scenario("", &inline("a")).replace("repetitions: 2", "repetitions: two");
+        let error = parse(&wrong).unwrap_err();
+        assert_eq!(error.line, Some(14), "{error}");
+        assert!(
+            error.to_string().starts_with("unit.yaml:14: invalid"),
+            "{error}"
+        );
+    }
+}

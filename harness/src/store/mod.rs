@@ -1,0 +1,284 @@
+//! The results store: one folder per sweep, one subfolder per finished cell, and the sweep-level
+//! tables built from the cells.
+//!
+//! ```text
+//! OUT/sweep.json               manifest: scenario, code version, every cell key in order
+//! OUT/scenario.yaml            the scenario file as run
+//! OUT/maps/HASH.txt            every map's canonical text, so the store replays on its own
+//! OUT/cells/KEY/episodes.parquet, training.parquet (learned policies)
+//! OUT/cells/KEY/cell.json      the record, written last: the cell's done-marker
+//! OUT/{episodes,training,cells,summary}.{parquet,csv}
+//! ```
+//!
+//! Per-cell files make shards independent and resume simple: a cell is finished when its
+//! record exists and every file it lists has the recorded hash. Every file is written whole
+//! (`write_atomic`), so a crash leaves a cell finished or not, never half.
+
+pub mod record;
+pub mod tables;
+
+use std::path::{Path, PathBuf};
+
+use polars::prelude::{DataFrame, PolarsError};
+
+use crate::atomic_file::write_atomic;
+use crate::scenario::Output;
+pub use record::{CellRecord, Manifest};
+
+pub const EPISODES_FILE: &str = "episodes.parquet";
+pub const TRAINING_FILE: &str = "training.parquet";
+const RECORD_FILE: &str = "cell.json";
+const MANIFEST_FILE: &str = "sweep.json";
+const SCENARIO_FILE: &str = "scenario.yaml";
+
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{0}")]
+    Polars(#[from] PolarsError),
+    #[error("summary: {0}")]
+    Stats(#[from] crate::stats::StatsError),
+    #[error("{path}: {problem}")]
+    Corrupt { path: PathBuf, problem: String },
+    #[error("{folder} holds the sweep {found:?}, not {expected:?}; choose another output folder")]
+    OtherScenario {
+        folder: PathBuf,
+        found: String,
+        expected: String,
+    },
+}
+
+impl StoreError {
+    pub fn io(path: &Path, source: std::io::Error) -> Self {
+        Self::Io {
+            path: path.to_owned(),
+            source,
+        }
+    }
+
+    fn corrupt(path: &Path, problem: impl ToString) -> Self {
+        Self::Corrupt {
+            path: path.to_owned(),
+            problem: problem.to_string(),
+        }
+    }
+}
+
+/// A sweep's output folder.
+#[derive(Clone, Debug)]
+pub struct Store {
+    root: PathBuf,
+}
+
+impl Store {
+    pub fn new(root: &Path) -> Self {
+        Self {
+            root: root.to_owned(),
+        }
+    }
+
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    fn cell_folder(&self, key: &str) -> PathBuf {
+        self.root.join("cells").join(key)
+    }
+
+    fn map_path(&self, hash: &str) -> PathBuf {
+        self.root.join("maps").join(format!("{hash}.txt"))
+    }
+
+    /// The manifest, if the folder holds a sweep.
+    pub fn manifest(&self) -> Result<Option<Manifest>, StoreError> {
+        let path = self.root.join(MANIFEST_FILE);
+        if !path.exists() {
+            return Ok(None);
+        }
+        read_json(&path).map(Some)
+    }
+
+    /// Makes the folder ready for `manifest`'s sweep, refusing one that holds another
+    /// scenario. Finished cells of earlier runs stay; the manifest says which cells count.
+    pub fn prepare(
+        &self,
+        manifest: &Manifest,
+        scenario_text: &str,
+        maps: &[(&str, String)],
+    ) -> Result<(), StoreError> {
+        if let Some(found) = self.manifest()?
+            && found.scenario != manifest.scenario
+        {
+            return Err(StoreError::OtherScenario {
+                folder: self.root.clone(),
+                found: found.scenario,
+                expected: manifest.scenario.clone(),
+            });
+        }
+        for folder in [self.root.join("cells"), self.root.join("maps")] {
+            std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
+        }
+        for (hash, text) in maps {
+            write(&self.map_path(hash), text.as_bytes())?;
+        }
+        write(&self.root.join(SCENARIO_FILE), scenario_text.as_bytes())?;
+        write(&self.root.join(MANIFEST_FILE), &json_bytes(manifest))
+    }
+
+    /// The record of a finished cell whose files all verify; `None` when the cell is absent,
+    /// half-written or damaged (it is then recomputed).
+    pub fn finished(&self, key: &str) -> Option<CellRecord> {
+        self.verified_record(key).ok()
+    }
+
+    /// The record of cell `key`, with a reason when it is missing or does not verify.
+    pub fn verified_record(&self, key: &str) -> Result<CellRecord, StoreError> {
+        let folder = self.cell_folder(key);
+        let path = folder.join(RECORD_FILE);
+        let record: CellRecord = read_json(&path)?;
+        if record.key != key {
+            return Err(StoreError::corrupt(&path, "the record names another cell"));
+        }
+        for (name, hash) in &record.files {
+            let file = folder.join(name);
+            let bytes = std::fs::read(&file).map_err(|e| StoreError::io(&file, e))?;
+            if blake3::hash(&bytes).to_hex().as_str() != hash {
+                return Err(StoreError::corrupt(
+                    &file,
+                    "does not match its recorded hash",
+                ));
+            }
+        }
+        Ok(record)
+    }
+
+    /// Saves a finished cell: its result files first, then its record (with their hashes).
+    pub fn save_cell(
+        &self,
+        mut record: CellRecord,
+        files: &[(&str, Vec<u8>)],
+    ) -> Result<CellRecord, StoreError> {
+        let folder = self.cell_folder(&record.key);
+        std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
+        for (name, bytes) in files {
+            write(&folder.join(name), bytes)?;
+            let hash = blake3::hash(bytes).to_hex().to_string();
+            record.files.insert((*name).to_owned(), hash);
+        }
+        write(&folder.join(RECORD_FILE), &json_bytes(&record))?;
+        Ok(record)
+    }
+
+    /// A per-cell table, or `None` when the cell has no such file.
+    pub fn cell_table(
+        &self,
+        record: &CellRecord,
+        file: &str,
+    ) -> Result<Option<DataFrame>, StoreError> {
+        if !record.files.contains_key(file) {
+            return Ok(None);
+        }
+        let path = self.cell_folder(&record.key).join(file);
+        let bytes = std::fs::read(&path).map_err(|e| StoreError::io(&path, e))?;
+        tables::read_parquet(bytes).map(Some)
+    }
+
+    /// A table of the sweep (`episodes`, `cells`, ...), read from its Parquet file.
+    pub fn table(&self, name: &str) -> Result<DataFrame, StoreError> {
+        let path = self.root.join(format!("{name}.parquet"));
+        let bytes = std::fs::read(&path).map_err(|e| StoreError::io(&path, e))?;
+        tables::read_parquet(bytes)
+    }
+
+    /// The scenario file as run.
+    pub fn scenario_text(&self) -> Result<String, StoreError> {
+        let path = self.root.join(SCENARIO_FILE);
+        std::fs::read_to_string(&path).map_err(|e| StoreError::io(&path, e))
+    }
+
+    pub fn map_text(&self, hash: &str) -> Result<String, StoreError> {
+        let path = self.map_path(hash);
+        std::fs::read_to_string(&path).map_err(|e| StoreError::io(&path, e))
+    }
+
+    /// Copies a verified cell and its map from `other`, unless this store has it already.
+    /// Returns whether it copied.
+    pub fn import_cell(&self, other: &Store, key: &str) -> Result<bool, StoreError> {
+        if self.finished(key).is_some() {
+            return Ok(false);
+        }
+        let record = other.verified_record(key)?;
+        let files: Vec<(&str, Vec<u8>)> = record
+            .files
+            .keys()
+            .map(|name| {
+                let path = other.cell_folder(key).join(name);
+                std::fs::read(&path)
+                    .map(|bytes| (name.as_str(), bytes))
+                    .map_err(|e| StoreError::io(&path, e))
+            })
+            .collect::<Result<_, _>>()?;
+        let hash = &record.config.map.hash;
+        write(&self.map_path(hash), other.map_text(hash)?.as_bytes())?;
+        self.save_cell(
+            CellRecord {
+                files: Default::default(),
+                ..record.clone()
+            },
+            &files,
+        )?;
+        Ok(true)
+    }
+
+    /// Builds the sweep-level tables from the finished cells among `keys`, in that order, and
+    /// returns the records included.
+    pub fn build_tables(
+        &self,
+        keys: &[String],
+        outputs: &[Output],
+    ) -> Result<Vec<CellRecord>, StoreError> {
+        let records: Vec<CellRecord> = keys.iter().filter_map(|k| self.finished(k)).collect();
+        let per_cell = |file: &str| -> Result<Option<DataFrame>, StoreError> {
+            let frames = records
+                .iter()
+                .filter_map(|r| self.cell_table(r, file).transpose())
+                .collect::<Result<Vec<_>, _>>()?;
+            tables::stack(frames)
+        };
+        let episodes = per_cell(EPISODES_FILE)?;
+        for output in outputs {
+            let frame = match output {
+                Output::Episodes => episodes.clone(),
+                Output::Training => per_cell(TRAINING_FILE)?,
+                Output::Cells => Some(tables::cells_frame(&records)?),
+                Output::Summary => episodes
+                    .as_ref()
+                    .map(crate::summary::summary_frame)
+                    .transpose()?,
+            };
+            if let Some(frame) = frame {
+                tables::write_table(&self.root, output.name(), &frame)?;
+            }
+        }
+        Ok(records)
+    }
+}
+
+fn write(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
+    write_atomic(path, bytes).map_err(|e| StoreError::io(path, e))
+}
+
+fn json_bytes<T: serde::Serialize>(value: &T) -> Vec<u8> {
+    let mut bytes = serde_json::to_vec_pretty(value).expect("store records serialise");
+    bytes.push(b'\n');
+    bytes
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, StoreError> {
+    let bytes = std::fs::read(path).map_err(|e| StoreError::io(path, e))?;
+    serde_json::from_slice(&bytes).map_err(|e| StoreError::corrupt(path, e))
+}

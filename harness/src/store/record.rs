@@ -1,0 +1,41 @@
+//! The record of a finished cell: its config, provenance and the hashes of its result files.
+//! Written last, it is also the cell's done-marker.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::cell::CellConfig;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellRecord {
+    pub key: String,
+    pub scenario: String,
+    /// The map as the scenario named it (a file spec as written, or `inline`).
+    pub map_source: String,
+    pub config: CellConfig,
+    pub code_version: String,
+    pub git_commit: String,
+    pub host: String,
+    /// UTC, ISO 8601.
+    pub started: String,
+    pub finished: String,
+    pub wall_seconds: f64,
+    /// blake3 of each result file beside this record, by file name.
+    pub files: BTreeMap<String, String>,
+}
+
+/// The sweep's manifest, `sweep.json`: which scenario the folder holds and its full cell list,
+/// so that tables, shards and merges agree on the cells and their order.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub scenario: String,
+    /// blake3 of the scenario file's text.
+    pub scenario_hash: String,
+    pub code_version: String,
+    /// Every cell of the scenario, in expansion order (also for a shard).
+    pub cells: Vec<String>,
+    /// `i/n` for a shard's folder.
+    pub shard: Option<String>,
+    pub outputs: Vec<crate::scenario::Output>,
+}

@@ -1,0 +1,154 @@
+//! The store's tables as Polars frames, and their files: Parquet (exact, typed) and CSV (for
+//! eyes and spreadsheets), always written whole.
+
+use std::io::Cursor;
+use std::path::Path;
+
+use polars::prelude::*;
+
+use super::StoreError;
+use super::record::CellRecord;
+use crate::atomic_file::write_atomic;
+use crate::cell::CellConfig;
+
+/// One test episode's result.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EpisodeRow {
+    pub n_test: u32,
+    pub episode: u32,
+    pub test_seed: u64,
+    pub cumulative_penalty: f64,
+    pub steps: u32,
+}
+
+/// The columns that name a cell in every per-cell table.
+fn cell_columns(key: &str, config: &CellConfig, rows: usize) -> Vec<Column> {
+    vec![
+        Column::new("cell_key".into(), vec![key; rows]),
+        Column::new("map".into(), vec![config.map.name.as_str(); rows]),
+        Column::new("policy".into(), vec![config.policy.label(); rows]),
+        Column::new("n_train".into(), vec![config.n_train; rows]),
+        Column::new("training_seed".into(), vec![config.training_seed; rows]),
+    ]
+}
+
+/// One row per test episode of a cell.
+pub fn episodes_frame(
+    key: &str,
+    config: &CellConfig,
+    rows: &[EpisodeRow],
+) -> Result<DataFrame, StoreError> {
+    let mut columns = cell_columns(key, config, rows.len());
+    columns.extend([
+        Column::new("n_test".into(), column(rows, |r| r.n_test)),
+        Column::new("episode".into(), column(rows, |r| r.episode)),
+        Column::new("test_seed".into(), column(rows, |r| r.test_seed)),
+        Column::new(
+            "cumulative_penalty".into(),
+            column(rows, |r| r.cumulative_penalty),
+        ),
+        Column::new("steps".into(), column(rows, |r| r.steps)),
+    ]);
+    Ok(DataFrame::new(rows.len(), columns)?)
+}
+
+/// One row per finished cell: resolved config as JSON, hashes and provenance.
+pub fn cells_frame(records: &[CellRecord]) -> Result<DataFrame, StoreError> {
+    let configs: Vec<String> = records
+        .iter()
+        .map(|r| serde_json::to_string(&r.config).expect("a cell config serialises"))
+        .collect();
+    let file_hash =
+        |name: &str| -> Vec<Option<String>> { column(records, |r| r.files.get(name).cloned()) };
+    let columns = vec![
+        Column::new("cell_key".into(), column(records, |r| r.key.clone())),
+        Column::new("scenario".into(), column(records, |r| r.scenario.clone())),
+        Column::new("map".into(), column(records, |r| r.config.map.name.clone())),
+        Column::new(
+            "map_source".into(),
+            column(records, |r| r.map_source.clone()),
+        ),
+        Column::new(
+            "map_hash".into(),
+            column(records, |r| r.config.map.hash.clone()),
+        ),
+        Column::new(
+            "policy".into(),
+            column(records, |r| r.config.policy.label()),
+        ),
+        Column::new("n_train".into(), column(records, |r| r.config.n_train)),
+        Column::new(
+            "repetition".into(),
+            column(records, |r| r.config.repetition),
+        ),
+        Column::new(
+            "training_seed".into(),
+            column(records, |r| r.config.training_seed),
+        ),
+        Column::new("config".into(), configs),
+        Column::new("episodes_hash".into(), file_hash(super::EPISODES_FILE)),
+        Column::new("training_hash".into(), file_hash(super::TRAINING_FILE)),
+        Column::new(
+            "code_version".into(),
+            column(records, |r| r.code_version.clone()),
+        ),
+        Column::new(
+            "git_commit".into(),
+            column(records, |r| r.git_commit.clone()),
+        ),
+        Column::new("host".into(), column(records, |r| r.host.clone())),
+        Column::new("started".into(), column(records, |r| r.started.clone())),
+        Column::new("finished".into(), column(records, |r| r.finished.clone())),
+        Column::new("wall_seconds".into(), column(records, |r| r.wall_seconds)),
+    ];
+    Ok(DataFrame::new(records.len(), columns)?)
+}
+
+fn column<R, T>(rows: &[R], field: impl Fn(&R) -> T) -> Vec<T> {
+    rows.iter().map(field).collect()
+}
+
+/// Parquet bytes of a frame, in one row group so equal frames give equal bytes.
+pub fn parquet_bytes(frame: &DataFrame) -> Result<Vec<u8>, StoreError> {
+    let mut frame = frame.clone();
+    frame.rechunk_mut();
+    let mut bytes = Vec::new();
+    ParquetWriter::new(&mut bytes).finish(&mut frame)?;
+    Ok(bytes)
+}
+
+pub fn csv_bytes(frame: &DataFrame) -> Result<Vec<u8>, StoreError> {
+    let mut frame = frame.clone();
+    let mut bytes = Vec::new();
+    CsvWriter::new(&mut bytes).finish(&mut frame)?;
+    Ok(bytes)
+}
+
+pub fn read_parquet(bytes: Vec<u8>) -> Result<DataFrame, StoreError> {
+    Ok(ParquetReader::new(Cursor::new(bytes)).finish()?)
+}
+
+/// Writes `NAME.parquet` and `NAME.csv` in `folder`.
+pub fn write_table(folder: &Path, name: &str, frame: &DataFrame) -> Result<(), StoreError> {
+    for (extension, bytes) in [
+        ("parquet", parquet_bytes(frame)?),
+        ("csv", csv_bytes(frame)?),
+    ] {
+        let path = folder.join(format!("{name}.{extension}"));
+        write_atomic(&path, &bytes).map_err(|e| StoreError::io(&path, e))?;
+    }
+    Ok(())
+}
+
+/// Stacks frames of one schema; `None` when there are none.
+pub fn stack(frames: Vec<DataFrame>) -> Result<Option<DataFrame>, StoreError> {
+    let mut frames = frames.into_iter();
+    let Some(mut stacked) = frames.next() else {
+        return Ok(None);
+    };
+    for frame in frames {
+        stacked.vstack_mut_owned(frame)?;
+    }
+    stacked.rechunk_mut();
+    Ok(Some(stacked))
+}

@@ -1,0 +1,157 @@
+//! The summary table: per (map, policy, N_train, N_test), the cumulative penalty's mean,
+//! standard deviation, median, interquartile mean and stratified-bootstrap 95% intervals of
+//! the mean and the IQM, as rliable recommends for reporting RL results (Agarwal et al. 2021).
+//!
+//! The strata are the cells (one training run, i.e. one seed, each): a bootstrap replicate
+//! resamples episodes within every cell, so the spread between training runs is kept. Each
+//! group's resampling has its own seed, derived from the group's name, so the table does not
+//! depend on row order or thread count.
+
+use polars::prelude::*;
+use world::Seed;
+
+use crate::stats::{
+    RESAMPLES, StatsError, iqm, mean, median, standard_deviation, stratified_bootstrap_interval,
+};
+use crate::store::StoreError;
+
+const CONFIDENCE: f64 = 0.95;
+
+/// One (map, policy, N_train, N_test) group: its episodes' penalties by cell.
+struct Group {
+    map: String,
+    policy: String,
+    n_train: Option<u32>,
+    n_test: u32,
+    strata: Vec<(String, Vec<f64>)>,
+}
+
+struct GroupSummary {
+    cells: u32,
+    episodes: u32,
+    mean: f64,
+    std: f64,
+    median: f64,
+    iqm: f64,
+    mean_ci: (f64, f64),
+    iqm_ci: (f64, f64),
+}
+
+/// The summary of an `episodes` table, groups in order of first appearance.
+pub fn summary_frame(episodes: &DataFrame) -> Result<DataFrame, StoreError> {
+    let groups = groups(episodes)?;
+    let stats: Vec<GroupSummary> = groups.iter().map(summarise).collect::<Result<_, _>>()?;
+    let text =
+        |f: fn(&Group) -> &String| -> Vec<&str> { groups.iter().map(|g| f(g).as_str()).collect() };
+    let number = |f: fn(&GroupSummary) -> f64| -> Vec<f64> { stats.iter().map(f).collect() };
+    let columns = vec![
+        Column::new("map".into(), text(|g| &g.map)),
+        Column::new("policy".into(), text(|g| &g.policy)),
+        Column::new(
+            "n_train".into(),
+            groups.iter().map(|g| g.n_train).collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "n_test".into(),
+            groups.iter().map(|g| g.n_test).collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "cells".into(),
+            stats.iter().map(|s| s.cells).collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "episodes".into(),
+            stats.iter().map(|s| s.episodes).collect::<Vec<_>>(),
+        ),
+        Column::new("mean".into(), number(|s| s.mean)),
+        Column::new("std".into(), number(|s| s.std)),
+        Column::new("median".into(), number(|s| s.median)),
+        Column::new("iqm".into(), number(|s| s.iqm)),
+        Column::new("mean_ci_low".into(), number(|s| s.mean_ci.0)),
+        Column::new("mean_ci_high".into(), number(|s| s.mean_ci.1)),
+        Column::new("iqm_ci_low".into(), number(|s| s.iqm_ci.0)),
+        Column::new("iqm_ci_high".into(), number(|s| s.iqm_ci.1)),
+    ];
+    Ok(DataFrame::new(groups.len(), columns)?)
+}
+
+fn summarise(group: &Group) -> Result<GroupSummary, StatsError> {
+    let strata: Vec<&[f64]> = group.strata.iter().map(|(_, v)| v.as_slice()).collect();
+    let all: Vec<f64> = strata.concat();
+    let seed = group_seed(group);
+    let interval = |statistic, branch| {
+        stratified_bootstrap_interval(
+            &strata,
+            statistic,
+            CONFIDENCE,
+            RESAMPLES,
+            seed.child(branch),
+        )
+    };
+    Ok(GroupSummary {
+        cells: strata.len() as u32,
+        episodes: all.len() as u32,
+        mean: mean(&all)?,
+        std: standard_deviation(&all)?,
+        median: median(&all)?,
+        iqm: iqm(&all)?,
+        mean_ci: interval(mean, 0)?,
+        iqm_ci: interval(iqm, 1)?,
+    })
+}
+
+/// The group's own resampling seed: a hash of its name.
+fn group_seed(group: &Group) -> Seed {
+    let name = format!(
+        "{}\0{}\0{:?}\0{}",
+        group.map, group.policy, group.n_train, group.n_test
+    );
+    let hash = blake3::hash(name.as_bytes());
+    let bytes: [u8; 8] = hash.as_bytes()[..8]
+        .try_into()
+        .expect("a blake3 hash has 32 bytes");
+    Seed::new(u64::from_le_bytes(bytes))
+}
+
+fn groups(episodes: &DataFrame) -> Result<Vec<Group>, StoreError> {
+    let map = episodes.column("map")?.str()?;
+    let policy = episodes.column("policy")?.str()?;
+    let n_train = episodes.column("n_train")?.u32()?;
+    let n_test = episodes.column("n_test")?.u32()?;
+    let cell = episodes.column("cell_key")?.str()?;
+    let penalty = episodes.column("cumulative_penalty")?.f64()?;
+    let missing = || PolarsError::NoData("a null in the episodes table".into());
+    let mut groups: Vec<Group> = Vec::new();
+    for i in 0..episodes.height() {
+        let (map, policy) = (
+            map.get(i).ok_or_else(missing)?,
+            policy.get(i).ok_or_else(missing)?,
+        );
+        let (n_train, n_test) = (n_train.get(i), n_test.get(i).ok_or_else(missing)?);
+        let (cell, value) = (
+            cell.get(i).ok_or_else(missing)?,
+            penalty.get(i).ok_or_else(missing)?,
+        );
+        let position = groups.iter().position(|g| {
+            g.map == map && g.policy == policy && g.n_train == n_train && g.n_test == n_test
+        });
+        let group = match position {
+            Some(p) => &mut groups[p],
+            None => {
+                groups.push(Group {
+                    map: map.to_owned(),
+                    policy: policy.to_owned(),
+                    n_train,
+                    n_test,
+                    strata: Vec::new(),
+                });
+                groups.last_mut().expect("just pushed")
+            }
+        };
+        match group.strata.iter_mut().find(|(key, _)| key == cell) {
+            Some((_, values)) => values.push(value),
+            None => group.strata.push((cell.to_owned(), vec![value])),
+        }
+    }
+    Ok(groups)
+}

@@ -1,0 +1,143 @@
+//! The sweep engine: runs a scenario's unfinished cells in parallel into a store, then builds
+//! the sweep-level tables from every finished cell.
+//!
+//! Nothing is shared between cells but read-only worlds, and every cell's seeds come from its
+//! config, so results do not depend on `--jobs`, on sharding or on interruptions.
+
+use std::sync::{Arc, OnceLock};
+
+use rayon::prelude::*;
+use world::World;
+
+use crate::cell::Cell;
+use crate::code_version::code_version;
+use crate::execution::{CellError, CellOrigin, run_cell};
+use crate::progress::Progress;
+use crate::scenario::Scenario;
+use crate::shard::Shard;
+use crate::store::{Manifest, Store, StoreError};
+
+pub struct SweepOptions {
+    /// Cells run at once.
+    pub jobs: usize,
+    pub shard: Option<Shard>,
+}
+
+/// What a sweep did.
+#[derive(Debug)]
+pub struct SweepReport {
+    /// Cells of this run (the shard's, or all).
+    pub selected: usize,
+    pub already_finished: usize,
+    pub computed: usize,
+    /// Cells that failed, by key, with why.
+    pub failed: Vec<(String, CellError)>,
+    /// Cells in the tables.
+    pub tabled: usize,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum SweepError {
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    #[error("cannot start {0} worker threads: {1}")]
+    Threads(usize, rayon::ThreadPoolBuildError),
+}
+
+/// Runs `scenario` (read from `scenario_text`) into `store`.
+pub fn run_sweep(
+    scenario: &Scenario,
+    scenario_text: &str,
+    store: &Store,
+    options: &SweepOptions,
+) -> Result<SweepReport, SweepError> {
+    let cells = scenario.cells();
+    let manifest = Manifest {
+        scenario: scenario.name.clone(),
+        scenario_hash: blake3::hash(scenario_text.as_bytes()).to_hex().to_string(),
+        code_version: code_version(),
+        cells: cells.iter().map(|c| c.key.clone()).collect(),
+        shard: options.shard.map(|s| s.to_string()),
+        outputs: scenario.outputs.clone(),
+    };
+    let maps: Vec<(&str, String)> = scenario
+        .maps
+        .iter()
+        .map(|m| (m.hash.as_str(), m.map.to_text()))
+        .collect();
+    store.prepare(&manifest, scenario_text, &maps)?;
+
+    let selected: Vec<&Cell> = cells
+        .iter()
+        .filter(|c| options.shard.is_none_or(|s| s.contains(c.index)))
+        .collect();
+    let todo: Vec<&Cell> = selected
+        .iter()
+        .copied()
+        .filter(|c| store.finished(&c.key).is_none())
+        .collect();
+    let failed = run_cells(scenario, store, &todo, options.jobs)?;
+
+    let selected_keys: Vec<String> = selected.iter().map(|c| c.key.clone()).collect();
+    let tabled = store.build_tables(&selected_keys, &scenario.outputs)?;
+    Ok(SweepReport {
+        selected: selected.len(),
+        already_finished: selected.len() - todo.len(),
+        computed: todo.len() - failed.len(),
+        failed,
+        tabled: tabled.len(),
+    })
+}
+
+/// Runs `todo` on `jobs` threads; returns the cells that failed.
+fn run_cells(
+    scenario: &Scenario,
+    store: &Store,
+    todo: &[&Cell],
+    jobs: usize,
+) -> Result<Vec<(String, CellError)>, SweepError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs)
+        .build()
+        .map_err(|e| SweepError::Threads(jobs, e))?;
+    let worlds: Vec<OnceLock<Arc<World>>> = scenario.maps.iter().map(|_| OnceLock::new()).collect();
+    let params = scenario
+        .world
+        .params()
+        .expect("checked when the scenario was loaded");
+    let progress = Progress::new(todo.iter().map(|c| c.config.cost().env_steps).sum());
+    let failed = pool.install(|| {
+        todo.par_iter()
+            .with_max_len(1)
+            .filter_map(|cell| {
+                let map = &scenario.maps[cell.map_index];
+                let world =
+                    worlds[cell.map_index].get_or_init(|| World::new(map.map.clone(), params));
+                let bar = progress.start_cell(cell_label(cell), cell.config.cost().env_steps);
+                let origin = CellOrigin {
+                    scenario: &scenario.name,
+                    map_source: &map.source,
+                };
+                run_cell(store, &origin, world, cell, &|steps| bar.advance(steps))
+                    .err()
+                    .map(|e| (cell.key.clone(), e))
+            })
+            .collect()
+    });
+    progress.finish();
+    Ok(failed)
+}
+
+/// How a cell is named on screen and in messages.
+pub fn cell_label(cell: &Cell) -> String {
+    let c = &cell.config;
+    let n_train = c.n_train.map_or(String::new(), |n| format!(" N_train={n}"));
+    format!(
+        "{} {}{} rep {} ({})",
+        c.map.name,
+        c.policy.label(),
+        n_train,
+        c.repetition,
+        cell.key
+    )
+}

@@ -1,0 +1,434 @@
+//! `harness sweep`, `check`, `merge` and `audit` as a user runs them: real processes, real
+//! folders, a real SIGKILL.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use polars::prelude::*;
+
+fn harness(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
+        .args(args)
+        .output()
+        .expect("harness runs")
+}
+
+fn smoke() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenarios/smoke.yaml")
+        .display()
+        .to_string()
+}
+
+/// A fresh folder under the system's temporary directory, for one test.
+fn scratch(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("vpm-e2e-sweep-{test}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn succeed(output: Output) -> String {
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    String::from_utf8(output.stdout).unwrap()
+}
+
+fn sweep(out: &Path, extra: &[&str]) -> String {
+    let out = out.to_str().unwrap();
+    let smoke = smoke();
+    succeed(harness(&[&["sweep", &smoke, "--out", out], extra].concat()))
+}
+
+/// Every file under `dir` with its bytes.
+fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut files = BTreeMap::new();
+    let mut pending = vec![dir.to_owned()];
+    while let Some(folder) = pending.pop() {
+        for entry in std::fs::read_dir(&folder).unwrap().flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                pending.push(path);
+            } else {
+                let bytes = std::fs::read(&path).unwrap();
+                files.insert(path.strip_prefix(dir).unwrap().to_owned(), bytes);
+            }
+        }
+    }
+    files
+}
+
+fn finished_cells(store: &Path) -> usize {
+    std::fs::read_dir(store.join("cells"))
+        .map(|entries| {
+            entries
+                .flatten()
+                .filter(|e| e.path().join("cell.json").exists())
+                .count()
+        })
+        .unwrap_or(0)
+}
+
+fn read_table(store: &Path, name: &str) -> DataFrame {
+    let file = std::fs::File::open(store.join(format!("{name}.parquet"))).unwrap();
+    ParquetReader::new(file).finish().unwrap()
+}
+
+/// The tables of two stores hold the same results: the result tables byte for byte, the
+/// cells table without its columns of time and place.
+fn assert_same_tables(a: &Path, b: &Path) {
+    for file in [
+        "episodes.parquet",
+        "episodes.csv",
+        "summary.parquet",
+        "summary.csv",
+    ] {
+        let (x, y) = (std::fs::read(a.join(file)), std::fs::read(b.join(file)));
+        assert!(x.as_ref().unwrap() == y.as_ref().unwrap(), "{file} differs");
+    }
+    let provenance = ["host", "started", "finished", "wall_seconds", "git_commit"];
+    let cells = |store| read_table(store, "cells").drop_many(provenance);
+    assert_eq!(cells(a), cells(b));
+}
+
+/// One uninterrupted, unsharded smoke sweep, shared by the tests that compare against it.
+fn reference_run() -> &'static Path {
+    static REFERENCE: OnceLock<PathBuf> = OnceLock::new();
+    REFERENCE.get_or_init(|| {
+        let out = scratch("reference").join("store");
+        sweep(&out, &["--jobs", "2"]);
+        out
+    })
+}
+
+#[test]
+fn a_second_run_recomputes_nothing() {
+    let out = scratch("twice").join("store");
+    let first = sweep(&out, &[]);
+    assert!(first.contains(", 0 already finished,"), "{first}");
+    let cells = finished_cells(&out);
+    assert!(cells >= 2, "{first}");
+    let before = snapshot(&out.join("cells"));
+    let second = sweep(&out, &[]);
+    let expected = format!("{cells} cells, {cells} already finished, 0 computed, 0 failed");
+    assert!(second.contains(&expected), "{second}");
+    assert_eq!(
+        snapshot(&out.join("cells")),
+        before,
+        "no cell file was rewritten"
+    );
+    assert_same_tables(&out, reference_run());
+}
+
+#[test]
+fn a_killed_sweep_resumes_to_the_same_tables() {
+    let out = scratch("kill").join("store");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
+        .args([
+            "sweep",
+            &smoke(),
+            "--jobs",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    while finished_cells(&out) == 0 {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the sweep ended before the kill"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    let done = finished_cells(&out);
+    let resumed = sweep(&out, &["--jobs", "1"]);
+    let total = finished_cells(&out);
+    assert!(
+        done < total,
+        "the kill came after the last cell ({done} of {total})"
+    );
+    let expected = format!(
+        "{total} cells, {done} already finished, {} computed",
+        total - done
+    );
+    assert!(resumed.contains(&expected), "{resumed}");
+    assert_same_tables(&out, reference_run());
+}
+
+#[test]
+fn two_shards_merged_equal_one_unsharded_run() {
+    let dir = scratch("shards");
+    let shards = [dir.join("shard1"), dir.join("shard2")];
+    let one = sweep(&shards[0], &["--shard", "1/2"]);
+    let two = sweep(&shards[1], &["--shard", "2/2"]);
+    assert!(
+        one.contains("(shard 1/2)") && two.contains("(shard 2/2)"),
+        "{one}{two}"
+    );
+    let total = finished_cells(reference_run());
+    assert_eq!(
+        finished_cells(&shards[0]) + finished_cells(&shards[1]),
+        total
+    );
+    let merged = dir.join("merged");
+    let printed = succeed(harness(&[
+        "merge",
+        "--out",
+        merged.to_str().unwrap(),
+        shards[0].to_str().unwrap(),
+        shards[1].to_str().unwrap(),
+    ]));
+    assert!(
+        printed.contains(&format!("{total} of {total} cells")),
+        "{printed}"
+    );
+    assert_same_tables(&merged, reference_run());
+
+    let partial = dir.join("partial");
+    let output = harness(&[
+        "merge",
+        "--out",
+        partial.to_str().unwrap(),
+        shards[0].to_str().unwrap(),
+    ]);
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("cells are missing"));
+}
+
+#[test]
+fn audit_passes_and_fails_when_a_stored_number_is_altered() {
+    let store = scratch("audit").join("store");
+    sweep(&store, &[]);
+    let rows = read_table(&store, "episodes").height();
+    let audit = |store: &Path| harness(&["audit", store.to_str().unwrap(), "--sample", "100000"]);
+    let passed = succeed(audit(&store));
+    assert!(
+        passed.contains(&format!("audit passed: {rows} rows came back bit for bit")),
+        "{passed}"
+    );
+
+    // One unit in the last place of one cumulative penalty.
+    let mut episodes = read_table(&store, "episodes");
+    let penalties = episodes
+        .column("cumulative_penalty")
+        .unwrap()
+        .f64()
+        .unwrap();
+    let mut altered: Vec<f64> = penalties.into_no_null_iter().collect();
+    altered[rows / 2] = f64::from_bits(altered[rows / 2].to_bits() + 1);
+    episodes
+        .replace(
+            "cumulative_penalty",
+            Column::new("cumulative_penalty".into(), altered),
+        )
+        .unwrap();
+    let file = std::fs::File::create(store.join("episodes.parquet")).unwrap();
+    ParquetWriter::new(file).finish(&mut episodes).unwrap();
+
+    let failed = audit(&store);
+    assert!(!failed.status.success());
+    let stdout = String::from_utf8_lossy(&failed.stdout);
+    assert_eq!(stdout.matches("DIFFERENT").count(), 1, "{stdout}");
+    assert!(
+        String::from_utf8_lossy(&failed.stderr).contains("1 of"),
+        "{}",
+        String::from_utf8_lossy(&failed.stderr)
+    );
+}
+
+#[test]
+fn check_prints_every_cell_and_the_cost() {
+    let printed = succeed(harness(&["check", &smoke()]));
+    assert!(printed.starts_with("scenario smoke"), "{printed}");
+    let cells = printed
+        .lines()
+        .filter(|l| l.trim_start().starts_with(char::is_numeric))
+        .count();
+    assert!(
+        printed.contains(&format!("total: {cells} cells,")),
+        "{printed}"
+    );
+}
+
+/// A scenario with one thing wrong, and the message it must give.
+struct BadCase {
+    what: &'static str,
+    from: &'static str,
+    to: &'static str,
+    message: &'static str,
+}
+
+const VALID: &str = "\
+name: bad
+seed: 1
+maps:
+  - file: MAP
+world: {fov: 25, decay: 1, rmax: 400, test_steps: 10}
+policies:
+  - baseline: {name: random}
+  - ma-g-ppo: {episodes: 10}
+agents:
+  train: [2]
+  test: [2, 4]
+test_episodes: 2
+";
+
+const BAD_CASES: [BadCase; 14] = [
+    BadCase {
+        what: "unknown top-level key",
+        from: "seed: 1",
+        to: "seed: 1\nsede: 2",
+        message: "bad.yaml:3: unknown field `sede`",
+    },
+    BadCase {
+        what: "unknown key in a block",
+        from: "rmax: 400",
+        to: "rmax: 400, decoy: 1",
+        message: "bad.yaml:5: unknown field `decoy`",
+    },
+    BadCase {
+        what: "wrong type",
+        from: "test_episodes: 2",
+        to: "test_episodes: two",
+        message: "bad.yaml:12:",
+    },
+    BadCase {
+        what: "missing field",
+        from: "test_episodes: 2\n",
+        to: "",
+        message: "missing field `test_episodes`",
+    },
+    BadCase {
+        what: "even field of view",
+        from: "fov: 25",
+        to: "fov: 24",
+        message: "bad.yaml:5: world.fov: fov (L) must be odd",
+    },
+    BadCase {
+        what: "too many agents",
+        from: "test: [2, 4]",
+        to: "test: [2, 4000]",
+        message: "bad.yaml:11: agents.test[1]: 4000 agents do not fit on map \"open\"",
+    },
+    BadCase {
+        what: "empty list",
+        from: "train: [2]",
+        to: "train: []",
+        message: "bad.yaml:10: agents.train: the list is empty",
+    },
+    BadCase {
+        what: "repeated agent count",
+        from: "test: [2, 4]",
+        to: "test: [2, 2]",
+        message: "bad.yaml:11: agents.test[1]: 2 agents listed twice",
+    },
+    BadCase {
+        what: "missing map file",
+        from: "open.txt",
+        to: "nowhere.txt",
+        message: "bad.yaml:4: maps[0]:",
+    },
+    BadCase {
+        what: "unknown baseline",
+        from: "name: random",
+        to: "name: randon",
+        message: "bad.yaml:7: policies[0]: unknown policy \"randon\"",
+    },
+    BadCase {
+        what: "unknown policy kind",
+        from: "ma-g-ppo:",
+        to: "ma-gppo:",
+        message: "bad.yaml:8: unknown variant `ma-gppo`",
+    },
+    BadCase {
+        what: "no training episodes",
+        from: "episodes: 10",
+        to: "episodes: 0",
+        message: "bad.yaml:8: policies[1]: episodes must be at least 1",
+    },
+    BadCase {
+        what: "zero test episodes",
+        from: "test_episodes: 2",
+        to: "test_episodes: 0",
+        message: "bad.yaml:12: test_episodes: must be at least 1",
+    },
+    BadCase {
+        what: "not YAML",
+        from: "policies:",
+        to: "policies: [",
+        message: "bad.yaml:",
+    },
+];
+
+#[test]
+fn bad_scenarios_give_clear_errors_and_leave_the_output_alone() {
+    let dir = scratch("bad");
+    let map = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/maps/open.txt");
+    let valid = VALID.replace("MAP", map.to_str().unwrap());
+    let store = dir.join("store");
+    let scenario = dir.join("bad.yaml");
+    std::fs::write(
+        &scenario,
+        valid.replace("  - ma-g-ppo: {episodes: 10}\n", ""),
+    )
+    .unwrap();
+    succeed(harness(&[
+        "sweep",
+        scenario.to_str().unwrap(),
+        "--out",
+        store.to_str().unwrap(),
+    ]));
+    let before = snapshot(&store);
+    let untouched = dir.join("untouched");
+    let mut messages = Vec::new();
+    for case in BAD_CASES {
+        assert!(valid.contains(case.from), "{}", case.what);
+        std::fs::write(&scenario, valid.replacen(case.from, case.to, 1)).unwrap();
+        for out in [&store, &untouched] {
+            let output = harness(&[
+                "sweep",
+                scenario.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ]);
+            let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+            assert!(!output.status.success(), "{}: accepted", case.what);
+            assert!(stderr.contains(case.message), "{}: {stderr}", case.what);
+            assert!(!stderr.contains("panicked"), "{}: {stderr}", case.what);
+            messages.push(stderr);
+        }
+        let checked = harness(&["check", scenario.to_str().unwrap()]);
+        assert!(
+            !checked.status.success(),
+            "{}: check accepted it",
+            case.what
+        );
+        assert!(
+            String::from_utf8_lossy(&checked.stderr).contains(case.message),
+            "{}",
+            case.what
+        );
+    }
+    messages.dedup();
+    assert_eq!(
+        messages.len(),
+        BAD_CASES.len(),
+        "every kind has its own message"
+    );
+    assert_eq!(snapshot(&store), before, "a bad scenario touched the store");
+    assert!(
+        !untouched.exists(),
+        "a bad scenario created its output folder"
+    );
+}

@@ -1,37 +1,11 @@
 //! `harness run` as a user runs it: a real process, real files.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn harness(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
-        .args(args)
-        .output()
-        .expect("harness runs")
-}
+use common::{harness, repo_file, scratch, succeed};
 
 fn map(name: &str) -> String {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenarios/maps")
-        .join(name);
-    path.display().to_string()
-}
-
-/// A fresh folder under the system's temporary directory, for one test.
-fn scratch(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("vpm-e2e-{test}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn stdout(output: &Output) -> String {
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    String::from_utf8(output.stdout.clone()).unwrap()
+    repo_file(&format!("scenarios/maps/{name}"))
 }
 
 #[test]
@@ -47,12 +21,12 @@ fn prints_the_cumulative_penalty_and_repeats_it_for_the_same_seed() {
         "--seed",
         "7",
     ];
-    let first = stdout(&harness(&args));
+    let first = succeed(harness(&args));
     assert!(first.starts_with("cumulative penalty: "), "{first}");
-    assert_eq!(first, stdout(&harness(&args)));
+    assert_eq!(first, succeed(harness(&args)));
     let mut other = args;
     other[8] = "8";
-    assert_ne!(first, stdout(&harness(&other)));
+    assert_ne!(first, succeed(harness(&other)));
 }
 
 #[test]
@@ -70,7 +44,7 @@ fn a_trace_replayed_from_its_starts_and_actions_is_the_same_trace() {
         "--seed",
         "5",
     ];
-    let printed = stdout(&harness(
+    let printed = succeed(harness(
         &[&run[..], &["--trace", trace.to_str().unwrap()]].concat(),
     ));
     let text = std::fs::read_to_string(&trace).unwrap();
@@ -94,7 +68,7 @@ fn a_trace_replayed_from_its_starts_and_actions_is_the_same_trace() {
     let actions_file = dir.join("actions.csv");
     std::fs::write(&actions_file, actions).unwrap();
     let replay_trace = dir.join("replay.csv");
-    let replayed = stdout(&harness(&[
+    let replayed = succeed(harness(&[
         "run",
         "--map",
         &map("four_room.txt"),

@@ -1,43 +1,20 @@
 //! `harness sweep`, `check`, `merge` and `audit` as a user runs them: real processes, real
 //! folders, a real SIGKILL.
 
+mod common;
+
+use common::{harness, repo_file, scratch, succeed};
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::OnceLock;
 use std::time::Duration;
 
 use polars::prelude::*;
 
-fn harness(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
-        .args(args)
-        .output()
-        .expect("harness runs")
-}
-
 fn smoke() -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenarios/smoke.yaml")
-        .display()
-        .to_string()
-}
-
-/// A fresh folder under the system's temporary directory, for one test.
-fn scratch(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("vpm-e2e-sweep-{test}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn succeed(output: Output) -> String {
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    String::from_utf8(output.stdout).unwrap()
+    repo_file("scenarios/smoke.yaml")
 }
 
 fn sweep(out: &Path, extra: &[&str]) -> String {

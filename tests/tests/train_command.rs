@@ -1,34 +1,14 @@
 //! `harness train` and `harness run --policy checkpoint:DIR` as a user runs them.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn harness(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
-        .args(args)
-        .output()
-        .expect("harness runs")
-}
+use common::{harness, repo_file, scratch, succeed};
+
+use std::path::Path;
+use std::process::Output;
 
 fn small_map() -> String {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/maps/small_two_room.txt");
-    path.display().to_string()
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("vpm-e2e-{test}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn succeed(output: Output) -> String {
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    String::from_utf8(output.stdout).unwrap()
+    repo_file("scenarios/maps/small_two_room.txt")
 }
 
 fn train(out: &Path, until: &str, resume: bool) -> Output {

@@ -18,7 +18,6 @@ use crate::map::{Cell, Map};
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Visibility {
     width: usize,
-    height: usize,
     fov: usize,
     words_per_row: usize,
     bits: Vec<u64>,
@@ -41,7 +40,6 @@ impl Visibility {
             });
         Self {
             width: map.width(),
-            height: map.height(),
             fov,
             words_per_row,
             bits,
@@ -95,11 +93,6 @@ impl Visibility {
             .iter()
             .map(|w| w.count_ones() as usize)
             .sum()
-    }
-
-    /// Height of the map this was computed for.
-    pub fn height(&self) -> usize {
-        self.height
     }
 }
 

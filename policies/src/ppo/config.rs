@@ -290,20 +290,33 @@ impl TrainingConfig {
 
     /// This configuration with `key=value` overrides applied in order, then checked.
     pub fn with_overrides<S: AsRef<str>>(&self, overrides: &[S]) -> Result<Self, ConfigError> {
+        let values = overrides
+            .iter()
+            .map(|given| {
+                let given = given.as_ref();
+                let (key, value) =
+                    given
+                        .split_once('=')
+                        .ok_or_else(|| ConfigError::OverrideSyntax {
+                            given: given.to_owned(),
+                        })?;
+                let value = serde_json::from_str(value)
+                    .unwrap_or_else(|_| serde_json::Value::String(value.to_owned()));
+                Ok((key.trim().to_owned(), value))
+            })
+            .collect::<Result<Vec<_>, ConfigError>>()?;
+        self.with_values(values)
+    }
+
+    /// This configuration with fields replaced by the given values in order (as a scenario
+    /// file's `set:` gives them), then checked.
+    pub fn with_values(
+        &self,
+        values: impl IntoIterator<Item = (String, serde_json::Value)>,
+    ) -> Result<Self, ConfigError> {
         let mut tree = serde_json::to_value(self).expect("the configuration serialises");
         let fields = tree.as_object_mut().expect("the configuration is a map");
-        for given in overrides {
-            let given = given.as_ref();
-            let (key, value) =
-                given
-                    .split_once('=')
-                    .ok_or_else(|| ConfigError::OverrideSyntax {
-                        given: given.to_owned(),
-                    })?;
-            let value = serde_json::from_str(value)
-                .unwrap_or_else(|_| serde_json::Value::String(value.to_owned()));
-            fields.insert(key.trim().to_owned(), value);
-        }
+        fields.extend(values);
         let config: Self =
             serde_json::from_value(tree).map_err(|e| ConfigError::Override(e.to_string()))?;
         config.check()?;

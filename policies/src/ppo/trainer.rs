@@ -126,8 +126,12 @@ impl Trainer {
         self.state
     }
 
-    /// Trains until `until` episodes are done (at most the configured total), calling
-    /// `on_record` for each episode as its round ends; returns the records.
+    /// Trains until at least `until` episodes are done (at most the configured total),
+    /// finishing the round in progress, and calls `on_record` for each episode as its round
+    /// ends; returns the records.
+    ///
+    /// Rounds always start at multiples of `environments`, wherever a run stops and resumes,
+    /// so that stopping points cannot change the batches and thus the weights.
     pub fn train(
         &mut self,
         until: u64,
@@ -136,7 +140,7 @@ impl Trainer {
         let until = until.min(self.state.config.episodes);
         let mut records = Vec::new();
         while self.state.episodes_done < until {
-            let round = self.round(until)?;
+            let round = self.round()?;
             round.iter().for_each(&mut *on_record);
             records.extend(round);
         }
@@ -144,12 +148,12 @@ impl Trainer {
     }
 
     /// One round: up to `environments` episodes, then one update.
-    fn round(&mut self, until: u64) -> Result<Vec<EpisodeRecord>, TrainError> {
+    fn round(&mut self) -> Result<Vec<EpisodeRecord>, TrainError> {
         let started = Instant::now();
         let state = &mut self.state;
         let config = &state.config;
         let first = state.episodes_done;
-        let count = (config.environments as u64).min(until - first);
+        let count = (config.environments as u64).min(config.episodes - first);
         let episodes = Seed::new(state.seed).child(stream::EPISODES);
         let mut environments = (first..first + count)
             .map(|k| EnvironmentRollout::new(&self.world, config, episodes.child(k)))
@@ -281,7 +285,9 @@ mod tests {
             let mut straight = Trainer::new(tiny_world(), config.clone(), 9).unwrap();
             let all = straight.train(8, &mut |_| ()).unwrap();
             let mut first = Trainer::new(tiny_world(), config, 9).unwrap();
-            let mut records = first.train(4, &mut |_| ()).unwrap();
+            // 3 is inside the second round of 2: training finishes that round.
+            let mut records = first.train(3, &mut |_| ()).unwrap();
+            assert_eq!(first.state().episodes_done, 4);
             let files = checkpoint::save(first.state());
             let metadata = checkpoint::read_metadata(&files.metadata).unwrap();
             let state =

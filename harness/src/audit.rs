@@ -1,5 +1,6 @@
-//! The audit: plays a random sample of a store's test episodes again, from nothing but the
-//! store (cell configs, maps), and checks that every number comes back bit for bit.
+//! The audit: plays a random sample of a store's test episodes again, and trains a sample of
+//! its learned cells again, from nothing but the store (cell configs, maps, checkpoints), and
+//! checks that every number comes back bit for bit.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -10,11 +11,15 @@ use rand::RngExt;
 use rayon::prelude::*;
 use world::{Map, Seed, World};
 
+use policies::checkpoint::{self, WEIGHTS_FILE};
+use policies::ppo::Trainer;
+
 use crate::cell::CellConfig;
-use crate::execution::{build_policy, test_episode};
+use crate::execution::{stored_policy, test_episode};
 use crate::scenario::map_hash;
 use crate::store::tables::EpisodeRow;
-use crate::store::{Store, StoreError};
+use crate::store::{CellRecord, Store, StoreError, TRAINING_FILE};
+use crate::training_log;
 
 /// A stored test episode and what playing it again gave.
 #[derive(Debug)]
@@ -67,9 +72,81 @@ fn replay(
     let record = store.verified_record(key).map_err(|e| e.to_string())?;
     let config = &record.config;
     let world = world_of(store, worlds, config)?;
-    let mut policy = build_policy(&config.policy, &world).map_err(|e| e.to_string())?;
+    let mut policy = stored_policy(store, &record, &world).map_err(|e| e.to_string())?;
     test_episode(&world, policy.as_mut(), config, row.n_test, row.episode)
         .map_err(|e| e.to_string())
+}
+
+/// A stored training run and what training it again gave.
+#[derive(Debug)]
+pub struct TrainingAuditLine {
+    pub cell_key: String,
+    /// The episodes trained again, or why the run differs or could not be repeated.
+    pub outcome: Result<u64, String>,
+}
+
+/// Trains `sample` of the store's learned cells again (all of them if there are fewer),
+/// chosen by `seed`, and compares the weights and the training log with the stored ones.
+pub fn audit_training(
+    store: &Store,
+    sample: usize,
+    seed: u64,
+) -> Result<Vec<TrainingAuditLine>, StoreError> {
+    let Some(manifest) = store.manifest()? else {
+        return Ok(Vec::new());
+    };
+    let trained: Vec<CellRecord> = manifest
+        .cells
+        .iter()
+        .filter_map(|key| store.finished(key))
+        .filter(|record| record.files.contains_key(TRAINING_FILE))
+        .collect();
+    let chosen = choose(trained.len(), sample, Seed::new(seed).child(1));
+    let worlds = Mutex::new(HashMap::new());
+    Ok(chosen
+        .into_par_iter()
+        .map(|i| TrainingAuditLine {
+            cell_key: trained[i].key.clone(),
+            outcome: train_again(store, &worlds, &trained[i]),
+        })
+        .collect())
+}
+
+/// Trains a stored cell again from its recorded configuration and seed.
+fn train_again(
+    store: &Store,
+    worlds: &Mutex<HashMap<String, Arc<World>>>,
+    record: &CellRecord,
+) -> Result<u64, String> {
+    let config = &record.config;
+    let training = config
+        .training_config()
+        .ok_or("the cell has no training run")?
+        .map_err(|e| e.to_string())?;
+    let world = world_of(store, worlds, config)?;
+    let mut trainer =
+        Trainer::new(world, training, config.training_seed).map_err(|e| e.to_string())?;
+    let records = trainer
+        .train(u64::MAX, &mut |_| ())
+        .map_err(|e| e.to_string())?;
+    let stored = store
+        .cell_file(record, WEIGHTS_FILE)
+        .map_err(|e| e.to_string())?;
+    if checkpoint::save(trainer.state()).weights != stored {
+        return Err("the weights differ".to_owned());
+    }
+    let log = training_log::to_frame(&records).map_err(|e| e.to_string())?;
+    let stored = store
+        .cell_table(record, TRAINING_FILE)
+        .map_err(|e| e.to_string())?
+        .ok_or("no stored training log")?;
+    let columns = training_log::reproducible_columns();
+    let (log, stored) = (log.select(columns.clone()), stored.select(columns));
+    match (log, stored) {
+        (Ok(log), Ok(stored)) if log.equals_missing(&stored) => Ok(records.len() as u64),
+        (Ok(_), Ok(_)) => Err("the training log differs".to_owned()),
+        (Err(e), _) | (_, Err(e)) => Err(e.to_string()),
+    }
 }
 
 /// The world of a stored map, built once per map and checked against the map's hash.

@@ -2,6 +2,7 @@
 //! N_train, training seed) plus its evaluations at every N_test; a baseline does not train,
 //! so its cells have no N_train.
 
+use policies::ppo::{ConfigError, TrainingConfig};
 use serde::{Deserialize, Serialize};
 use world::Seed;
 
@@ -46,12 +47,32 @@ pub struct Cell {
     pub config: CellConfig,
 }
 
-/// What a cell or a sweep costs, in episodes and environment steps.
+/// What a cell or a sweep costs, in episodes and environment steps, and as estimated work.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Cost {
     pub training_episodes: u64,
     pub test_episodes: u64,
     pub env_steps: u64,
+    /// Estimated run time in units of one agent's world step (about half a microsecond),
+    /// so that shards can be balanced between cells that train and cells that do not.
+    pub work: u64,
+}
+
+impl Cost {
+    /// The estimated CPU time of `work`.
+    pub fn cpu_seconds(&self) -> f64 {
+        self.work as f64 * work::UNIT_SECONDS
+    }
+}
+
+/// Rough relative costs per agent and step, from `harness bench` and `harness bench network`:
+/// a world step is the unit; a learned policy's forward pass adds about 50 units; a training
+/// step (rollout plus its share of the update, paper network) about 350.
+mod work {
+    pub const UNIT_SECONDS: f64 = 0.5e-6;
+    pub const WORLD_STEP: u64 = 1;
+    pub const LEARNED_STEP: u64 = 50;
+    pub const TRAINING_STEP: u64 = 350;
 }
 
 impl CellConfig {
@@ -70,14 +91,35 @@ impl CellConfig {
         Seed::new(self.test_seed).descend(&[agents as u64, episode as u64])
     }
 
+    /// The training run of a learned cell; `None` for a baseline.
+    pub fn training_config(&self) -> Option<Result<TrainingConfig, ConfigError>> {
+        let Some(n_train) = self.n_train else {
+            let problem = ConfigError::Invalid {
+                field: "agents",
+                reason: "a learned policy's cell has no N_train".to_owned(),
+            };
+            return self.policy.learned().map(|_| Err(problem));
+        };
+        self.policy.training_config(&self.world, n_train)
+    }
+
     pub fn cost(&self) -> Cost {
-        let training_episodes = self.policy.learned().map_or(0, |l| l.episodes as u64);
+        let learned = self.policy.learned();
+        let training_episodes = learned.map_or(0, |l| l.episodes as u64);
+        let training_steps = training_episodes * self.world.train_steps as u64;
         let test_episodes = self.n_test.len() as u64 * self.test_episodes as u64;
+        let test_steps = self.test_episodes as u64 * self.world.test_steps as u64;
+        let test_agent_steps: u64 = self.n_test.iter().map(|&n| n as u64 * test_steps).sum();
+        let test_step = match learned {
+            Some(_) => work::LEARNED_STEP,
+            None => work::WORLD_STEP,
+        };
         Cost {
             training_episodes,
             test_episodes,
-            env_steps: training_episodes * self.world.train_steps as u64
-                + test_episodes * self.world.test_steps as u64,
+            env_steps: training_steps + test_episodes * self.world.test_steps as u64,
+            work: training_steps * self.n_train.unwrap_or(0) as u64 * work::TRAINING_STEP
+                + test_agent_steps * test_step,
         }
     }
 }
@@ -90,6 +132,7 @@ impl std::ops::Add for Cost {
             training_episodes: self.training_episodes + other.training_episodes,
             test_episodes: self.test_episodes + other.test_episodes,
             env_steps: self.env_steps + other.env_steps,
+            work: self.work + other.work,
         }
     }
 }

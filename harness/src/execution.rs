@@ -1,11 +1,15 @@
-//! Runs one cell: builds (later: trains) its policy, plays its test episodes at every N_test and
+//! Runs one cell: builds or trains its policy, plays its test episodes at every N_test and
 //! saves the result in the store.
 
 use std::sync::Arc;
 use std::time::{Instant, SystemTime};
 
+use polars::prelude::DataFrame;
 use policies::baseline::UnknownBaseline;
-use policies::{PlanError, Policy};
+use policies::checkpoint::{self, CheckpointError, METADATA_FILE, WEIGHTS_FILE};
+use policies::nn::ActorCritic;
+use policies::ppo::{ConfigError, TrainingConfig, TrainingState};
+use policies::{ActionChoice, LearnedPolicy, PlanError, Policy};
 use world::{StartError, World};
 
 use crate::cell::{Cell, CellConfig};
@@ -13,13 +17,13 @@ use crate::code_version::{code_version, git_commit};
 use crate::provenance::{host_name, utc_timestamp};
 use crate::runner::run_episode;
 use crate::scenario::PolicySpec;
+use crate::scenario::format::BaselineSpec;
 use crate::store::tables::{self, EpisodeRow};
-use crate::store::{CellRecord, EPISODES_FILE, Store, StoreError};
+use crate::store::{CellRecord, EPISODES_FILE, Store, StoreError, TRAINING_FILE};
+use crate::training_run::TrainingRun;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CellError {
-    #[error("learned policies are not yet available (policy {0})")]
-    LearnedUnavailable(String),
     #[error(transparent)]
     Policy(#[from] UnknownBaseline),
     #[error(transparent)]
@@ -28,6 +32,14 @@ pub enum CellError {
     Start(#[from] StartError),
     #[error(transparent)]
     Store(#[from] StoreError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+    #[error("training: {0:#}")]
+    Training(anyhow::Error),
+    #[error("{0}")]
+    Table(#[from] polars::prelude::PolarsError),
 }
 
 /// Where a cell comes from, for its record.
@@ -35,6 +47,9 @@ pub struct CellOrigin<'a> {
     pub scenario: &'a str,
     pub map_source: &'a str,
 }
+
+/// Training episodes between saves of a learned cell's run.
+const SAVE_EVERY: u64 = 100;
 
 /// Runs `cell` in `world` and saves it; `advance` hears of every finished episode's steps.
 pub fn run_cell(
@@ -47,7 +62,20 @@ pub fn run_cell(
     let started = SystemTime::now();
     let clock = Instant::now();
     let config = &cell.config;
-    let mut policy = build_policy(&config.policy, world)?;
+    let mut files = Vec::new();
+    let mut policy = match (&config.policy, config.training_config()) {
+        (PolicySpec::Baseline(baseline), _) => baseline_policy(baseline, world)?,
+        (_, None) => unreachable!("only baselines have no training run"),
+        (_, Some(training)) => {
+            let (state, log) = train_cell(store, cell, world, training?, advance)?;
+            let checkpoint = checkpoint::save(&state);
+            let log = tables::training_frame(&cell.key, config, &log)?;
+            files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
+            files.push((WEIGHTS_FILE, checkpoint.weights));
+            files.push((METADATA_FILE, checkpoint.metadata.into_bytes()));
+            learned_policy(world, state.model, &state.config, config)?
+        }
+    };
     let mut rows = Vec::new();
     for &agents in &config.n_test {
         for episode in 0..config.test_episodes {
@@ -62,6 +90,7 @@ pub fn run_cell(
         }
     }
     let episodes = tables::episodes_frame(&cell.key, config, &rows)?;
+    files.push((EPISODES_FILE, tables::parquet_bytes(&episodes)?));
     let record = CellRecord {
         key: cell.key.clone(),
         scenario: origin.scenario.to_owned(),
@@ -75,20 +104,68 @@ pub fn run_cell(
         wall_seconds: clock.elapsed().as_secs_f64(),
         files: Default::default(),
     };
-    let files = [(EPISODES_FILE, tables::parquet_bytes(&episodes)?)];
-    Ok(store.save_cell(record, &files)?)
+    let record = store.save_cell(record, &files)?;
+    // The finished cell no longer needs its run in progress; a leftover is only disk space.
+    let _ = std::fs::remove_dir_all(store.partial_training_folder(&cell.key));
+    Ok(record)
 }
 
-/// The policy a cell tests.
-pub fn build_policy(spec: &PolicySpec, world: &Arc<World>) -> Result<Box<dyn Policy>, CellError> {
-    match spec {
-        PolicySpec::Baseline(baseline) => {
-            Ok(baseline.name.parse::<policies::Baseline>()?.build(world)?)
-        }
-        PolicySpec::MaGPpo(_) | PolicySpec::MaPpo(_) => {
-            Err(CellError::LearnedUnavailable(spec.label()))
-        }
+/// Trains a learned cell's policy, continuing the run an interrupted sweep saved.
+fn train_cell(
+    store: &Store,
+    cell: &Cell,
+    world: &Arc<World>,
+    training: TrainingConfig,
+    advance: &dyn Fn(u64),
+) -> Result<(TrainingState, DataFrame), CellError> {
+    let folder = store.partial_training_folder(&cell.key);
+    let seed = cell.config.training_seed;
+    let mut run = TrainingRun::resume_or_start(&folder, world.clone(), training, seed)
+        .map_err(CellError::Training)?;
+    let steps = cell.config.world.train_steps as u64;
+    advance(run.state().episodes_done * steps);
+    let total = run.state().config.episodes;
+    run.train(total, SAVE_EVERY, &mut |_| advance(steps))
+        .map_err(CellError::Training)?;
+    Ok(run.into_parts())
+}
+
+/// The policy a finished cell tests, from the store alone: a baseline is built again, a
+/// learned policy is read from the cell's checkpoint.
+pub fn stored_policy(
+    store: &Store,
+    record: &CellRecord,
+    world: &Arc<World>,
+) -> Result<Box<dyn Policy>, CellError> {
+    if let PolicySpec::Baseline(baseline) = &record.config.policy {
+        return baseline_policy(baseline, world);
     }
+    let metadata = String::from_utf8_lossy(&store.cell_file(record, METADATA_FILE)?).into_owned();
+    let metadata = checkpoint::read_metadata(&metadata)?;
+    let model = checkpoint::load_model(&metadata, &store.cell_file(record, WEIGHTS_FILE)?)?;
+    learned_policy(world, model, &metadata.config, &record.config)
+}
+
+fn baseline_policy(
+    baseline: &BaselineSpec,
+    world: &Arc<World>,
+) -> Result<Box<dyn Policy>, CellError> {
+    Ok(baseline.name.parse::<policies::Baseline>()?.build(world)?)
+}
+
+fn learned_policy(
+    world: &Arc<World>,
+    model: ActorCritic<f32>,
+    training: &TrainingConfig,
+    cell: &CellConfig,
+) -> Result<Box<dyn Policy>, CellError> {
+    let choice = cell
+        .policy
+        .learned()
+        .map_or(ActionChoice::Sampled, |l| l.action_choice());
+    Ok(Box::new(LearnedPolicy::new(
+        world, model, training, choice,
+    )?))
 }
 
 /// Test episode `episode` with `agents` agents: a pure function of the cell's config, so the

@@ -25,4 +25,5 @@ pub mod summary;
 pub mod sweep;
 pub mod trace;
 pub mod training_log;
+pub mod training_run;
 pub mod world_bench;

@@ -41,6 +41,25 @@ pub fn to_frame(records: &[EpisodeRecord]) -> PolarsResult<DataFrame> {
     DataFrame::new(records.len(), columns)
 }
 
+/// Columns that measure time, which differ between two runs of the same training.
+const TIMING_COLUMNS: [&str; 4] = [
+    "steps_per_second",
+    "rollout_seconds",
+    "update_seconds",
+    "wall_seconds",
+];
+
+/// The log's columns that a repeated run reproduces bit for bit.
+pub fn reproducible_columns() -> Vec<PlSmallStr> {
+    let empty = to_frame(&[]).expect("an empty log builds");
+    empty
+        .get_column_names()
+        .into_iter()
+        .filter(|name| !TIMING_COLUMNS.contains(&name.as_str()))
+        .cloned()
+        .collect()
+}
+
 pub fn to_parquet(frame: &mut DataFrame) -> PolarsResult<Vec<u8>> {
     let mut bytes = Vec::new();
     ParquetWriter::new(&mut bytes).finish(frame)?;

@@ -188,10 +188,31 @@ fn audit_passes_and_fails_when_a_stored_number_is_altered() {
     let store = scratch("audit").join("store");
     sweep(&store, &[]);
     let rows = read_table(&store, "episodes").height();
-    let audit = |store: &Path| harness(&["audit", store.to_str().unwrap(), "--sample", "100000"]);
+    let trained = read_table(&store, "cells")
+        .column("training_hash")
+        .unwrap()
+        .str()
+        .unwrap()
+        .into_iter()
+        .flatten()
+        .count();
+    assert!(trained > 0, "the smoke sweep trains learned policies");
+    let audit = |store: &Path| {
+        let store = store.to_str().unwrap();
+        harness(&[
+            "audit",
+            store,
+            "--sample",
+            "100000",
+            "--training-sample",
+            "1000",
+        ])
+    };
     let passed = succeed(audit(&store));
     assert!(
-        passed.contains(&format!("audit passed: {rows} rows came back bit for bit")),
+        passed.contains(&format!(
+            "audit passed: {rows} rows and {trained} training runs came back bit for bit"
+        )),
         "{passed}"
     );
 

@@ -6,7 +6,7 @@
 //! any map and L give images of one shape; the paper's maps and L = 25 give S = 25 and no fill.
 
 use crate::episode::{Episode, World};
-use crate::map::Cell;
+use crate::map::{Cell, Map};
 use crate::penalty::OBSTACLE_CODE;
 
 /// The code of an agent: every agent in a local window, the observing agent on its mini-map.
@@ -58,6 +58,13 @@ impl Default for ObservationConfig {
     }
 }
 
+/// Side S of the images of `map` with field of view `fov`: the local image and the mini-map
+/// (the map at half resolution) are padded to one square side, so that both stack as channels.
+pub fn image_side(map: &Map, fov: usize) -> usize {
+    fov.max(map.width().div_ceil(2))
+        .max(map.height().div_ceil(2))
+}
+
 /// Writes every agent's observation into one caller-owned buffer; allocates nothing per step.
 #[derive(Clone, Debug)]
 pub struct Observer {
@@ -80,7 +87,7 @@ impl Observer {
         let map = world.map();
         let fov = world.params().fov();
         let (mini_width, mini_height) = (map.width().div_ceil(2), map.height().div_ceil(2));
-        let side = fov.max(mini_width).max(mini_height);
+        let side = image_side(map, fov);
         let scale = 1.0 / world.params().rmax();
         let mini = vec![OBSTACLE_CODE * scale; side * side];
         let (column_low, column_high) = (vec![0.0; 2 * mini_width], vec![0.0; 2 * mini_width]);

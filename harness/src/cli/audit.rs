@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use crate::audit::audit;
+use crate::audit::{TrainingAuditLine, audit, audit_training};
 use crate::store::Store;
 
 #[derive(clap::Args)]
@@ -12,14 +12,19 @@ pub struct AuditArgs {
     /// Rows to check, drawn at random (all rows if the table has fewer).
     #[arg(long, default_value_t = 20)]
     sample: usize,
+    /// Learned cells to train again, drawn at random; each costs a whole training run.
+    #[arg(long, default_value_t = 1)]
+    training_sample: usize,
     /// Seed of the draw.
     #[arg(long, default_value_t = 0)]
     seed: u64,
 }
 
 pub fn run(args: AuditArgs) -> anyhow::Result<()> {
-    let lines = audit(&Store::new(&args.store), args.sample, args.seed)?;
-    let mut differing = 0;
+    let store = Store::new(&args.store);
+    let lines = audit(&store, args.sample, args.seed)?;
+    let trained = audit_training(&store, args.training_sample, args.seed)?;
+    let mut differing = trained.iter().filter(|line| !show_training(line)).count();
     for line in &lines {
         let s = &line.stored;
         let row = format!(
@@ -41,11 +46,30 @@ pub fn run(args: AuditArgs) -> anyhow::Result<()> {
             }
         }
     }
+    let checked = lines.len() + trained.len();
     anyhow::ensure!(
         differing == 0,
-        "audit failed: {differing} of {} rows do not come back bit for bit",
-        lines.len()
+        "audit failed: {differing} of {checked} rows and training runs do not come back bit for bit",
     );
-    println!("audit passed: {} rows came back bit for bit", lines.len());
+    println!(
+        "audit passed: {} rows and {} training runs came back bit for bit",
+        lines.len(),
+        trained.len()
+    );
     Ok(())
+}
+
+/// Prints a training run's line; returns whether it came back bit for bit.
+fn show_training(line: &TrainingAuditLine) -> bool {
+    let cell = &line.cell_key;
+    match &line.outcome {
+        Ok(episodes) => {
+            println!("same       cell {cell}: {episodes} training episodes, weights and log");
+            true
+        }
+        Err(why) => {
+            println!("DIFFERENT  cell {cell}: trained again, {why}");
+            false
+        }
+    }
 }

@@ -26,8 +26,16 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         scenario.test_episodes
     );
     println!(
-        "{:>5}  {:<20}  {:<12}  {:<16}  {:>7}  {:>3}  {:>17}  {:>15}",
-        "cell", "key", "map", "policy", "N_train", "rep", "training episodes", "env steps"
+        "{:>5}  {:<20}  {:<12}  {:<16}  {:>7}  {:>3}  {:>17}  {:>15}  {:>10}",
+        "cell",
+        "key",
+        "map",
+        "policy",
+        "N_train",
+        "rep",
+        "training episodes",
+        "env steps",
+        "est. CPU"
     );
     let mut total = Cost::default();
     for cell in &cells {
@@ -35,7 +43,7 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         let cost = c.cost();
         total = total + cost;
         println!(
-            "{:>5}  {:<20}  {:<12}  {:<16}  {:>7}  {:>3}  {:>17}  {:>15}",
+            "{:>5}  {:<20}  {:<12}  {:<16}  {:>7}  {:>3}  {:>17}  {:>15}  {:>10}",
             cell.index,
             cell.key,
             c.map.name,
@@ -43,15 +51,27 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
             c.n_train.map_or("-".to_owned(), |n| n.to_string()),
             c.repetition,
             cost.training_episodes,
-            cost.env_steps
+            cost.env_steps,
+            duration(cost.cpu_seconds())
         );
     }
     println!(
-        "total: {} cells, {} training episodes, {} test episodes, {} env steps",
+        "total: {} cells, {} training episodes, {} test episodes, {} env steps, \
+         about {} of CPU (a rough estimate)",
         cells.len(),
         total.training_episodes,
         total.test_episodes,
-        total.env_steps
+        total.env_steps,
+        duration(total.cpu_seconds())
     );
     Ok(())
+}
+
+fn duration(seconds: f64) -> String {
+    match seconds {
+        s if s < 120.0 => format!("{s:.0} s"),
+        s if s < 7200.0 => format!("{:.0} min", s / 60.0),
+        s if s < 172_800.0 => format!("{:.1} h", s / 3600.0),
+        s => format!("{:.1} days", s / 86_400.0),
+    }
 }

@@ -1,22 +1,17 @@
 //! `harness train`: trains MA-G-PPO or MA-PPO, writing a checkpoint and the training log to a
 //! folder every so often and at the end; `--resume` continues from that folder.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use polars::prelude::DataFrame;
-use policies::ppo::{AgentCount, EpisodeRecord, Profile, Trainer, TrainingConfig};
+use policies::ppo::{AgentCount, EpisodeRecord, Profile, TrainingConfig, TrainingState};
 use policies::{ActionChoice, LearnedPolicy, RandomPolicy};
 use world::Seed;
 
 use super::WorldArgs;
-use crate::atomic_file::write_atomic;
-use crate::checkpoint_dir;
 use crate::runner::mean_penalty;
-use crate::training_log;
-
-const LOG_FILE: &str = "training.parquet";
+use crate::training_run::TrainingRun;
 
 #[derive(clap::Args)]
 pub struct TrainArgs {
@@ -106,46 +101,29 @@ fn parse_agents(text: &str) -> anyhow::Result<AgentCount> {
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let world = args.world.load()?;
     let overrides = args.overrides()?;
-    let (mut trainer, mut log) = if args.resume {
-        let mut state = checkpoint_dir::read_state(&args.out)?;
-        state.config = state.config.with_overrides(&overrides)?;
-        let log_path = args.out.join(LOG_FILE);
-        let bytes =
-            std::fs::read(&log_path).with_context(|| format!("reading {}", log_path.display()))?;
-        let log = training_log::from_parquet(&bytes)
-            .with_context(|| format!("reading {}", log_path.display()))?;
-        let first = state.episodes_done;
-        let log = training_log::append(&log, first, &[])?;
-        (Trainer::resume(world.clone(), state)?, log)
+    let mut run = if args.resume {
+        TrainingRun::resume(&args.out, world.clone(), &overrides)?
     } else {
         let profile = match args.profile.as_str() {
             "paper" => Profile::Paper,
             _ => Profile::Fast,
         };
         let config = TrainingConfig::profile(profile).with_overrides(&overrides)?;
-        let trainer = Trainer::new(world.clone(), config, args.seed)?;
-        (trainer, training_log::to_frame(&[])?)
+        TrainingRun::start(&args.out, world.clone(), config, args.seed)?
     };
-    let configured = trainer.state().config.episodes;
+    let configured = run.state().config.episodes;
     let total = args.until.map_or(configured, |until| until.min(configured));
-    let progress = progress_bar(total, trainer.state().episodes_done);
+    let progress = progress_bar(total, run.state().episodes_done);
     let mut timing = Timing::default();
-    while trainer.state().episodes_done < total {
-        let stop = (trainer.state().episodes_done / args.checkpoint_every.max(1) + 1)
-            * args.checkpoint_every.max(1);
-        let first = trainer.state().episodes_done;
-        let records = trainer.train(stop, &mut |record| {
-            show(&progress, record);
-            timing.add(record);
-        })?;
-        log = training_log::append(&log, first, &records)?;
-        save(&args.out, &trainer, &mut log)?;
-    }
+    run.train(total, args.checkpoint_every, &mut |record| {
+        show(&progress, record);
+        timing.add(record);
+    })?;
     progress.finish();
-    save(&args.out, &trainer, &mut log)?;
+    run.save()?;
     timing.print();
     if args.test_episodes > 0 {
-        test(&args, &world, trainer)?;
+        test(&args, &world, run.into_parts().0)?;
     }
     Ok(())
 }
@@ -182,13 +160,6 @@ impl Timing {
     }
 }
 
-fn save(out: &Path, trainer: &Trainer, log: &mut DataFrame) -> anyhow::Result<()> {
-    checkpoint_dir::write(out, trainer.state())?;
-    let path = out.join(LOG_FILE);
-    let bytes = training_log::to_parquet(log)?;
-    write_atomic(&path, &bytes).with_context(|| format!("writing {}", path.display()))
-}
-
 fn progress_bar(total: u64, done: u64) -> ProgressBar {
     let bar = ProgressBar::new(total);
     bar.set_style(
@@ -216,9 +187,8 @@ fn show(bar: &ProgressBar, record: &EpisodeRecord) {
 fn test(
     args: &TrainArgs,
     world: &std::sync::Arc<world::World>,
-    trainer: Trainer,
+    state: TrainingState,
 ) -> anyhow::Result<()> {
-    let state = trainer.into_state();
     let agents = args.test_agents.unwrap_or(state.config.agents.max);
     let seed = Seed::new(args.seed).child(u64::MAX);
     let evaluate = |policy: &mut dyn policies::Policy| {

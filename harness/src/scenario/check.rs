@@ -9,7 +9,7 @@ use serde_saphyr::Spanned;
 use world::{Map, MapError, WorldParams};
 
 use super::error::ScenarioError;
-use super::format::{MapSpec, PolicySpec, ScenarioFile, WorldSpec};
+use super::format::{LearnedSpec, MapSpec, PolicySpec, ScenarioFile, WorldSpec};
 use super::{Scenario, ScenarioMap, WorldConfig};
 
 pub fn check(spec: ScenarioFile, file: &Path) -> Result<Scenario, ScenarioError> {
@@ -23,6 +23,7 @@ pub fn check(spec: ScenarioFile, file: &Path) -> Result<Scenario, ScenarioError>
     } else {
         Vec::new()
     };
+    check_training(&spec.policies, &world, &train_agents, &maps, file)?;
     let test_agents = agent_counts(&spec.agents.test, "agents.test", &maps, file)?;
     let repetitions = positive(&spec.repetitions, "repetitions", file)?;
     let test_episodes = positive(&spec.test_episodes, "test_episodes", file)?;
@@ -157,6 +158,44 @@ fn check_policy(spec: &PolicySpec) -> Result<(), String> {
             Ok(())
         }
     }
+}
+
+/// Resolves every learned policy's training run for every N_train and map, so that a bad
+/// `set` or a network that does not fit a map's images fails now, not hours into a sweep.
+fn check_training(
+    policies: &Spanned<Vec<Spanned<PolicySpec>>>,
+    world: &WorldConfig,
+    train_agents: &[u32],
+    maps: &[ScenarioMap],
+    file: &Path,
+) -> Result<(), ScenarioError> {
+    for (i, spec) in policies.value.iter().enumerate() {
+        let field = format!("policies[{i}]");
+        let fail = |problem: String| ScenarioError::at(file, spec, &field, problem);
+        let Some(learned) = spec.value.learned() else {
+            continue;
+        };
+        let own = |key: &&String| LearnedSpec::OWN_FIELDS.contains(&key.as_str());
+        if let Some(key) = learned.set.keys().find(own) {
+            return Err(fail(format!(
+                "set.{key}: the scenario sets this itself (agents.train, episodes, \
+                 world.train_steps, channels, the policy's kind and profile)"
+            )));
+        }
+        for &n_train in train_agents {
+            let config = spec.value.training_config(world, n_train);
+            let config = config
+                .expect("a learned policy")
+                .map_err(|e| fail(e.to_string()))?;
+            for map in maps {
+                let side = world::image_side(&map.map, world.fov);
+                config
+                    .model_config(side)
+                    .map_err(|e| fail(format!("map {:?}: {e}", map.map.name())))?;
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Agent counts: at least one, each at least 1, no repeats, and room for them on every map.

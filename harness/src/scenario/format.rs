@@ -3,8 +3,13 @@
 //! Values that need a check beyond their type carry their location (`Spanned`), so that the
 //! checks in `scenario::check` can name the line. Defaults are the paper's values.
 
+use std::collections::BTreeMap;
+
+use policies::ActionChoice;
+use policies::ppo::{ArchitectureName, Profile};
 use serde::{Deserialize, Serialize};
 use serde_saphyr::{Location, Spanned};
+use world::Channels;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -80,6 +85,7 @@ pub struct AgentsSpec {
 }
 
 /// One policy of the sweep: a baseline by name, or a learned architecture with its training.
+
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
 pub enum PolicySpec {
@@ -98,15 +104,36 @@ pub struct BaselineSpec {
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct LearnedSpec {
-    /// A named set of training hyperparameters (`paper`, or a smaller one for smoke runs).
+    /// The policy's name in tables, when the default (the architecture with its non-default
+    /// channels and profile) does not tell two of a scenario's policies apart.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// The named set of training hyper-parameters the run starts from: `paper` (the released
+    /// code's) or `fast` (ours).
     #[serde(default = "paper_profile")]
-    pub profile: String,
+    pub profile: Profile,
     /// The images the policy sees: `[local, mini]` (the paper's full model), `[local]` or
     /// `[mini]` (RQ2).
     #[serde(default = "both_channels")]
     pub channels: Vec<Channel>,
     /// Training episodes.
     pub episodes: u32,
+    /// Any other field of the training configuration (as `harness train --set`), e.g.
+    /// `{learning_rate: 1.0e-4, network: compact}`; the scenario's own fields (agents,
+    /// episodes, steps, channels, architecture) are set elsewhere.
+    #[serde(default)]
+    pub set: BTreeMap<String, serde_json::Value>,
+    /// How test episodes pick actions: `sampled` (the paper) or `greedy`.
+    #[serde(default)]
+    pub test_actions: TestActions,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TestActions {
+    #[default]
+    Sampled,
+    Greedy,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
@@ -151,12 +178,21 @@ impl Output {
 
 impl PolicySpec {
     /// The name in tables: the baseline's name, or the architecture with its non-default
-    /// channels and profile (`ma-g-ppo`, `ma-g-ppo[mini]`, `ma-ppo@smoke`).
+    /// channels and profile (`ma-g-ppo`, `ma-g-ppo[mini]`, `ma-ppo@fast`), or the name given.
     pub fn label(&self) -> String {
         match self {
             PolicySpec::Baseline(baseline) => baseline.name.clone(),
             PolicySpec::MaGPpo(learned) => learned.label("ma-g-ppo"),
             PolicySpec::MaPpo(learned) => learned.label("ma-ppo"),
+        }
+    }
+
+    /// The architecture of a learned policy, as the training configuration names it.
+    pub fn architecture(&self) -> Option<ArchitectureName> {
+        match self {
+            PolicySpec::Baseline(_) => None,
+            PolicySpec::MaGPpo(_) => Some(ArchitectureName::MaGPpo),
+            PolicySpec::MaPpo(_) => Some(ArchitectureName::MaPpo),
         }
     }
 
@@ -170,15 +206,48 @@ impl PolicySpec {
 
 impl LearnedSpec {
     fn label(&self, architecture: &str) -> String {
+        if let Some(name) = &self.name {
+            return name.clone();
+        }
         let mut label = architecture.to_owned();
         if self.channels != both_channels() {
             let names: Vec<&str> = self.channels.iter().map(|c| c.name()).collect();
             label += &format!("[{}]", names.join("+"));
         }
         if self.profile != paper_profile() {
-            label += &format!("@{}", self.profile);
+            label += match self.profile {
+                Profile::Paper => "@paper",
+                Profile::Fast => "@fast",
+            };
         }
         label
+    }
+}
+
+impl LearnedSpec {
+    /// The fields a scenario sets through its own keys, which `set` may not name.
+    pub const OWN_FIELDS: [&'static str; 6] = [
+        "architecture",
+        "channels",
+        "episodes",
+        "steps_per_episode",
+        "agents",
+        "profile",
+    ];
+
+    pub fn observation_channels(&self) -> Channels {
+        match self.channels[..] {
+            [Channel::Local] => Channels::Local,
+            [Channel::Mini] => Channels::Mini,
+            _ => Channels::Both,
+        }
+    }
+
+    pub fn action_choice(&self) -> ActionChoice {
+        match self.test_actions {
+            TestActions::Sampled => ActionChoice::Sampled,
+            TestActions::Greedy => ActionChoice::Greedy,
+        }
     }
 }
 
@@ -224,8 +293,8 @@ fn paper_test_steps() -> Spanned<u32> {
     unplaced(2000)
 }
 
-fn paper_profile() -> String {
-    "paper".to_owned()
+fn paper_profile() -> Profile {
+    Profile::Paper
 }
 
 fn both_channels() -> Vec<Channel> {

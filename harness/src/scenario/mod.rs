@@ -7,6 +7,7 @@ pub mod format;
 
 use std::path::{Path, PathBuf};
 
+use policies::ppo::{AgentCount, ConfigError, TrainingConfig};
 use serde::{Deserialize, Serialize};
 use world::{Map, WorldParams};
 
@@ -55,6 +56,35 @@ impl WorldConfig {
     /// Checked when the scenario was loaded, and again here for configs read back from a store.
     pub fn params(&self) -> Result<WorldParams, world::ParamError> {
         WorldParams::new(self.fov, self.decay, self.rmax)
+    }
+}
+
+impl PolicySpec {
+    /// The training run of a learned policy with `n_train` agents: the profile, then the
+    /// scenario's `set`, then the fields the scenario owns (architecture, channels, N_train,
+    /// episodes, T); `None` for a baseline.
+    pub fn training_config(
+        &self,
+        world: &WorldConfig,
+        n_train: u32,
+    ) -> Option<Result<TrainingConfig, ConfigError>> {
+        let (learned, architecture) = (self.learned()?, self.architecture()?);
+        let owned = [
+            ("architecture", serde_json::to_value(architecture)),
+            (
+                "channels",
+                serde_json::to_value(learned.observation_channels()),
+            ),
+            ("episodes", serde_json::to_value(learned.episodes)),
+            ("steps_per_episode", serde_json::to_value(world.train_steps)),
+            (
+                "agents",
+                serde_json::to_value(AgentCount::fixed(n_train as usize)),
+            ),
+        ]
+        .map(|(field, value)| (field.to_owned(), value.expect("plain values serialise")));
+        let given = learned.set.iter().map(|(k, v)| (k.clone(), v.clone()));
+        Some(TrainingConfig::profile(learned.profile).with_values(given.chain(owned)))
     }
 }
 
@@ -129,14 +159,19 @@ mod tests {
 
     #[test]
     fn expands_baselines_once_and_learned_policies_per_training_count() {
-        let learned = "  - ma-ppo: {profile: smoke, episodes: 5}\n";
+        let learned = "  - ma-ppo: {profile: fast, episodes: 5, set: {network: compact}}\n";
         let s = parse(&scenario(learned, &inline("a"))).unwrap();
         let cells = s.cells();
         // random: 2 repetitions; ma-ppo: 2 training counts x 2 repetitions.
         assert_eq!(cells.len(), 2 + 4);
         assert_eq!(cells[0].config.n_train, None);
         assert_eq!(cells[2].config.n_train, Some(2));
-        assert_eq!(cells[2].config.policy.label(), "ma-ppo@smoke");
+        assert_eq!(cells[2].config.policy.label(), "ma-ppo@fast");
+        let training = cells[2].config.training_config().unwrap().unwrap();
+        assert_eq!(training.agents, policies::ppo::AgentCount::fixed(2));
+        assert_eq!((training.episodes, training.steps_per_episode), (5, 10));
+        assert_eq!(training.network, policies::ppo::config::Network::Compact);
+        assert!(cells[0].config.training_config().is_none());
         let keys: std::collections::HashSet<_> = cells.iter().map(|c| &c.key).collect();
         assert_eq!(keys.len(), cells.len());
         let cost: crate::cell::Cost = cells
@@ -145,6 +180,49 @@ mod tests {
         assert_eq!(cost.training_episodes, 4 * 5);
         assert_eq!(cost.test_episodes, 6 * 2 * 4);
         assert_eq!(cost.env_steps, 4 * 5 * 10 + 6 * 2 * 4 * 20);
+        // Training steps weigh most, then the learned policies' test steps, per agent.
+        let test_agent_steps = (1 + 2) * 4 * 20;
+        let training = 2 * (5 * 10) * (2 + 3) * 350;
+        assert_eq!(
+            cost.work,
+            2 * test_agent_steps + training + 4 * test_agent_steps * 50
+        );
+    }
+
+    #[test]
+    fn learned_policies_are_checked_against_every_map_and_training_count() {
+        let cases = [
+            (
+                "  - ma-ppo: {episodes: 5}\n",
+                "unit.yaml:13: policies[1]: map \"a\": training configuration: network",
+            ),
+            (
+                "  - ma-ppo: {episodes: 5, set: {network: compact, episodes: 3}}\n",
+                "policies[1]: set.episodes: the scenario sets this itself",
+            ),
+            (
+                "  - ma-ppo: {episodes: 5, set: {network: compact, gamma: 2}}\n",
+                "policies[1]: training configuration: gamma: 2 is not in [0, 1)",
+            ),
+            (
+                "  - ma-ppo: {episodes: 5, set: {netwrk: compact}}\n",
+                "unknown field `netwrk`",
+            ),
+            (
+                "  - ma-ppo: {profile: slow, episodes: 5}\n",
+                "unknown variant `slow`",
+            ),
+            (
+                "  - ma-g-ppo: {episodes: 0, set: {network: compact}}\n",
+                "policies[1]: episodes must be at least 1",
+            ),
+        ];
+        for (learned, expected) in cases {
+            let error = parse(&scenario(learned, &inline("a")))
+                .unwrap_err()
+                .to_string();
+            assert!(error.contains(expected), "{error}\n  expected: {expected}");
+        }
     }
 
     #[test]

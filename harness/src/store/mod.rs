@@ -5,7 +5,9 @@
 //! OUT/sweep.json               manifest: scenario, code version, every cell key in order
 //! OUT/scenario.yaml            the scenario file as run
 //! OUT/maps/HASH.txt            every map's canonical text, so the store replays on its own
-//! OUT/cells/KEY/episodes.parquet, training.parquet (learned policies)
+//! OUT/cells/KEY/episodes.parquet
+//! OUT/cells/KEY/training.parquet, checkpoint.safetensors, checkpoint.json (learned policies)
+//! OUT/cells/KEY/training-in-progress/  a learned cell's run while it trains
 //! OUT/cells/KEY/cell.json      the record, written last: the cell's done-marker
 //! OUT/{episodes,training,cells,summary}.{parquet,csv}
 //! ```
@@ -87,6 +89,12 @@ impl Store {
 
     fn cell_folder(&self, key: &str) -> PathBuf {
         self.root.join("cells").join(key)
+    }
+
+    /// Where a learned cell's training run is saved while it runs, so that an interrupted
+    /// sweep continues it instead of starting over; removed once the cell is finished.
+    pub fn partial_training_folder(&self, key: &str) -> PathBuf {
+        self.cell_folder(key).join("training-in-progress")
     }
 
     fn map_path(&self, hash: &str) -> PathBuf {
@@ -171,6 +179,23 @@ impl Store {
         }
         write(&folder.join(RECORD_FILE), &json_bytes(&record))?;
         Ok(record)
+    }
+
+    /// A result file of a finished cell, checked against its recorded hash.
+    pub fn cell_file(&self, record: &CellRecord, file: &str) -> Result<Vec<u8>, StoreError> {
+        let path = self.cell_folder(&record.key).join(file);
+        let recorded = record
+            .files
+            .get(file)
+            .ok_or_else(|| StoreError::corrupt(&path, "is not among the cell's files"))?;
+        let bytes = std::fs::read(&path).map_err(|e| StoreError::io(&path, e))?;
+        if blake3::hash(&bytes).to_hex().as_str() != recorded {
+            return Err(StoreError::corrupt(
+                &path,
+                "does not match its recorded hash",
+            ));
+        }
+        Ok(bytes)
     }
 
     /// A per-cell table, or `None` when the cell has no such file.

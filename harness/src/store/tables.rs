@@ -52,6 +52,17 @@ pub fn episodes_frame(
     Ok(DataFrame::new(rows.len(), columns)?)
 }
 
+/// A learned cell's training log with the columns that name the cell in front.
+pub fn training_frame(
+    key: &str,
+    config: &CellConfig,
+    log: &DataFrame,
+) -> Result<DataFrame, StoreError> {
+    let mut columns = cell_columns(key, config, log.height());
+    columns.extend(log.columns().iter().cloned());
+    Ok(DataFrame::new(log.height(), columns)?)
+}
+
 /// One row per finished cell: resolved config as JSON, hashes and provenance.
 pub fn cells_frame(records: &[CellRecord]) -> Result<DataFrame, StoreError> {
     let configs: Vec<String> = records

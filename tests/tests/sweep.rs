@@ -193,7 +193,7 @@ fn audit_passes_and_fails_when_a_stored_number_is_altered() {
         .unwrap()
         .str()
         .unwrap()
-        .into_iter()
+        .iter()
         .flatten()
         .count();
     assert!(trained > 0, "the smoke sweep trains learned policies");

@@ -7,6 +7,7 @@
 //! OUT/maps/HASH.txt            every map's canonical text, so the store replays on its own
 //! OUT/cells/KEY/episodes.parquet, training.parquet (learned policies)
 //! OUT/cells/KEY/cell.json      the record, written last: the cell's done-marker
+//! OUT/cells/KEY/running.json   while the cell runs: the lease (process id, host, start)
 //! OUT/{episodes,training,cells,summary}.{parquet,csv}
 //! ```
 //!
@@ -14,6 +15,7 @@
 //! record exists and every file it lists has the recorded hash. Every file is written whole
 //! (`write_atomic`), so a crash leaves a cell finished or not, never half.
 
+pub mod lease;
 pub mod record;
 pub mod tables;
 
@@ -23,6 +25,7 @@ use polars::prelude::{DataFrame, PolarsError};
 
 use crate::atomic_file::write_atomic;
 use crate::scenario::Output;
+pub use lease::{Lease, LeaseHolder, Liveness};
 pub use record::{CellRecord, Manifest};
 
 pub const EPISODES_FILE: &str = "episodes.parquet";

@@ -38,12 +38,14 @@ setpriv --reuid=munge --regid=munge --init-groups munged \
     --seed-file="$munge_dir/munged.seed"
 
 mkdir -p "$dir/state" "$dir/spool" "$dir/log"
+# A re-queued job may start again only when its old credential has expired: cred_expire
+# (default 120 s) is that wait, kept short so that tests of re-queueing stay quick.
 node_line=$(slurmd -C | head -1 | sed 's/ RealMemory=[0-9]*//')
 cat > "$dir/slurm.conf" <<CONF
 ClusterName=loopback
 SlurmctldHost=$node(127.0.0.1)
 AuthType=auth/munge
-AuthInfo=socket=$munge_dir/munge.socket
+AuthInfo=socket=$munge_dir/munge.socket,cred_expire=5
 CommunicationParameters=NoCtldInAddrAny,NoInAddrAny
 SlurmUser=root
 SlurmctldPidFile=$dir/slurmctld.pid

@@ -45,6 +45,7 @@ pub fn merge(out: &Store, shards: &[Store]) -> Result<MergeReport, MergeError> {
     }
     let merged = Manifest {
         shard: None,
+        selected: None,
         ..first.clone()
     };
     out.prepare(&merged, &shards[0].scenario_text()?, &[])?;

@@ -1,8 +1,15 @@
-//! Shards: `i/n` selects every n-th cell starting at the i-th, so a job array of n tasks runs
-//! each cell once and the slices stay balanced when neighbouring cells cost alike.
+//! Shards: `i/n` selects the i-th of n slices of a sweep's cells, balanced by estimated cost,
+//! so that a job array of n tasks runs each cell once and its tasks end at about the same time.
+//!
+//! Every task computes the whole assignment from the whole cell list on its own: the slices are
+//! disjoint and cover every cell without the tasks sharing anything.
 
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 use std::fmt;
 use std::str::FromStr;
+
+use crate::cell::Cell;
 
 /// Shard `index` of `count`, counted from 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -12,10 +19,44 @@ pub struct Shard {
 }
 
 impl Shard {
-    /// Whether the cell at `cell_index` (from 0, in the scenario's order) is in this shard.
-    pub fn contains(self, cell_index: usize) -> bool {
-        cell_index % self.count == self.index - 1
+    /// This shard's cells, in the scenario's order.
+    pub fn select(self, cells: &[Cell]) -> Vec<&Cell> {
+        slices(cells, self.count).swap_remove(self.index - 1)
     }
+}
+
+/// What the balance weighs a cell by: its estimated work, in which a training step weighs
+/// far more than a test step.
+pub fn weight(cell: &Cell) -> u64 {
+    cell.config.cost().work
+}
+
+/// The cells split into `count` slices of about equal total weight, each in the scenario's
+/// order.
+pub fn slices(cells: &[Cell], count: usize) -> Vec<Vec<&Cell>> {
+    let weights: Vec<u64> = cells.iter().map(weight).collect();
+    let mut slices = vec![Vec::new(); count];
+    for (cell, slice) in cells.iter().zip(balance(&weights, count)) {
+        slices[slice].push(cell);
+    }
+    slices
+}
+
+/// The slice of each item. Longest processing time first: the heaviest item not yet placed
+/// goes to the lightest slice so far; ties go to the earlier item and the lower slice, so the
+/// split is a pure function of the weights.
+fn balance(weights: &[u64], count: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..weights.len()).collect();
+    order.sort_by_key(|&item| (Reverse(weights[item]), item));
+    let mut loads: BinaryHeap<Reverse<(u64, usize)>> =
+        (0..count).map(|slice| Reverse((0, slice))).collect();
+    let mut owner = vec![0; weights.len()];
+    for item in order {
+        let Reverse((load, slice)) = loads.pop().expect("at least one slice");
+        owner[item] = slice;
+        loads.push(Reverse((load + weights[item], slice)));
+    }
+    owner
 }
 
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -45,16 +86,65 @@ impl fmt::Display for Shard {
 
 #[cfg(test)]
 mod tests {
+    use std::path::Path;
+
     use super::*;
+    use crate::scenario::Scenario;
+
+    /// `repetitions` cells of equal cost.
+    fn equal_cells(repetitions: u32) -> Vec<Cell> {
+        let text = format!(
+            "name: unit\nseed: 3\nmaps:\n  - inline: {{name: m, grid: \"....\\n....\\n\"}}\n\
+             world: {{fov: 3, test_steps: 20}}\npolicies:\n  - baseline: {{name: random}}\n\
+             agents: {{test: [1]}}\nrepetitions: {repetitions}\ntest_episodes: 1\n"
+        );
+        Scenario::parse(&text, Path::new("unit.yaml"))
+            .unwrap()
+            .cells()
+    }
+
+    fn indices(slice: &[&Cell]) -> Vec<usize> {
+        slice.iter().map(|c| c.index).collect()
+    }
 
     #[test]
     fn shards_partition_the_cells() {
-        let shards: Vec<Shard> = ["1/3", "2/3", "3/3"].map(|s| s.parse().unwrap()).to_vec();
-        for cell in 0..20 {
-            assert_eq!(shards.iter().filter(|s| s.contains(cell)).count(), 1);
+        let cells = equal_cells(20);
+        for count in 1..=25 {
+            let mut seen: Vec<usize> = (1..=count)
+                .flat_map(|i| indices(&Shard { index: i, count }.select(&cells)))
+                .collect();
+            seen.sort();
+            assert_eq!(seen, (0..cells.len()).collect::<Vec<_>>(), "{count} shards");
         }
-        assert!(shards[1].contains(4));
-        assert_eq!(shards[2].to_string(), "3/3");
+    }
+
+    #[test]
+    fn equal_cells_are_dealt_in_turn() {
+        let cells = equal_cells(7);
+        let shard: Shard = "2/3".parse().unwrap();
+        assert_eq!(indices(&shard.select(&cells)), [1, 4]);
+        assert_eq!(shard.to_string(), "2/3");
+    }
+
+    #[test]
+    fn the_heaviest_go_first_to_the_lightest_slice() {
+        let weights = [8, 7, 6, 5, 4, 3, 2, 1, 1, 1];
+        let owner = balance(&weights, 3);
+        assert_eq!(owner, [0, 1, 2, 2, 1, 0, 0, 1, 2, 1]);
+        let load = |slice| -> u64 {
+            (0..10)
+                .filter(|&i| owner[i] == slice)
+                .map(|i| weights[i])
+                .sum()
+        };
+        assert_eq!([load(0), load(1), load(2)], [13, 13, 12]);
+    }
+
+    #[test]
+    fn more_slices_than_items_leaves_some_empty() {
+        assert_eq!(balance(&[5, 9], 4), [1, 0]);
+        assert_eq!(balance(&[], 2), Vec::<usize>::new());
     }
 
     #[test]

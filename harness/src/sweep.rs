@@ -9,7 +9,7 @@ use std::sync::{Arc, OnceLock};
 use rayon::prelude::*;
 use world::World;
 
-use crate::cell::Cell;
+use crate::cell::{Cell, CellConfig};
 use crate::code_version::code_version;
 use crate::execution::{CellError, CellOrigin, run_cell};
 use crate::progress::Progress;
@@ -52,25 +52,11 @@ pub fn run_sweep(
     options: &SweepOptions,
 ) -> Result<SweepReport, SweepError> {
     let cells = scenario.cells();
-    let manifest = Manifest {
-        scenario: scenario.name.clone(),
-        scenario_hash: blake3::hash(scenario_text.as_bytes()).to_hex().to_string(),
-        code_version: code_version(),
-        cells: cells.iter().map(|c| c.key.clone()).collect(),
-        shard: options.shard.map(|s| s.to_string()),
-        outputs: scenario.outputs.clone(),
+    prepare(scenario, scenario_text, &cells, store, options.shard)?;
+    let selected: Vec<&Cell> = match options.shard {
+        Some(shard) => shard.select(&cells),
+        None => cells.iter().collect(),
     };
-    let maps: Vec<(&str, String)> = scenario
-        .maps
-        .iter()
-        .map(|m| (m.hash.as_str(), m.map.to_text()))
-        .collect();
-    store.prepare(&manifest, scenario_text, &maps)?;
-
-    let selected: Vec<&Cell> = cells
-        .iter()
-        .filter(|c| options.shard.is_none_or(|s| s.contains(c.index)))
-        .collect();
     let todo: Vec<&Cell> = selected
         .iter()
         .copied()
@@ -87,6 +73,33 @@ pub fn run_sweep(
         failed,
         tabled: tabled.len(),
     })
+}
+
+/// Makes `store` ready for `scenario`'s sweep, or `shard`'s slice of it: its manifest, the
+/// scenario file and the maps.
+pub fn prepare(
+    scenario: &Scenario,
+    scenario_text: &str,
+    cells: &[Cell],
+    store: &Store,
+    shard: Option<Shard>,
+) -> Result<(), StoreError> {
+    let manifest = Manifest {
+        scenario: scenario.name.clone(),
+        scenario_hash: blake3::hash(scenario_text.as_bytes()).to_hex().to_string(),
+        code_version: code_version(),
+        cells: cells.iter().map(|c| c.key.clone()).collect(),
+        labels: cells.iter().map(|c| cell_title(&c.config)).collect(),
+        shard: shard.map(|s| s.to_string()),
+        selected: shard.map(|s| s.select(cells).iter().map(|c| c.key.clone()).collect()),
+        outputs: scenario.outputs.clone(),
+    };
+    let maps: Vec<(&str, String)> = scenario
+        .maps
+        .iter()
+        .map(|m| (m.hash.as_str(), m.map.to_text()))
+        .collect();
+    store.prepare(&manifest, scenario_text, &maps)
 }
 
 /// Runs `todo` on `jobs` threads; returns the cells that failed.
@@ -118,7 +131,12 @@ fn run_cells(
                     scenario: &scenario.name,
                     map_source: &map.source,
                 };
-                run_cell(store, &origin, world, cell, &|steps| bar.advance(steps))
+                // The lease marks the cell as running until it is saved (or fails).
+                let lease = store.take_lease(&cell.key).map_err(CellError::from);
+                lease
+                    .and_then(|_lease| {
+                        run_cell(store, &origin, world, cell, &|steps| bar.advance(steps))
+                    })
                     .err()
                     .map(|e| (cell.key.clone(), e))
             })
@@ -130,14 +148,17 @@ fn run_cells(
 
 /// How a cell is named on screen and in messages.
 pub fn cell_label(cell: &Cell) -> String {
-    let c = &cell.config;
+    format!("{} ({})", cell_title(&cell.config), cell.key)
+}
+
+/// What a cell is, without its key: map, policy, N_train and repetition.
+pub fn cell_title(c: &CellConfig) -> String {
     let n_train = c.n_train.map_or(String::new(), |n| format!(" N_train={n}"));
     format!(
-        "{} {}{} rep {} ({})",
+        "{} {}{} rep {}",
         c.map.name,
         c.policy.label(),
         n_train,
-        c.repetition,
-        cell.key
+        c.repetition
     )
 }

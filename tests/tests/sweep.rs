@@ -2,26 +2,17 @@
 //! folders, a real SIGKILL.
 
 mod common;
+mod smoke;
 
-use common::{harness, repo_file, scratch, succeed};
+use common::{harness, scratch, succeed};
+use smoke::{assert_same_tables, finished_cells, read_table, reference_run, smoke, sweep};
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::sync::OnceLock;
 use std::time::Duration;
 
 use polars::prelude::*;
-
-fn smoke() -> String {
-    repo_file("scenarios/smoke.yaml")
-}
-
-fn sweep(out: &Path, extra: &[&str]) -> String {
-    let out = out.to_str().unwrap();
-    let smoke = smoke();
-    succeed(harness(&[&["sweep", &smoke, "--out", out], extra].concat()))
-}
 
 /// Every file under `dir` with its bytes.
 fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
@@ -39,49 +30,6 @@ fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
         }
     }
     files
-}
-
-fn finished_cells(store: &Path) -> usize {
-    std::fs::read_dir(store.join("cells"))
-        .map(|entries| {
-            entries
-                .flatten()
-                .filter(|e| e.path().join("cell.json").exists())
-                .count()
-        })
-        .unwrap_or(0)
-}
-
-fn read_table(store: &Path, name: &str) -> DataFrame {
-    let file = std::fs::File::open(store.join(format!("{name}.parquet"))).unwrap();
-    ParquetReader::new(file).finish().unwrap()
-}
-
-/// The tables of two stores hold the same results: the result tables byte for byte, the
-/// cells table without its columns of time and place.
-fn assert_same_tables(a: &Path, b: &Path) {
-    for file in [
-        "episodes.parquet",
-        "episodes.csv",
-        "summary.parquet",
-        "summary.csv",
-    ] {
-        let (x, y) = (std::fs::read(a.join(file)), std::fs::read(b.join(file)));
-        assert!(x.as_ref().unwrap() == y.as_ref().unwrap(), "{file} differs");
-    }
-    let provenance = ["host", "started", "finished", "wall_seconds", "git_commit"];
-    let cells = |store| read_table(store, "cells").drop_many(provenance);
-    assert_eq!(cells(a), cells(b));
-}
-
-/// One uninterrupted, unsharded smoke sweep, shared by the tests that compare against it.
-fn reference_run() -> &'static Path {
-    static REFERENCE: OnceLock<PathBuf> = OnceLock::new();
-    REFERENCE.get_or_init(|| {
-        let out = scratch("reference").join("store");
-        sweep(&out, &["--jobs", "2"]);
-        out
-    })
 }
 
 #[test]
@@ -129,8 +77,22 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
     let done = finished_cells(&out);
+    let status = |out: &Path| succeed(harness(&["status", out.to_str().unwrap()]));
+    let killed = status(&out);
+    assert!(
+        killed.contains(&format!(" {done} done, 0 running,")),
+        "{killed}"
+    );
+    assert!(killed.contains("interrupted in ."), "{killed}");
     let resumed = sweep(&out, &["--jobs", "1"]);
     let total = finished_cells(&out);
+    let after = status(&out);
+    assert!(
+        after.contains(&format!(
+            ": {total} cells, {total} done, 0 running, 0 missing"
+        )),
+        "{after}"
+    );
     assert!(
         done < total,
         "the kill came after the last cell ({done} of {total})"

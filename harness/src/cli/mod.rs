@@ -7,6 +7,8 @@ mod check;
 mod curve;
 mod merge;
 mod run;
+mod slurm;
+mod status;
 mod sweep;
 mod train;
 
@@ -41,6 +43,10 @@ enum Command {
     Check(check::CheckArgs),
     /// Join shard output folders into one store.
     Merge(merge::MergeArgs),
+    /// Write (and submit) a sweep as a Slurm job array of shards plus a merge job.
+    Slurm(slurm::SlurmArgs),
+    /// Show a sweep's done, running and missing cells from its files alone.
+    Status(status::StatusArgs),
     /// Play stored test episodes again and fail on any difference.
     Audit(audit::AuditArgs),
 }
@@ -61,6 +67,8 @@ impl Cli {
             Command::Sweep(args) => sweep::run(args),
             Command::Check(args) => check::run(args),
             Command::Merge(args) => merge::run(args),
+            Command::Slurm(args) => slurm::run(args),
+            Command::Status(args) => status::run(args),
             Command::Audit(args) => audit::run(args),
         }
     }

@@ -9,6 +9,7 @@
 //! OUT/cells/KEY/training.parquet, checkpoint.safetensors, checkpoint.json (learned policies)
 //! OUT/cells/KEY/training-in-progress/  a learned cell's run while it trains
 //! OUT/cells/KEY/cell.json      the record, written last: the cell's done-marker
+//! OUT/cells/KEY/running.json   while the cell runs: the lease (process id, host, start)
 //! OUT/{episodes,training,cells,summary}.{parquet,csv}
 //! ```
 //!
@@ -16,6 +17,7 @@
 //! record exists and every file it lists has the recorded hash. Every file is written whole
 //! (`write_atomic`), so a crash leaves a cell finished or not, never half.
 
+pub mod lease;
 pub mod record;
 pub mod tables;
 
@@ -25,6 +27,7 @@ use polars::prelude::{DataFrame, PolarsError};
 
 use crate::atomic_file::write_atomic;
 use crate::scenario::Output;
+pub use lease::{Lease, LeaseHolder, Liveness};
 pub use record::{CellRecord, Manifest};
 
 pub const EPISODES_FILE: &str = "episodes.parquet";

@@ -35,7 +35,14 @@ pub struct Manifest {
     pub code_version: String,
     /// Every cell of the scenario, in expansion order (also for a shard).
     pub cells: Vec<String>,
+    /// What each cell of `cells` is (map, policy, N_train, repetition), so that status reports
+    /// name cells that have no record yet. Empty in stores written before it existed.
+    #[serde(default)]
+    pub labels: Vec<String>,
     /// `i/n` for a shard's folder.
     pub shard: Option<String>,
+    /// A shard's own cells, in order; `None` when the folder runs every cell.
+    #[serde(default)]
+    pub selected: Option<Vec<String>>,
     pub outputs: Vec<crate::scenario::Output>,
 }

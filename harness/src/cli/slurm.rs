@@ -1,0 +1,111 @@
+//! `harness slurm FILE --out DIR`: writes (and with `--submit` submits) a sweep as a Slurm job
+//! array of shards plus a merge job.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+
+use crate::scenario::Scenario;
+use crate::shard::{slices, weight};
+use crate::slurm::{ArrayJob, SbatchOptions, submit};
+use crate::store::Store;
+use crate::sweep::prepare;
+
+#[derive(clap::Args)]
+pub struct SlurmArgs {
+    /// Scenario file (YAML).
+    scenario: PathBuf,
+    /// Output folder, on a file system that every node sees.
+    #[arg(long)]
+    out: PathBuf,
+    /// Array tasks, each running a slice of the cells of about equal estimated cost; default
+    /// one per cell.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    tasks: Option<u32>,
+    /// Slurm partition for both jobs.
+    #[arg(long)]
+    partition: Option<String>,
+    /// Time limit of each job, in Slurm's format (e.g. 2-00:00:00).
+    #[arg(long)]
+    time: Option<String>,
+    /// CPUs of each array task; the task runs that many cells at once.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    cpus_per_task: Option<u16>,
+    /// Any other sbatch option for both jobs, e.g. --sbatch=--mem=8G (repeatable).
+    #[arg(long = "sbatch", value_name = "OPTION", allow_hyphen_values = true)]
+    sbatch: Vec<String>,
+    /// The harness executable the jobs run; default this one.
+    #[arg(long)]
+    harness: Option<PathBuf>,
+    /// Submit both jobs with sbatch and print their ids.
+    #[arg(long)]
+    submit: bool,
+}
+
+pub fn run(args: SlurmArgs) -> anyhow::Result<()> {
+    let text = std::fs::read_to_string(&args.scenario)
+        .with_context(|| format!("{}: cannot read", args.scenario.display()))?;
+    let scenario = Scenario::parse(&text, &args.scenario)?;
+    let cells = scenario.cells();
+    let tasks = args.tasks.map_or(cells.len(), |t| t as usize);
+    let harness = match args.harness {
+        Some(path) => absolute(&path)?,
+        None => std::env::current_exe().context("cannot find the running harness executable")?,
+    };
+    let options = SbatchOptions {
+        partition: args.partition,
+        time: args.time,
+        cpus_per_task: args.cpus_per_task,
+        extra: args.sbatch,
+    };
+    let out = std::path::absolute(&args.out)
+        .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
+    let job = ArrayJob::new(
+        &scenario.name,
+        &harness,
+        &absolute(&args.scenario)?,
+        &out,
+        tasks,
+        cells.len(),
+        options,
+    )?;
+    prepare(&scenario, &text, &cells, &Store::new(&out), None)?;
+    let scripts = job.write_scripts()?;
+
+    let loads: Vec<u64> = slices(&cells, tasks)
+        .iter()
+        .map(|slice| slice.iter().map(|c| weight(c)).sum())
+        .collect();
+    println!(
+        "sweep {}: {} cells in {tasks} array tasks, estimated env steps per task {} to {}",
+        scenario.name,
+        cells.len(),
+        loads.iter().min().expect("at least one task"),
+        loads.iter().max().expect("at least one task"),
+    );
+    println!(
+        "wrote {} and {}",
+        scripts.array.display(),
+        scripts.merge.display()
+    );
+    if args.submit {
+        let submitted = submit(&scripts)?;
+        println!(
+            "submitted array job {} and merge job {} (after the array)",
+            submitted.array, submitted.merge
+        );
+    } else {
+        println!(
+            "submit with: jobid=$(sbatch --parsable {}) && sbatch --dependency=afterany:$jobid {}",
+            scripts.array.display(),
+            scripts.merge.display()
+        );
+    }
+    println!("progress: harness status {}", out.display());
+    Ok(())
+}
+
+/// An existing file's absolute path, as the jobs will see it from any folder.
+fn absolute(path: &Path) -> anyhow::Result<PathBuf> {
+    std::fs::canonicalize(path).with_context(|| format!("{}: cannot resolve", path.display()))
+}

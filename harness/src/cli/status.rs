@@ -1,0 +1,64 @@
+//! `harness status DIR`: done, running and missing cells of a sweep or Slurm output folder.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::status::{CellState, SweepStatus, sweep_status};
+use crate::store::LeaseHolder;
+
+#[derive(clap::Args)]
+pub struct StatusArgs {
+    /// A sweep's output folder, a shard's, or the folder given to `harness slurm --out`.
+    dir: PathBuf,
+}
+
+pub fn run(args: StatusArgs) -> anyhow::Result<()> {
+    let status = sweep_status(&args.dir)?;
+    match print(&status, &args.dir) {
+        // A reader that stops early (`| head`) has all it wanted.
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        result => Ok(result?),
+    }
+}
+
+fn print(status: &SweepStatus, dir: &Path) -> std::io::Result<()> {
+    let mut out = std::io::stdout().lock();
+    let [done, running, missing] = status.counts();
+    writeln!(
+        out,
+        "sweep {} in {}: {} cells, {done} done, {running} running, {missing} missing",
+        status.scenario,
+        dir.display(),
+        status.cells.len()
+    )?;
+    for cell in &status.cells {
+        let (state, place) = match &cell.state {
+            CellState::Done { folder } => ("done", format!("in {}", folder.display())),
+            CellState::Running { folder, holder } => (
+                "running",
+                format!("in {}, {}", folder.display(), holder_text(holder)),
+            ),
+            CellState::Missing { interrupted: None } => ("missing", String::new()),
+            CellState::Missing {
+                interrupted: Some((folder, holder)),
+            } => (
+                "missing",
+                format!(
+                    "interrupted in {}, {} (gone)",
+                    folder.display(),
+                    holder_text(holder)
+                ),
+            ),
+        };
+        let line = format!("{state:<8} {}  {:<36} {place}", cell.key, cell.label);
+        writeln!(out, "{}", line.trim_end())?;
+    }
+    Ok(())
+}
+
+fn holder_text(holder: &LeaseHolder) -> String {
+    format!(
+        "pid {} on {} since {}",
+        holder.pid, holder.host, holder.started
+    )
+}

@@ -1,0 +1,155 @@
+//! The status of a sweep from its files alone: which cells are done, running or missing, in a
+//! sweep folder or in a Slurm output folder whose tasks write to `shards/*`. It needs no
+//! scheduler, so it reads the same on a laptop, a login node or after the jobs are gone.
+
+use std::path::{Path, PathBuf};
+
+use crate::store::{LeaseHolder, Liveness, Store, StoreError};
+
+/// Where a Slurm output folder's tasks keep their stores.
+pub const SHARDS_FOLDER: &str = "shards";
+
+#[derive(Debug)]
+pub struct SweepStatus {
+    pub scenario: String,
+    /// The folder's cells (a shard's own, or all), in the sweep's order.
+    pub cells: Vec<CellStatus>,
+}
+
+#[derive(Debug)]
+pub struct CellStatus {
+    pub key: String,
+    /// Map, policy, N_train and repetition; empty for stores older than labels.
+    pub label: String,
+    pub state: CellState,
+}
+
+/// Folders are named relative to the folder asked about (`.` for itself).
+#[derive(Debug, PartialEq)]
+pub enum CellState {
+    Done {
+        folder: PathBuf,
+    },
+    Running {
+        folder: PathBuf,
+        holder: LeaseHolder,
+    },
+    /// Not done and not running; `interrupted` when a killed process left its lease.
+    Missing {
+        interrupted: Option<(PathBuf, LeaseHolder)>,
+    },
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum StatusError {
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    #[error("{0}: not a sweep folder (no sweep.json in it or in {SHARDS_FOLDER}/*)")]
+    NotASweep(PathBuf),
+    #[error("{0}: holds another sweep than {1} (scenario, cell list or code version differ)")]
+    Mismatch(PathBuf, PathBuf),
+}
+
+impl SweepStatus {
+    /// How many cells are done, running and missing.
+    pub fn counts(&self) -> [usize; 3] {
+        let mut counts = [0; 3];
+        for cell in &self.cells {
+            counts[match cell.state {
+                CellState::Done { .. } => 0,
+                CellState::Running { .. } => 1,
+                CellState::Missing { .. } => 2,
+            }] += 1;
+        }
+        counts
+    }
+}
+
+/// The status of the sweep in `dir`: a sweep folder, a shard's folder, or a Slurm output folder
+/// (its own store, if merged, and one store per task under `shards/`).
+pub fn sweep_status(dir: &Path) -> Result<SweepStatus, StatusError> {
+    let stores = stores_in(dir)?;
+    let mut manifests = Vec::new();
+    for (name, store) in &stores {
+        if let Some(manifest) = store.manifest()? {
+            manifests.push((name, manifest));
+        }
+    }
+    let Some(((first_name, first), rest)) = manifests.split_first() else {
+        return Err(StatusError::NotASweep(dir.to_owned()));
+    };
+    for (name, manifest) in rest {
+        if manifest.scenario != first.scenario || manifest.cells != first.cells {
+            return Err(StatusError::Mismatch(dir.join(name), dir.join(first_name)));
+        }
+    }
+    let keys = first.selected.as_ref().unwrap_or(&first.cells);
+    let cells = keys
+        .iter()
+        .map(|key| CellStatus {
+            key: key.clone(),
+            label: first
+                .cells
+                .iter()
+                .position(|k| k == key)
+                .and_then(|i| first.labels.get(i))
+                .cloned()
+                .unwrap_or_default(),
+            state: cell_state(&stores, key),
+        })
+        .collect();
+    Ok(SweepStatus {
+        scenario: first.scenario.clone(),
+        cells,
+    })
+}
+
+/// `dir` itself and every folder under `dir/shards`, by name relative to `dir`.
+fn stores_in(dir: &Path) -> Result<Vec<(PathBuf, Store)>, StoreError> {
+    let mut stores = vec![(PathBuf::from("."), Store::new(dir))];
+    let shards = dir.join(SHARDS_FOLDER);
+    if shards.is_dir() {
+        let entries = std::fs::read_dir(&shards).map_err(|e| StoreError::io(&shards, e))?;
+        let mut folders: Vec<PathBuf> = entries
+            .filter_map(|entry| entry.ok().map(|e| e.path()))
+            .filter(|path| path.is_dir())
+            .collect();
+        folders.sort_by_key(|path| shard_order(path));
+        for folder in folders {
+            let name = folder.strip_prefix(dir).unwrap_or(&folder).to_owned();
+            stores.push((name, Store::new(&folder)));
+        }
+    }
+    Ok(stores)
+}
+
+/// Task folders are numbers: sort 2 before 10, and anything else after them by name.
+fn shard_order(path: &Path) -> (u64, String) {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    (name.parse().unwrap_or(u64::MAX), name.into_owned())
+}
+
+/// Done in any store, else running in any, else missing.
+fn cell_state(stores: &[(PathBuf, Store)], key: &str) -> CellState {
+    if let Some((folder, _)) = stores.iter().find(|(_, s)| s.finished(key).is_some()) {
+        return CellState::Done {
+            folder: folder.clone(),
+        };
+    }
+    let leases: Vec<(&PathBuf, LeaseHolder)> = stores
+        .iter()
+        .filter_map(|(folder, store)| store.lease_holder(key).map(|h| (folder, h)))
+        .collect();
+    match leases.iter().find(|(_, h)| h.liveness() != Liveness::Gone) {
+        Some((folder, holder)) => CellState::Running {
+            folder: (*folder).clone(),
+            holder: holder.clone(),
+        },
+        None => CellState::Missing {
+            interrupted: leases
+                .into_iter()
+                .next()
+                .map(|(folder, holder)| (folder.clone(), holder)),
+        },
+    }
+}

@@ -1,0 +1,131 @@
+//! Leases: while a cell runs, its folder holds `running.json` with the process id, host and
+//! start time of the process running it, removed when the cell ends. They let a status report
+//! tell running cells from missing ones by the files alone, with or without a scheduler.
+//!
+//! A process that is killed leaves its lease behind. On the host that wrote it, a lease whose
+//! process is gone is stale; from another host it cannot be told from a live one.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use super::{Store, StoreError, json_bytes, read_json, write};
+use crate::provenance::{host_name, utc_timestamp};
+
+const LEASE_FILE: &str = "running.json";
+
+/// Who runs (or ran) a cell.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LeaseHolder {
+    pub pid: u32,
+    pub host: String,
+    /// UTC, ISO 8601.
+    pub started: String,
+}
+
+/// Whether a lease's process still runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Liveness {
+    Alive,
+    Gone,
+    /// The lease was written on another host.
+    Unknown,
+}
+
+impl LeaseHolder {
+    fn this_process() -> Self {
+        Self {
+            pid: std::process::id(),
+            host: host_name(),
+            started: utc_timestamp(std::time::SystemTime::now()),
+        }
+    }
+
+    pub fn liveness(&self) -> Liveness {
+        if self.host != host_name() {
+            Liveness::Unknown
+        } else if process_exists(self.pid) {
+            Liveness::Alive
+        } else {
+            Liveness::Gone
+        }
+    }
+}
+
+/// Signal 0 checks that a process exists without touching it; `EPERM` means it exists under
+/// another user.
+fn process_exists(pid: u32) -> bool {
+    let Ok(pid) = libc::pid_t::try_from(pid) else {
+        return false;
+    };
+    if pid <= 0 {
+        return false;
+    }
+    // SAFETY: kill with signal 0 sends nothing; it only reports whether `pid` can be signalled.
+    let sent = unsafe { libc::kill(pid, 0) } == 0;
+    sent || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+}
+
+/// A held lease; dropping it removes the file.
+#[derive(Debug)]
+pub struct Lease {
+    path: PathBuf,
+}
+
+impl Drop for Lease {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+impl Store {
+    /// Marks cell `key` as run by this process until the returned lease is dropped.
+    pub fn take_lease(&self, key: &str) -> Result<Lease, StoreError> {
+        let folder = self.cell_folder(key);
+        std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
+        let path = folder.join(LEASE_FILE);
+        write(&path, &json_bytes(&LeaseHolder::this_process()))?;
+        Ok(Lease { path })
+    }
+
+    /// Who holds (or last held, if it was killed) cell `key`'s lease; `None` when no lease is
+    /// there or it cannot be read.
+    pub fn lease_holder(&self, key: &str) -> Option<LeaseHolder> {
+        read_json(&self.cell_folder(key).join(LEASE_FILE)).ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_lease_lives_until_dropped_and_names_this_process() {
+        let dir = std::env::temp_dir().join(format!("lease-{}", std::process::id()));
+        let store = Store::new(&dir);
+        let lease = store.take_lease("k").unwrap();
+        let holder = store.lease_holder("k").unwrap();
+        assert_eq!(holder.pid, std::process::id());
+        assert_eq!(holder.liveness(), Liveness::Alive);
+        drop(lease);
+        assert_eq!(store.lease_holder("k"), None);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_dead_process_or_another_host_is_told_apart() {
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        let gone = LeaseHolder {
+            pid,
+            ..LeaseHolder::this_process()
+        };
+        assert_eq!(gone.liveness(), Liveness::Gone);
+        let elsewhere = LeaseHolder {
+            host: format!("{}-elsewhere", host_name()),
+            ..LeaseHolder::this_process()
+        };
+        assert_eq!(elsewhere.liveness(), Liveness::Unknown);
+    }
+}

@@ -1,0 +1,79 @@
+//! The smoke sweep as the end-to-end tests run it: locally, once per test binary, as the
+//! reference that sharded, interrupted or cluster runs must equal, and the comparison of two
+//! stores' tables.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use polars::prelude::*;
+
+use crate::common::{harness, repo_file, scratch, succeed};
+
+pub fn smoke() -> String {
+    repo_file("scenarios/smoke.yaml")
+}
+
+/// Runs `harness sweep` on the smoke scenario into `out`; returns what it printed.
+pub fn sweep(out: &Path, extra: &[&str]) -> String {
+    let out = out.to_str().unwrap();
+    let smoke = smoke();
+    succeed(harness(&[&["sweep", &smoke, "--out", out], extra].concat()))
+}
+
+/// Cells of the store in `store` that have their record (finished, unless damaged).
+pub fn finished_cells(store: &Path) -> usize {
+    std::fs::read_dir(store.join("cells"))
+        .map(|entries| {
+            entries
+                .flatten()
+                .filter(|e| e.path().join("cell.json").exists())
+                .count()
+        })
+        .unwrap_or(0)
+}
+
+pub fn read_table(store: &Path, name: &str) -> DataFrame {
+    let file = std::fs::File::open(store.join(format!("{name}.parquet"))).unwrap();
+    ParquetReader::new(file).finish().unwrap()
+}
+
+/// The tables of two stores hold the same results: the result tables byte for byte, the
+/// training table without its timings, the cells table without its columns of time and place
+/// (the training log's hash covers its timings too).
+pub fn assert_same_tables(a: &Path, b: &Path) {
+    for file in [
+        "episodes.parquet",
+        "episodes.csv",
+        "summary.parquet",
+        "summary.csv",
+    ] {
+        let (x, y) = (std::fs::read(a.join(file)), std::fs::read(b.join(file)));
+        assert!(x.as_ref().unwrap() == y.as_ref().unwrap(), "{file} differs");
+    }
+    let training = |store| {
+        let columns = harness::training_log::reproducible_columns();
+        read_table(store, "training").select(columns).unwrap()
+    };
+    let (x, y) = (training(a), training(b));
+    assert!(x.height() > 0 && x.equals_missing(&y), "{x}\n{y}");
+    let provenance = [
+        "host",
+        "started",
+        "finished",
+        "wall_seconds",
+        "git_commit",
+        "training_hash",
+    ];
+    let cells = |store| read_table(store, "cells").drop_many(provenance);
+    assert_eq!(cells(a), cells(b));
+}
+
+/// One uninterrupted, unsharded smoke sweep, shared by the tests that compare against it.
+pub fn reference_run() -> &'static Path {
+    static REFERENCE: OnceLock<PathBuf> = OnceLock::new();
+    REFERENCE.get_or_init(|| {
+        let out = scratch("reference").join("store");
+        sweep(&out, &["--jobs", "2"]);
+        out
+    })
+}

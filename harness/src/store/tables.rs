@@ -10,6 +10,7 @@ use super::StoreError;
 use super::record::CellRecord;
 use crate::atomic_file::write_atomic;
 use crate::cell::CellConfig;
+use policies::checkpoint::WEIGHTS_FILE;
 
 /// One test episode's result.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,6 +64,13 @@ pub fn training_frame(
     Ok(DataFrame::new(log.height(), columns)?)
 }
 
+/// A learned cell's training configuration as resolved from its profile and overrides, as
+/// JSON; `None` for a baseline.
+fn resolved_training(config: &CellConfig) -> Option<String> {
+    let training = config.training_config()?.ok()?;
+    Some(serde_json::to_string(&training).expect("a training configuration serialises"))
+}
+
 /// One row per finished cell: resolved config as JSON, hashes and provenance.
 pub fn cells_frame(records: &[CellRecord]) -> Result<DataFrame, StoreError> {
     let configs: Vec<String> = records
@@ -97,7 +105,12 @@ pub fn cells_frame(records: &[CellRecord]) -> Result<DataFrame, StoreError> {
             column(records, |r| r.config.training_seed),
         ),
         Column::new("config".into(), configs),
+        Column::new(
+            "training_config".into(),
+            column(records, |r| resolved_training(&r.config)),
+        ),
         Column::new("episodes_hash".into(), file_hash(super::EPISODES_FILE)),
+        Column::new("weights_hash".into(), file_hash(WEIGHTS_FILE)),
         Column::new("training_hash".into(), file_hash(super::TRAINING_FILE)),
         Column::new(
             "code_version".into(),

@@ -13,8 +13,9 @@ use ndarray::{ArrayView2, ArrayViewMut2};
 use super::real::Real;
 
 /// Products with fewer multiply-adds than this run on the calling thread: below it, handing
-/// work to the pool costs more than it saves (the rollout's batches of a few agents).
-const PARALLEL_MULTIPLY_ADDS: usize = 1 << 18;
+/// work to the pool costs more than it saves (the rollout's batches of a few agents, whose
+/// largest product, the first convolution of 4 agents, has about 0.6 M).
+const PARALLEL_MULTIPLY_ADDS: usize = 1 << 21;
 
 /// `c = a b`.
 pub fn matmul<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>) {

@@ -90,7 +90,10 @@ impl UpdateWorkspace {
             for m in 0..minibatches {
                 let range = (m * self.groups.len() / minibatches)
                     ..((m + 1) * self.groups.len() / minibatches);
-                self.gather(config, neighbours, environments, range);
+                // One minibatch is the same samples in the same order at every epoch.
+                if minibatches > 1 || epoch == 0 {
+                    self.gather(config, neighbours, environments, range);
+                }
                 let (terms, norm) = self.step(model, adam, config, &coefficients);
                 stats.loss.add(&terms);
                 stats.grad_norm += norm;

@@ -59,10 +59,15 @@ pub struct Cost {
 }
 
 impl Cost {
-    /// The estimated CPU time of `work`.
+    /// The estimated CPU time of this cost's work.
     pub fn cpu_seconds(&self) -> f64 {
-        self.work as f64 * work::UNIT_SECONDS
+        work_seconds(self.work)
     }
+}
+
+/// The estimated CPU time of `work` units.
+pub fn work_seconds(work: u64) -> f64 {
+    work as f64 * work::UNIT_SECONDS
 }
 
 /// Rough relative costs per agent and step, from `harness bench` and `harness bench network`:

@@ -5,6 +5,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
+use super::check::duration;
+use crate::cell::work_seconds;
 use crate::scenario::Scenario;
 use crate::shard::{slices, weight};
 use crate::slurm::{ArrayJob, SbatchOptions, submit};
@@ -77,11 +79,15 @@ pub fn run(args: SlurmArgs) -> anyhow::Result<()> {
         .map(|slice| slice.iter().map(|c| weight(c)).sum())
         .collect();
     println!(
-        "sweep {}: {} cells in {tasks} array tasks, estimated env steps per task {} to {}",
+        "sweep {}: {} cells in {tasks} array tasks, estimated CPU per task {} to {}",
         scenario.name,
         cells.len(),
-        loads.iter().min().expect("at least one task"),
-        loads.iter().max().expect("at least one task"),
+        duration(work_seconds(
+            *loads.iter().min().expect("at least one task")
+        )),
+        duration(work_seconds(
+            *loads.iter().max().expect("at least one task")
+        )),
     );
     println!(
         "wrote {} and {}",

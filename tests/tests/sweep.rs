@@ -20,7 +20,9 @@ fn smoke() -> String {
 fn sweep(out: &Path, extra: &[&str]) -> String {
     let out = out.to_str().unwrap();
     let smoke = smoke();
-    succeed(harness(&[&["sweep", &smoke, "--out", out], extra].concat()))
+    succeed(harness(
+        &[&["sweep", &smoke, "--out", out, "--no-report"], extra].concat(),
+    ))
 }
 
 /// Every file under `dir` with its bytes.
@@ -114,6 +116,7 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
             "1",
             "--out",
             out.to_str().unwrap(),
+            "--no-report",
         ])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -365,6 +368,7 @@ fn bad_scenarios_give_clear_errors_and_leave_the_output_alone() {
         scenario.to_str().unwrap(),
         "--out",
         store.to_str().unwrap(),
+        "--no-report",
     ]));
     let before = snapshot(&store);
     let untouched = dir.join("untouched");

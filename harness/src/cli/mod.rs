@@ -6,6 +6,8 @@ mod bench;
 mod check;
 mod curve;
 mod merge;
+mod record;
+mod report;
 mod run;
 mod sweep;
 mod train;
@@ -43,6 +45,10 @@ enum Command {
     Merge(merge::MergeArgs),
     /// Play stored test episodes again and fail on any difference.
     Audit(audit::AuditArgs),
+    /// Write a sweep's report: README, tables (Markdown and Parquet) and figures (PNG, SVG).
+    Report(report::ReportArgs),
+    /// Save a rerun recording (.rrd) of a stored test episode.
+    Record(record::RecordArgs),
 }
 
 /// Parses the process's arguments and runs the command.
@@ -62,6 +68,8 @@ impl Cli {
             Command::Check(args) => check::run(args),
             Command::Merge(args) => merge::run(args),
             Command::Audit(args) => audit::run(args),
+            Command::Report(args) => report::run(args),
+            Command::Record(args) => record::run(args),
         }
     }
 }

@@ -5,9 +5,10 @@
 //! OUT/sweep.json               manifest: scenario, code version, every cell key in order
 //! OUT/scenario.yaml            the scenario file as run
 //! OUT/maps/HASH.txt            every map's canonical text, so the store replays on its own
-//! OUT/cells/KEY/episodes.parquet, training.parquet (learned policies)
+//! OUT/cells/KEY/episodes.parquet, training.parquet (learned policies),
+//!              trajectories.parquet, snapshots.parquet (repetition 0: see `trajectory`)
 //! OUT/cells/KEY/cell.json      the record, written last: the cell's done-marker
-//! OUT/{episodes,training,cells,summary}.{parquet,csv}
+//! OUT/{episodes,training,cells,summary,trajectories,snapshots}.{parquet,csv}
 //! ```
 //!
 //! Per-cell files make shards independent and resume simple: a cell is finished when its
@@ -27,6 +28,8 @@ pub use record::{CellRecord, Manifest};
 
 pub const EPISODES_FILE: &str = "episodes.parquet";
 pub const TRAINING_FILE: &str = "training.parquet";
+pub const TRAJECTORIES_FILE: &str = "trajectories.parquet";
+pub const SNAPSHOTS_FILE: &str = "snapshots.parquet";
 const RECORD_FILE: &str = "cell.json";
 const MANIFEST_FILE: &str = "sweep.json";
 const SCENARIO_FILE: &str = "scenario.yaml";
@@ -254,6 +257,8 @@ impl Store {
             let frame = match output {
                 Output::Episodes => episodes.clone(),
                 Output::Training => per_cell(TRAINING_FILE)?,
+                Output::Trajectories => per_cell(TRAJECTORIES_FILE)?,
+                Output::Snapshots => per_cell(SNAPSHOTS_FILE)?,
                 Output::Cells => Some(tables::cells_frame(&records)?),
                 Output::Summary => episodes
                     .as_ref()

@@ -145,8 +145,7 @@ impl ReportWriter {
         Ok(())
     }
 
-    /// Writes a table too long to read (per step or per cell) as Parquet and CSV, and links
-    /// them.
+    /// Writes a table too long to read (per step or per cell) as Parquet only, and links it.
     fn linked_table(
         &mut self,
         name: &str,
@@ -157,10 +156,9 @@ impl ReportWriter {
             &format!("tables/{name}.parquet"),
             &tables::parquet_bytes(frame)?,
         )?;
-        self.write(&format!("tables/{name}.csv"), &tables::csv_bytes(frame)?)?;
         self.tables += 1;
         self.readme += &format!(
-            "{what}: [Parquet](tables/{name}.parquet), [CSV](tables/{name}.csv) ({} rows).\n\n",
+            "{what}: [Parquet](tables/{name}.parquet) ({} rows).\n\n",
             frame.height()
         );
         Ok(())

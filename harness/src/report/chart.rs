@@ -153,6 +153,51 @@ mod tests {
         assert_eq!(diverging(7.0), diverging(1.0));
     }
 
+    /// Decodes a rendered figure's PNG and checks both files against the figure's size.
+    fn assert_renders(figure: &impl Figure) {
+        let rendered = render(figure).unwrap();
+        let image = image::load_from_memory(&rendered.png).unwrap();
+        assert_eq!((image.width(), image.height()), figure.size());
+        let (width, height) = figure.size();
+        assert!(rendered.svg.starts_with("<svg"), "{}", &rendered.svg[..40]);
+        assert!(
+            rendered
+                .svg
+                .contains(&format!("width=\"{width}\" height=\"{height}\""))
+        );
+    }
+
+    #[test]
+    fn heat_maps_and_banded_curves_render() {
+        let panel = |title: &str| heatmap::HeatPanel {
+            title: title.into(),
+            rows: vec!["2".into(), "4".into()],
+            columns: vec!["2".into(), "4".into(), "6".into()],
+            values: vec![
+                vec![Some(1.0), None, Some(3.5)],
+                vec![Some(2.0), Some(0.5), None],
+            ],
+        };
+        assert_renders(&heatmap::HeatMaps {
+            row_label: "N_train".into(),
+            column_label: "N_test".into(),
+            panels: vec![panel("ma-g-ppo"), panel("ma-ppo")],
+        });
+        let points: Vec<(f64, f64)> = (0..50).map(|i| (i as f64, (i as f64).sqrt())).collect();
+        assert_renders(&lines::LineChart {
+            x_label: "training episode".into(),
+            panels: vec![lines::Panel {
+                title: "curve".into(),
+                y_label: "penalty".into(),
+                lines: vec![lines::Line {
+                    label: "ma-g-ppo".into(),
+                    band: Some(points.iter().map(|p| (p.1 - 0.5, p.1 + 0.5)).collect()),
+                    points,
+                }],
+            }],
+        });
+    }
+
     #[test]
     fn ranges_are_never_empty() {
         assert_eq!(padded_range([].into_iter(), false), 0.0..1.0);

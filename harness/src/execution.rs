@@ -21,6 +21,7 @@ use crate::scenario::format::BaselineSpec;
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{CellRecord, EPISODES_FILE, Store, StoreError, TRAINING_FILE};
 use crate::training_run::TrainingRun;
+use crate::trajectory::CellRecording;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CellError {
@@ -77,14 +78,22 @@ pub fn run_cell(
         }
     };
     let mut rows = Vec::new();
+    let mut recording = CellRecording::for_cell(config);
+    let last = config.world.test_steps as usize;
     for &agents in &config.n_test {
         for episode in 0..config.test_episodes {
-            rows.push(test_episode(
+            let record = recording.records(episode);
+            rows.push(observed_test_episode(
                 world,
                 policy.as_mut(),
                 config,
                 agents,
                 episode,
+                &mut |e, _| {
+                    if record {
+                        recording.observe(e, agents, episode, last);
+                    }
+                },
             )?);
             advance(config.world.test_steps as u64);
         }
@@ -104,6 +113,7 @@ pub fn run_cell(
         wall_seconds: clock.elapsed().as_secs_f64(),
         files: Default::default(),
     };
+    files.extend(recording.files(&cell.key, config)?);
     let record = store.save_cell(record, &files)?;
     // The finished cell no longer needs its run in progress; a leftover is only disk space.
     let _ = std::fs::remove_dir_all(store.partial_training_folder(&cell.key));
@@ -177,6 +187,18 @@ pub fn test_episode(
     agents: u32,
     episode: u32,
 ) -> Result<EpisodeRow, StartError> {
+    observed_test_episode(world, policy, config, agents, episode, &mut |_, _| {})
+}
+
+/// [`test_episode`], with `on_step` seeing every step (as `run_episode` calls it).
+pub fn observed_test_episode(
+    world: &Arc<World>,
+    policy: &mut dyn Policy,
+    config: &CellConfig,
+    agents: u32,
+    episode: u32,
+    on_step: &mut dyn FnMut(&world::Episode, Option<&[world::Action]>),
+) -> Result<EpisodeRow, StartError> {
     let seed = config.episode_seed(agents, episode);
     let steps = config.world.test_steps;
     let outcome = run_episode(
@@ -186,7 +208,7 @@ pub fn test_episode(
         seed,
         None,
         steps as usize,
-        &mut |_, _| {},
+        on_step,
     )?;
     Ok(EpisodeRow {
         n_test: agents,

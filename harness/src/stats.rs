@@ -8,6 +8,7 @@
 //! replicate keeps every run and the interval reflects the spread between runs.
 
 use rand::RngExt;
+use rand_pcg::Pcg64Mcg;
 use thiserror::Error;
 use world::Seed;
 
@@ -104,29 +105,93 @@ pub fn stratified_bootstrap_interval(
     resamples: usize,
     seed: Seed,
 ) -> Result<(f64, f64), StatsError> {
-    let pooled = strata.concat();
-    check(&pooled)?;
+    check(&strata.concat())?;
+    check_bootstrap(confidence, resamples)?;
+    let mut rng = seed.rng();
+    let mut replicate = Vec::new();
+    let mut statistics = Vec::with_capacity(resamples);
+    for _ in 0..resamples {
+        resample(strata, &mut rng, &mut replicate);
+        statistics.push(statistic(&replicate)?);
+    }
+    Ok(percentile_interval(statistics, confidence))
+}
+
+/// A statistic comparing two sets of values (a policy's penalties and another's).
+pub type Comparison = fn(&[f64], &[f64]) -> Result<f64, StatsError>;
+
+/// The probability that a value drawn from `x` is lower (better, for penalties) than one
+/// drawn from `y`, ties counting half: the Mann-Whitney U statistic over `len(x) len(y)`, the
+/// "probability of improvement" of rliable (Agarwal et al. 2021).
+pub fn probability_of_improvement(x: &[f64], y: &[f64]) -> Result<f64, StatsError> {
+    check(x)?;
+    check(y)?;
+    let wins: f64 = x
+        .iter()
+        .flat_map(|a| y.iter().map(move |b| (a, b)))
+        .map(|(a, b)| match a.total_cmp(b) {
+            std::cmp::Ordering::Less => 1.0,
+            std::cmp::Ordering::Equal => 0.5,
+            std::cmp::Ordering::Greater => 0.0,
+        })
+        .sum();
+    Ok(wins / (x.len() * y.len()) as f64)
+}
+
+/// `mean(x) - mean(y)`.
+pub fn mean_difference(x: &[f64], y: &[f64]) -> Result<f64, StatsError> {
+    Ok(mean(x)? - mean(y)?)
+}
+
+/// The percentile bootstrap interval of a two-sample `comparison`: every replicate resamples
+/// `x` and `y` independently, each within its strata (as [`stratified_bootstrap_interval`]).
+pub fn comparison_interval(
+    x: &[&[f64]],
+    y: &[&[f64]],
+    comparison: Comparison,
+    confidence: f64,
+    resamples: usize,
+    seed: Seed,
+) -> Result<(f64, f64), StatsError> {
+    check(&x.concat())?;
+    check(&y.concat())?;
+    check_bootstrap(confidence, resamples)?;
+    let mut rng = seed.rng();
+    let (mut x_replicate, mut y_replicate) = (Vec::new(), Vec::new());
+    let mut statistics = Vec::with_capacity(resamples);
+    for _ in 0..resamples {
+        resample(x, &mut rng, &mut x_replicate);
+        resample(y, &mut rng, &mut y_replicate);
+        statistics.push(comparison(&x_replicate, &y_replicate)?);
+    }
+    Ok(percentile_interval(statistics, confidence))
+}
+
+fn check_bootstrap(confidence: f64, resamples: usize) -> Result<(), StatsError> {
     if !(confidence > 0.0 && confidence < 1.0) {
         return Err(StatsError::Confidence(confidence));
     }
     if resamples == 0 {
         return Err(StatsError::NoResamples);
     }
-    let mut rng = seed.rng();
-    let mut replicate = Vec::with_capacity(pooled.len());
-    let mut statistics = Vec::with_capacity(resamples);
-    for _ in 0..resamples {
-        replicate.clear();
-        for stratum in strata.iter().filter(|s| !s.is_empty()) {
-            replicate
-                .extend((0..stratum.len()).map(|_| stratum[rng.random_range(0..stratum.len())]));
-        }
-        statistics.push(statistic(&replicate)?);
+    Ok(())
+}
+
+/// One replicate: as many values from every stratum as it holds, drawn with replacement.
+fn resample(strata: &[&[f64]], rng: &mut Pcg64Mcg, replicate: &mut Vec<f64>) {
+    replicate.clear();
+    for stratum in strata.iter().filter(|s| !s.is_empty()) {
+        replicate.extend((0..stratum.len()).map(|_| stratum[rng.random_range(0..stratum.len())]));
     }
+}
+
+/// The quantiles of the replicates' statistics at both tails (nearest rank).
+fn percentile_interval(mut statistics: Vec<f64>, confidence: f64) -> (f64, f64) {
     statistics.sort_unstable_by(f64::total_cmp);
     let tail = (1.0 - confidence) / 2.0;
-    let quantile = |q: f64| statistics[(q * (resamples - 1) as f64).round() as usize];
-    Ok((quantile(tail), quantile(1.0 - tail)))
+    let last = (statistics.len() - 1) as f64;
+    let quantile = |q: f64| statistics[(q * last).round() as usize];
+    (quantile(tail), quantile(1.0 - tail))
 }
 
 fn sorted(values: &[f64]) -> Result<Vec<f64>, StatsError> {
@@ -232,6 +297,46 @@ mod tests {
         assert!(low < centre && centre < high, "{low} {centre} {high}");
         assert_eq!(interval(2), Ok((low, high)));
         assert_ne!(interval(3), Ok((low, high)));
+    }
+
+    #[test]
+    fn probability_of_improvement_counts_wins_and_half_ties() {
+        assert_eq!(
+            probability_of_improvement(&[1.0, 2.0], &[3.0, 4.0]),
+            Ok(1.0)
+        );
+        assert_eq!(
+            probability_of_improvement(&[3.0, 4.0], &[1.0, 2.0]),
+            Ok(0.0)
+        );
+        // 1 beats 2 and 3; 2 ties 2 and beats 3: (2 + 1.5) / 4.
+        assert_eq!(
+            probability_of_improvement(&[1.0, 2.0], &[2.0, 3.0]),
+            Ok(0.875)
+        );
+        assert_eq!(mean_difference(&[1.0, 3.0], &[5.0]), Ok(-3.0));
+    }
+
+    #[test]
+    fn comparison_interval_brackets_and_separates() {
+        let x: Vec<f64> = (0..20).map(|i| i as f64).collect();
+        let y: Vec<f64> = (0..20).map(|i| i as f64 + 100.0).collect();
+        let seed = Seed::new(5);
+        let p = comparison_interval(&[&x], &[&y], probability_of_improvement, 0.95, 500, seed);
+        assert_eq!(p, Ok((1.0, 1.0)), "x is always lower");
+        let (low, high) =
+            comparison_interval(&[&x], &[&y], mean_difference, 0.95, 2000, seed).unwrap();
+        assert!(
+            low < -100.0 && -100.0 < high && high < -90.0,
+            "{low} {high}"
+        );
+        let same = comparison_interval(&[&x], &[&x], probability_of_improvement, 0.95, 2000, seed);
+        let (low, high) = same.unwrap();
+        assert!(low < 0.5 && 0.5 < high, "{low} {high}");
+        assert_eq!(
+            comparison_interval(&[&x], &[&[]], mean_difference, 0.95, 10, seed),
+            Err(StatsError::Empty)
+        );
     }
 
     #[test]

@@ -7,7 +7,9 @@ use rand_pcg::Pcg64Mcg;
 use world::seed::purpose;
 use world::{Action, Cell, Episode, ObservationConfig, Observer, Seed, World};
 
-use crate::nn::{ActorCritic, AgentGraph, CategoricalBatch, ModelWorkspace, Neighbours};
+use crate::nn::{
+    ActorCritic, AgentGraph, Architecture, CategoricalBatch, ModelWorkspace, Neighbours,
+};
 use crate::policy::Policy;
 use crate::ppo::config::{ArchitectureName, ConfigError, TrainingConfig};
 
@@ -114,6 +116,22 @@ impl LearnedPolicy {
 impl Policy for LearnedPolicy {
     fn name(&self) -> &str {
         self.name
+    }
+
+    fn attention(&self) -> Option<Vec<(usize, usize, f32)>> {
+        if self.model.config().architecture == Architecture::MaPpo {
+            return None;
+        }
+        let weights = self.workspace.attention().attention_weights();
+        let heads = weights.nrows() as f32;
+        let mut edges = Vec::with_capacity(self.graph.neighbour_rows().len());
+        for agent in 0..self.graph.agents() {
+            for (edge, neighbour) in self.graph.edges_of(agent) {
+                let weight = weights.column(edge).sum() / heads;
+                edges.push((agent, neighbour, weight));
+            }
+        }
+        Some(edges)
     }
 
     fn reset(&mut self, episode: &Episode, seed: Seed) {

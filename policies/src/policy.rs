@@ -22,4 +22,11 @@ pub trait Policy: Send {
 
     /// Writes this step's action of every agent into `actions` (one per agent).
     fn act(&mut self, episode: &Episode, actions: &mut [Action]);
+
+    /// How much each agent attended to each other at the last `act`, averaged over heads, as
+    /// `(agent, neighbour, weight)`; `None` for a policy without attention. For recordings
+    /// and reports, not for the hot loop: it allocates.
+    fn attention(&self) -> Option<Vec<(usize, usize, f32)>> {
+        None
+    }
 }

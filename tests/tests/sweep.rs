@@ -66,10 +66,12 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
         .args([
             "sweep",
             &smoke(),
+            "--no-report",
             "--jobs",
             "1",
             "--out",
             out.to_str().unwrap(),
+            "--no-report",
         ])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -357,6 +359,7 @@ fn bad_scenarios_give_clear_errors_and_leave_the_output_alone() {
         scenario.to_str().unwrap(),
         "--out",
         store.to_str().unwrap(),
+        "--no-report",
     ]));
     let before = snapshot(&store);
     let untouched = dir.join("untouched");

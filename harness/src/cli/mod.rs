@@ -6,6 +6,8 @@ mod bench;
 mod check;
 mod curve;
 mod merge;
+mod record;
+mod report;
 mod run;
 mod slurm;
 mod status;
@@ -49,6 +51,10 @@ enum Command {
     Status(status::StatusArgs),
     /// Play stored test episodes again and fail on any difference.
     Audit(audit::AuditArgs),
+    /// Write a sweep's report: README, tables (Markdown and Parquet) and figures (PNG, SVG).
+    Report(report::ReportArgs),
+    /// Save a rerun recording (.rrd) of a stored test episode.
+    Record(record::RecordArgs),
 }
 
 /// Parses the process's arguments and runs the command.
@@ -70,6 +76,8 @@ impl Cli {
             Command::Slurm(args) => slurm::run(args),
             Command::Status(args) => status::run(args),
             Command::Audit(args) => audit::run(args),
+            Command::Report(args) => report::run(args),
+            Command::Record(args) => record::run(args),
         }
     }
 }

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
+use crate::report::write_report;
 use crate::scenario::Scenario;
 use crate::shard::Shard;
 use crate::store::Store;
@@ -22,6 +23,12 @@ pub struct SweepArgs {
     /// Run only the i-th of n slices of the cell list (1 <= i <= n), e.g. 2/8.
     #[arg(long)]
     shard: Option<Shard>,
+    /// Do not write the report at the end (a shard never does: its store is partial).
+    #[arg(long)]
+    no_report: bool,
+    /// Folder of reports; the report goes to its subfolder named after the scenario.
+    #[arg(long, default_value = "reports")]
+    report_to: PathBuf,
 }
 
 pub fn run(args: SweepArgs) -> anyhow::Result<()> {
@@ -61,5 +68,14 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         "{} cells failed",
         report.failed.len()
     );
+    if !args.no_report && args.shard.is_none() {
+        let written = write_report(&Store::new(&out), &args.report_to)?;
+        println!(
+            "report: {} tables and {} figures in {}",
+            written.tables,
+            written.figures,
+            written.folder.display()
+        );
+    }
     Ok(())
 }

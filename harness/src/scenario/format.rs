@@ -151,14 +151,18 @@ pub enum Output {
     Training,
     Cells,
     Summary,
+    Trajectories,
+    Snapshots,
 }
 
 impl Output {
-    pub const ALL: [Output; 4] = [
+    pub const ALL: [Output; 6] = [
         Output::Episodes,
         Output::Training,
         Output::Cells,
         Output::Summary,
+        Output::Trajectories,
+        Output::Snapshots,
     ];
 
     /// The table's file name, without extension.
@@ -168,6 +172,8 @@ impl Output {
             Output::Training => "training",
             Output::Cells => "cells",
             Output::Summary => "summary",
+            Output::Trajectories => "trajectories",
+            Output::Snapshots => "snapshots",
         }
     }
 

@@ -7,10 +7,11 @@
 //! OUT/maps/HASH.txt            every map's canonical text, so the store replays on its own
 //! OUT/cells/KEY/episodes.parquet
 //! OUT/cells/KEY/training.parquet, checkpoint.safetensors, checkpoint.json (learned policies)
+//! OUT/cells/KEY/trajectories.parquet, snapshots.parquet (repetition 0: see `trajectory`)
 //! OUT/cells/KEY/training-in-progress/  a learned cell's run while it trains
 //! OUT/cells/KEY/cell.json      the record, written last: the cell's done-marker
 //! OUT/cells/KEY/running.json   while the cell runs: the lease (process id, host, start)
-//! OUT/{episodes,training,cells,summary}.{parquet,csv}
+//! OUT/{episodes,training,cells,summary,trajectories,snapshots}.{parquet,csv}
 //! ```
 //!
 //! Per-cell files make shards independent and resume simple: a cell is finished when its
@@ -32,6 +33,8 @@ pub use record::{CellRecord, Manifest};
 
 pub const EPISODES_FILE: &str = "episodes.parquet";
 pub const TRAINING_FILE: &str = "training.parquet";
+pub const TRAJECTORIES_FILE: &str = "trajectories.parquet";
+pub const SNAPSHOTS_FILE: &str = "snapshots.parquet";
 const RECORD_FILE: &str = "cell.json";
 const MANIFEST_FILE: &str = "sweep.json";
 const SCENARIO_FILE: &str = "scenario.yaml";
@@ -275,6 +278,8 @@ impl Store {
             let frame = match output {
                 Output::Episodes => episodes.clone(),
                 Output::Training => per_cell(TRAINING_FILE)?,
+                Output::Trajectories => per_cell(TRAJECTORIES_FILE)?,
+                Output::Snapshots => per_cell(SNAPSHOTS_FILE)?,
                 Output::Cells => Some(tables::cells_frame(&records)?),
                 Output::Summary => episodes
                     .as_ref()

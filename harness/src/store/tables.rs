@@ -23,7 +23,7 @@ pub struct EpisodeRow {
 }
 
 /// The columns that name a cell in every per-cell table.
-fn cell_columns(key: &str, config: &CellConfig, rows: usize) -> Vec<Column> {
+pub fn cell_columns(key: &str, config: &CellConfig, rows: usize) -> Vec<Column> {
     vec![
         Column::new("cell_key".into(), vec![key; rows]),
         Column::new("map".into(), vec![config.map.name.as_str(); rows]),

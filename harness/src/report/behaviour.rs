@@ -1,0 +1,420 @@
+//! Emergent behaviour measured (RQ3): per agent the dominant period of its motion (the
+//! periodogram's peak), its phase against agent 0 (a least-squares harmonic fit at the team's
+//! period, with smartcore), and its role, stationary or touring (k-means on motion features
+//! with linfa, seeded), so the report states as numbers what the paper saw in plots.
+
+use linfa::DatasetBase;
+use linfa::traits::{Fit, Predict};
+use linfa_clustering::KMeans;
+use ndarray::Array2;
+use polars::prelude::*;
+use rand_core_06::SeedableRng;
+use smartcore::linalg::basic::arrays::Array;
+use smartcore::linalg::basic::matrix::DenseMatrix;
+use smartcore::linear::linear_regression::{LinearRegression, LinearRegressionParameters};
+
+use super::columns::{distinct, named_seed};
+use super::markdown::number;
+use super::motion::Motion;
+use super::{ReportError, ReportWriter};
+
+/// Periods shorter than this many steps are not looked for: a step's jitter, not a rhythm.
+const SHORTEST_PERIOD: usize = 20;
+/// A period must repeat at least this often within the episode.
+const FEWEST_CYCLES: usize = 2;
+
+/// A signal's fitted harmonic `amplitude * cos(2 pi t / period - phase) + offset`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Harmonic {
+    pub amplitude: f64,
+    /// Radians.
+    pub phase: f64,
+    /// The share of the signal's variance the harmonic explains.
+    pub r_squared: f64,
+}
+
+/// The period (in steps) of the strongest frequency of `signal`'s periodogram, between
+/// [`FEWEST_CYCLES`] cycles per episode and [`SHORTEST_PERIOD`] steps; `None` for a signal
+/// without variation or too short to hold two such cycles.
+pub fn dominant_period(signal: &[f64]) -> Option<f64> {
+    let n = signal.len();
+    let mean = signal.iter().sum::<f64>() / n.max(1) as f64;
+    let centred: Vec<f64> = signal.iter().map(|v| v - mean).collect();
+    if centred.iter().all(|v| v.abs() < 1e-12) {
+        return None;
+    }
+    let power = |k: usize| {
+        let omega = std::f64::consts::TAU * k as f64 / n as f64;
+        let (re, im) = centred
+            .iter()
+            .enumerate()
+            .fold((0.0, 0.0), |(re, im), (t, v)| {
+                let angle = omega * t as f64;
+                (re + v * angle.cos(), im - v * angle.sin())
+            });
+        re * re + im * im
+    };
+    (FEWEST_CYCLES..=n / SHORTEST_PERIOD)
+        .map(|k| (k, power(k)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(k, _)| n as f64 / k as f64)
+}
+
+/// Least-squares fit of `a cos(w t) + b sin(w t) + c` with `w = 2 pi / period`.
+pub fn fit_harmonic(signal: &[f64], period: f64) -> Option<Harmonic> {
+    let omega = std::f64::consts::TAU / period;
+    let rows: Vec<Vec<f64>> = (0..signal.len())
+        .map(|t| vec![(omega * t as f64).cos(), (omega * t as f64).sin()])
+        .collect();
+    let x = DenseMatrix::from_2d_vec(&rows).ok()?;
+    let y = signal.to_vec();
+    let model: LinearRegression<f64, f64, DenseMatrix<f64>, Vec<f64>> =
+        LinearRegression::fit(&x, &y, LinearRegressionParameters::default()).ok()?;
+    let (a, b) = (
+        *model.coefficients().get((0, 0)),
+        *model.coefficients().get((1, 0)),
+    );
+    let fitted = model.predict(&x).ok()?;
+    let mean = y.iter().sum::<f64>() / y.len() as f64;
+    let total: f64 = y.iter().map(|v| (v - mean).powi(2)).sum();
+    let residual: f64 = y.iter().zip(&fitted).map(|(v, f)| (v - f).powi(2)).sum();
+    Some(Harmonic {
+        amplitude: a.hypot(b),
+        phase: b.atan2(a),
+        r_squared: if total > 0.0 {
+            1.0 - residual / total
+        } else {
+            0.0
+        },
+    })
+}
+
+/// An angle difference in degrees, wrapped into (-180, 180].
+fn wrapped_degrees(radians: f64) -> f64 {
+    let degrees = radians.to_degrees().rem_euclid(360.0);
+    if degrees > 180.0 {
+        degrees - 360.0
+    } else {
+        degrees
+    }
+}
+
+/// One agent's rhythm in one signal.
+struct Rhythm {
+    motion: usize,
+    agent: usize,
+    signal: &'static str,
+    period: Option<f64>,
+    team_period: Option<f64>,
+    harmonic: Option<Harmonic>,
+    phase_to_agent_0: Option<f64>,
+}
+
+fn rhythms(motions: &[Motion]) -> Vec<Rhythm> {
+    let mut rows = Vec::new();
+    for (index, motion) in motions.iter().enumerate() {
+        for (signal, values) in [("y", &motion.y), ("sin_theta", &motion.sin_theta)] {
+            let periods: Vec<Option<f64>> = values.iter().map(|v| dominant_period(v)).collect();
+            let team_period = median(periods.iter().flatten().copied().collect());
+            let harmonics: Vec<Option<Harmonic>> = values
+                .iter()
+                .map(|v| team_period.and_then(|p| fit_harmonic(v, p)))
+                .collect();
+            for agent in 0..motion.agents {
+                let phase = match (harmonics[0], harmonics[agent]) {
+                    (Some(first), Some(this)) => Some(wrapped_degrees(this.phase - first.phase)),
+                    _ => None,
+                };
+                rows.push(Rhythm {
+                    motion: index,
+                    agent,
+                    signal,
+                    period: periods[agent],
+                    team_period,
+                    harmonic: harmonics[agent],
+                    phase_to_agent_0: phase,
+                });
+            }
+        }
+    }
+    rows
+}
+
+fn median(mut values: Vec<f64>) -> Option<f64> {
+    values.sort_unstable_by(f64::total_cmp);
+    let n = values.len();
+    match n {
+        0 => None,
+        _ if n % 2 == 1 => Some(values[n / 2]),
+        _ => Some((values[n / 2 - 1] + values[n / 2]) / 2.0),
+    }
+}
+
+/// Motion features of one agent, for the roles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Features {
+    /// Root mean square distance from its own mean position (cells).
+    radius_of_gyration: f64,
+    /// Share of steps in which it changed cell.
+    moving_share: f64,
+}
+
+fn features(x: &[f64], y: &[f64]) -> Features {
+    let n = x.len().max(1) as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let spread = x
+        .iter()
+        .zip(y)
+        .map(|(a, b)| (a - mx).powi(2) + (b - my).powi(2))
+        .sum::<f64>()
+        / n;
+    let moves = x
+        .windows(2)
+        .zip(y.windows(2))
+        .filter(|(a, b)| a[0] != a[1] || b[0] != b[1])
+        .count();
+    Features {
+        radius_of_gyration: spread.sqrt(),
+        moving_share: moves as f64 / (x.len().max(2) - 1) as f64,
+    }
+}
+
+/// Roles of every agent of `motions` on one map: 2-means on the standardised features of all
+/// its agents (every policy and N_test), the cluster of smaller mean radius of gyration being
+/// "stationary". With fewer than two distinct feature vectors every agent is "touring".
+fn roles(features: &[Features], seed: u64) -> Vec<&'static str> {
+    let distinct_points = distinct(
+        features
+            .iter()
+            .map(|f| (f.radius_of_gyration.to_bits(), f.moving_share.to_bits())),
+    );
+    if distinct_points.len() < 2 {
+        return vec!["touring"; features.len()];
+    }
+    let columns = [
+        standardised(features.iter().map(|f| f.radius_of_gyration).collect()),
+        standardised(features.iter().map(|f| f.moving_share).collect()),
+    ];
+    let data = Array2::from_shape_fn((features.len(), 2), |(i, j)| columns[j][i]);
+    let dataset = DatasetBase::from(data.clone());
+    let rng = rand_pcg_03::Pcg64Mcg::seed_from_u64(seed);
+    let Ok(model) = KMeans::params_with_rng(2, rng).fit(&dataset) else {
+        return vec!["touring"; features.len()];
+    };
+    let labels = model.predict(&data);
+    let spread_of = |cluster: usize| {
+        let members: Vec<f64> = labels
+            .iter()
+            .zip(features)
+            .filter(|(l, _)| **l == cluster)
+            .map(|(_, f)| f.radius_of_gyration)
+            .collect();
+        members.iter().sum::<f64>() / members.len().max(1) as f64
+    };
+    let stationary = if spread_of(0) <= spread_of(1) { 0 } else { 1 };
+    labels
+        .iter()
+        .map(|&l| {
+            if l == stationary {
+                "stationary"
+            } else {
+                "touring"
+            }
+        })
+        .collect()
+}
+
+fn standardised(values: Vec<f64>) -> Vec<f64> {
+    let n = values.len().max(1) as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let std = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    values
+        .iter()
+        .map(|v| if std > 0.0 { (v - mean) / std } else { 0.0 })
+        .collect()
+}
+
+pub fn section(report: &mut ReportWriter, motions: &[Motion]) -> Result<(), ReportError> {
+    report.heading(2, "Emergent behaviour, measured (RQ3)");
+    report.paragraph(&format!(
+        "Per agent of every recorded episode: the dominant period of y(t) and of sin(theta(t)) \
+         (the periodogram's peak, periods from {SHORTEST_PERIOD} steps to half the episode); \
+         a least-squares harmonic fit at the team's period (the median of its agents' \
+         periods), whose phase against agent 0 is `phase_to_agent_0` (degrees) and whose \
+         share of explained variance is `r_squared` (a phase means little when it is low); \
+         and a role, stationary or touring, by 2-means on the agents' radius of gyration \
+         and share of steps moved, pooled per map."
+    ));
+    let rhythm = rhythms(motions);
+    let rhythm_frame = rhythm_frame(motions, &rhythm)?;
+    let roles = agent_roles(motions);
+    let role_frame = role_frame(motions, &roles)?;
+    report.paragraph(&statements(motions, &rhythm, &roles));
+    report.heading(3, "Periods and phases");
+    report.table("rhythm", &rhythm_frame)?;
+    report.heading(3, "Roles");
+    report.table("roles", &role_frame)
+}
+
+fn rhythm_frame(motions: &[Motion], rows: &[Rhythm]) -> PolarsResult<DataFrame> {
+    let group = |r: &Rhythm| &motions[r.motion].group;
+    let harmonic = |f: fn(&Harmonic) -> f64| -> Vec<Option<f64>> {
+        rows.iter().map(|r| r.harmonic.as_ref().map(f)).collect()
+    };
+    df!(
+        "map" => rows.iter().map(|r| group(r).map.clone()).collect::<Vec<_>>(),
+        "policy" => rows.iter().map(|r| group(r).policy.policy.clone()).collect::<Vec<_>>(),
+        "n_train" => rows.iter().map(|r| group(r).policy.n_train).collect::<Vec<_>>(),
+        "n_test" => rows.iter().map(|r| group(r).n_test).collect::<Vec<_>>(),
+        "agent" => rows.iter().map(|r| r.agent as u32).collect::<Vec<_>>(),
+        "signal" => rows.iter().map(|r| r.signal).collect::<Vec<_>>(),
+        "period" => rows.iter().map(|r| r.period).collect::<Vec<_>>(),
+        "team_period" => rows.iter().map(|r| r.team_period).collect::<Vec<_>>(),
+        "amplitude" => harmonic(|h| h.amplitude),
+        "phase_to_agent_0" => rows.iter().map(|r| r.phase_to_agent_0).collect::<Vec<_>>(),
+        "r_squared" => harmonic(|h| h.r_squared),
+    )
+}
+
+/// An agent of a recorded episode (`motions[motion]`), its features and its role.
+struct AgentRole {
+    motion: usize,
+    agent: usize,
+    features: Features,
+    role: &'static str,
+}
+
+fn agent_roles(motions: &[Motion]) -> Vec<AgentRole> {
+    let mut rows = Vec::new();
+    for map in distinct(motions.iter().map(|m| m.group.map.clone())) {
+        let agents: Vec<(usize, usize, Features)> = motions
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.group.map == map)
+            .flat_map(|(i, m)| (0..m.agents).map(move |a| (i, a, features(&m.x[a], &m.y[a]))))
+            .collect();
+        let features: Vec<Features> = agents.iter().map(|a| a.2).collect();
+        let roles = roles(&features, named_seed(&map).value());
+        rows.extend(
+            agents
+                .into_iter()
+                .zip(roles)
+                .map(|((motion, agent, features), role)| AgentRole {
+                    motion,
+                    agent,
+                    features,
+                    role,
+                }),
+        );
+    }
+    rows
+}
+
+fn role_frame(motions: &[Motion], rows: &[AgentRole]) -> PolarsResult<DataFrame> {
+    let group = |r: &AgentRole| &motions[r.motion].group;
+    df!(
+        "map" => rows.iter().map(|r| group(r).map.clone()).collect::<Vec<_>>(),
+        "policy" => rows.iter().map(|r| group(r).policy.policy.clone()).collect::<Vec<_>>(),
+        "n_train" => rows.iter().map(|r| group(r).policy.n_train).collect::<Vec<_>>(),
+        "n_test" => rows.iter().map(|r| group(r).n_test).collect::<Vec<_>>(),
+        "agent" => rows.iter().map(|r| r.agent as u32).collect::<Vec<_>>(),
+        "radius_of_gyration" => rows.iter().map(|r| r.features.radius_of_gyration).collect::<Vec<_>>(),
+        "moving_share" => rows.iter().map(|r| r.features.moving_share).collect::<Vec<_>>(),
+        "role" => rows.iter().map(|r| r.role).collect::<Vec<_>>(),
+    )
+}
+
+/// One sentence per recorded episode: the team's periods, the phases of its agents against
+/// agent 0 and how many agents hold each role, as the tables hold them.
+fn statements(motions: &[Motion], rhythm: &[Rhythm], roles: &[AgentRole]) -> String {
+    let mut lines = Vec::new();
+    for (index, motion) in motions.iter().enumerate() {
+        let of = |signal: &'static str| {
+            rhythm
+                .iter()
+                .filter(move |r| r.motion == index && r.signal == signal)
+        };
+        let describe = |signal: &'static str, name: &str| -> String {
+            let Some(period) = of(signal).next().and_then(|r| r.team_period) else {
+                return format!("{name}: no rhythm");
+            };
+            let phases: Vec<String> = of(signal)
+                .skip(1)
+                .map(|r| r.phase_to_agent_0.map_or("-".into(), number))
+                .collect();
+            let fit: Vec<String> = of(signal)
+                .map(|r| r.harmonic.map_or("-".into(), |h| number(h.r_squared)))
+                .collect();
+            format!(
+                "{name} period {} steps, phases to agent 0 [{}] degrees (R^2 [{}])",
+                number(period),
+                phases.join(", "),
+                fit.join(", ")
+            )
+        };
+        let stationary = roles
+            .iter()
+            .filter(|r| r.motion == index && r.role == "stationary")
+            .count();
+        lines.push(format!(
+            "- {}: {}; {}; {stationary} stationary and {} touring agents.",
+            motion.group.label(),
+            describe("y", "y(t)"),
+            describe("sin_theta", "sin(theta(t))"),
+            motion.agents - stationary
+        ));
+    }
+    lines.join("\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wave(period: f64, phase: f64, steps: usize) -> Vec<f64> {
+        (0..steps)
+            .map(|t| 3.0 * (std::f64::consts::TAU * t as f64 / period - phase).cos() + 10.0)
+            .collect()
+    }
+
+    #[test]
+    fn the_periodogram_finds_the_period_and_the_fit_the_phase() {
+        let signal = wave(250.0, 1.0, 2000);
+        assert_eq!(dominant_period(&signal), Some(250.0));
+        let fit = fit_harmonic(&signal, 250.0).unwrap();
+        assert!((fit.amplitude - 3.0).abs() < 1e-9, "{fit:?}");
+        assert!((fit.phase - 1.0).abs() < 1e-9, "{fit:?}");
+        assert!((fit.r_squared - 1.0).abs() < 1e-9, "{fit:?}");
+        assert_eq!(dominant_period(&[5.0; 100]), None);
+        assert_eq!(
+            dominant_period(&[1.0, 2.0, 1.0]),
+            None,
+            "too short for two cycles"
+        );
+    }
+
+    #[test]
+    fn phase_differences_wrap() {
+        assert!((wrapped_degrees(std::f64::consts::PI) - 180.0).abs() < 1e-9);
+        assert!((wrapped_degrees(-std::f64::consts::FRAC_PI_2) + 90.0).abs() < 1e-9);
+        assert!((wrapped_degrees(3.0 * std::f64::consts::PI) - 180.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn still_and_moving_agents_get_their_roles() {
+        let still = Features {
+            radius_of_gyration: 0.5,
+            moving_share: 0.05,
+        };
+        let moving = Features {
+            radius_of_gyration: 12.0,
+            moving_share: 0.95,
+        };
+        let roles = roles(&[moving, still, moving, moving], 7);
+        assert_eq!(roles, vec!["touring", "stationary", "touring", "touring"]);
+        assert_eq!(super::roles(&[still, still], 7), vec!["touring", "touring"]);
+        let f = features(&[0.0, 1.0, 1.0, 0.0], &[0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(f.radius_of_gyration, 0.5);
+        assert!((f.moving_share - 2.0 / 3.0).abs() < 1e-12);
+    }
+}

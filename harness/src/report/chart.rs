@@ -1,0 +1,209 @@
+//! Figures drawn once and rendered twice: PNG (for the README) and SVG (for print), with
+//! Plotters and an embedded font, so reports need no system fonts.
+
+pub mod bars;
+pub mod grid;
+pub mod heatmap;
+pub mod lines;
+
+use std::sync::OnceLock;
+
+use image::ImageEncoder;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::{FontStyle, register_font};
+
+/// Why a figure could not be drawn.
+#[derive(Debug, thiserror::Error)]
+#[error("drawing a figure: {0}")]
+pub struct ChartError(String);
+
+impl<E: std::error::Error + Send + Sync> From<DrawingAreaErrorKind<E>> for ChartError {
+    fn from(error: DrawingAreaErrorKind<E>) -> Self {
+        Self(error.to_string())
+    }
+}
+
+impl From<image::ImageError> for ChartError {
+    fn from(error: image::ImageError) -> Self {
+        Self(error.to_string())
+    }
+}
+
+/// A figure, drawn the same way on any backend.
+pub trait Figure {
+    /// Width and height in pixels (SVG user units).
+    fn size(&self) -> (u32, u32);
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), ChartError>;
+}
+
+/// A figure as PNG bytes and SVG text.
+pub struct Rendered {
+    pub png: Vec<u8>,
+    pub svg: String,
+}
+
+/// The font every figure uses.
+pub const FONT: &str = "sans-serif";
+
+pub fn render(figure: &impl Figure) -> Result<Rendered, ChartError> {
+    register_embedded_font()?;
+    let (width, height) = figure.size();
+    let mut pixels = vec![0u8; width as usize * height as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut pixels, (width, height)).into_drawing_area();
+        root.fill(&WHITE)?;
+        figure.draw(&root)?;
+        root.present()?;
+    }
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png).write_image(
+        &pixels,
+        width,
+        height,
+        image::ColorType::Rgb8,
+    )?;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
+        root.fill(&WHITE)?;
+        figure.draw(&root)?;
+        root.present()?;
+    }
+    Ok(Rendered { png, svg })
+}
+
+/// Plotters finds fonts by name in a process-wide table; ours is the embedded DejaVu Sans.
+fn register_embedded_font() -> Result<(), ChartError> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED
+        .get_or_init(|| register_font(FONT, FontStyle::Normal, dejavu::sans::regular()).is_ok());
+    match ok {
+        true => Ok(()),
+        false => Err(ChartError("the embedded font does not load".into())),
+    }
+}
+
+/// The colour of series `index`: distinct, and the same series keeps its colour everywhere.
+pub fn series_colour(index: usize) -> RGBColor {
+    const COLOURS: [RGBColor; 10] = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(214, 39, 40),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(127, 127, 127),
+        RGBColor(188, 189, 34),
+        RGBColor(23, 190, 207),
+    ];
+    COLOURS[index % COLOURS.len()]
+}
+
+/// Blue at 0 through white to red at 1: a penalty's share of Rmax, or a heat map's place
+/// between its lowest and highest value.
+pub fn diverging(fraction: f64) -> RGBColor {
+    let t = fraction.clamp(0.0, 1.0);
+    let (blue, red) = ((49.0, 54.0, 149.0), (165.0, 0.0, 38.0));
+    let white = (247.0, 247.0, 247.0);
+    let mix = |a: (f64, f64, f64), b: (f64, f64, f64), s: f64| {
+        RGBColor(
+            (a.0 + (b.0 - a.0) * s) as u8,
+            (a.1 + (b.1 - a.1) * s) as u8,
+            (a.2 + (b.2 - a.2) * s) as u8,
+        )
+    };
+    if t < 0.5 {
+        mix(blue, white, t * 2.0)
+    } else {
+        mix(white, red, (t - 0.5) * 2.0)
+    }
+}
+
+/// Axis range with a margin, never empty.
+pub fn padded_range(values: impl Iterator<Item = f64>, from_zero: bool) -> std::ops::Range<f64> {
+    let (mut low, mut high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+        (l.min(v), h.max(v))
+    });
+    if from_zero {
+        low = low.min(0.0);
+        high = high.max(0.0);
+    }
+    if !low.is_finite() || !high.is_finite() {
+        return 0.0..1.0;
+    }
+    let margin = ((high - low) * 0.05).max(1e-9);
+    (if from_zero && low == 0.0 {
+        0.0
+    } else {
+        low - margin
+    })..high + margin
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn colours_run_from_blue_to_red() {
+        assert_eq!(diverging(0.0), RGBColor(49, 54, 149));
+        assert_eq!(diverging(1.0), RGBColor(165, 0, 38));
+        assert_eq!(diverging(0.5), RGBColor(247, 247, 247));
+        assert_eq!(diverging(7.0), diverging(1.0));
+    }
+
+    /// Decodes a rendered figure's PNG and checks both files against the figure's size.
+    fn assert_renders(figure: &impl Figure) {
+        let rendered = render(figure).unwrap();
+        let image = image::load_from_memory(&rendered.png).unwrap();
+        assert_eq!((image.width(), image.height()), figure.size());
+        let (width, height) = figure.size();
+        assert!(rendered.svg.starts_with("<svg"), "{}", &rendered.svg[..40]);
+        assert!(
+            rendered
+                .svg
+                .contains(&format!("width=\"{width}\" height=\"{height}\""))
+        );
+    }
+
+    #[test]
+    fn heat_maps_and_banded_curves_render() {
+        let panel = |title: &str| heatmap::HeatPanel {
+            title: title.into(),
+            rows: vec!["2".into(), "4".into()],
+            columns: vec!["2".into(), "4".into(), "6".into()],
+            values: vec![
+                vec![Some(1.0), None, Some(3.5)],
+                vec![Some(2.0), Some(0.5), None],
+            ],
+        };
+        assert_renders(&heatmap::HeatMaps {
+            row_label: "N_train".into(),
+            column_label: "N_test".into(),
+            panels: vec![panel("ma-g-ppo"), panel("ma-ppo")],
+        });
+        let points: Vec<(f64, f64)> = (0..50).map(|i| (i as f64, (i as f64).sqrt())).collect();
+        assert_renders(&lines::LineChart {
+            x_label: "training episode".into(),
+            panels: vec![lines::Panel {
+                title: "curve".into(),
+                y_label: "penalty".into(),
+                lines: vec![lines::Line {
+                    label: "ma-g-ppo".into(),
+                    band: Some(points.iter().map(|p| (p.1 - 0.5, p.1 + 0.5)).collect()),
+                    points,
+                }],
+            }],
+        });
+    }
+
+    #[test]
+    fn ranges_are_never_empty() {
+        assert_eq!(padded_range([].into_iter(), false), 0.0..1.0);
+        let r = padded_range([2.0, 2.0].into_iter(), true);
+        assert!(r.start == 0.0 && r.end > 2.0);
+        let r = padded_range([-1.0, 1.0].into_iter(), false);
+        assert!(r.start < -1.0 && r.end > 1.0);
+    }
+}

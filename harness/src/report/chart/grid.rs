@@ -1,0 +1,119 @@
+//! Grid maps side by side: cells shaded (penalty from blue at 0 to red at -Rmax, obstacles
+//! dark, agents black), with agents' trails and markers on top. The map illustration
+//! (mini-map, penalty map, local map) and the trajectory figures are both made of these.
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::{ChartError, FONT, Figure, series_colour};
+
+/// What a cell shows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shade {
+    Free,
+    Obstacle,
+    Agent,
+    /// A penalty as a share of Rmax, 0 (just seen) to 1 (-Rmax).
+    Penalty(f64),
+}
+
+pub struct GridPanel {
+    pub title: String,
+    pub width: usize,
+    pub height: usize,
+    /// Row-major from the bottom row: `cells[y * width + x]`.
+    pub cells: Vec<Shade>,
+    /// Per agent, its path through cell centres.
+    pub trails: Vec<Vec<(f64, f64)>>,
+    /// Per agent, where it is at the end (circled, in its trail's colour).
+    pub markers: Vec<(f64, f64)>,
+}
+
+pub struct GridFigure {
+    pub panels: Vec<GridPanel>,
+}
+
+impl Figure for GridFigure {
+    fn size(&self) -> (u32, u32) {
+        (520 * self.panels.len().max(1) as u32, 560)
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), ChartError> {
+        let areas = root.split_evenly((1, self.panels.len().max(1)));
+        for (panel, area) in self.panels.iter().zip(&areas) {
+            draw_panel(panel, area)?;
+        }
+        Ok(())
+    }
+}
+
+fn draw_panel<DB: DrawingBackend>(
+    panel: &GridPanel,
+    area: &DrawingArea<DB, Shift>,
+) -> Result<(), ChartError> {
+    let (width, height) = (panel.width as f64, panel.height as f64);
+    let mut chart = ChartBuilder::on(area)
+        .caption(&panel.title, (FONT, 20))
+        .margin(12)
+        .x_label_area_size(30)
+        .y_label_area_size(40)
+        .build_cartesian_2d(0.0..width, 0.0..height)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .label_style((FONT, 13))
+        .draw()?;
+    let shaded = panel.cells.iter().enumerate().filter_map(|(i, shade)| {
+        let colour = match *shade {
+            Shade::Free => return None,
+            Shade::Obstacle => RGBColor(60, 60, 60),
+            Shade::Agent => BLACK,
+            Shade::Penalty(fraction) => penalty_colour(fraction),
+        };
+        let (x, y) = ((i % panel.width) as f64, (i / panel.width) as f64);
+        Some(Rectangle::new(
+            [(x, y), (x + 1.0, y + 1.0)],
+            colour.filled(),
+        ))
+    });
+    chart.draw_series(shaded)?;
+    for (agent, trail) in panel.trails.iter().enumerate() {
+        let colour = series_colour(agent);
+        chart
+            .draw_series(LineSeries::new(
+                trail.iter().copied(),
+                colour.stroke_width(2),
+            ))?
+            .label(format!("agent {agent}"))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
+    }
+    chart.draw_series(
+        panel
+            .markers
+            .iter()
+            .enumerate()
+            .map(|(agent, &at)| Circle::new(at, 6, series_colour(agent).stroke_width(3))),
+    )?;
+    if !panel.trails.is_empty() {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font((FONT, 12))
+            .draw()?;
+    }
+    Ok(())
+}
+
+/// Blue for a cell just seen, red for one at -Rmax, straight between (no white, which would
+/// read as free space).
+pub fn penalty_colour(fraction: f64) -> RGBColor {
+    let t = fraction.clamp(0.0, 1.0);
+    let channel = |from: f64, to: f64| (from + (to - from) * t) as u8;
+    RGBColor(
+        channel(40.0, 215.0),
+        channel(90.0, 40.0),
+        channel(215.0, 40.0),
+    )
+}

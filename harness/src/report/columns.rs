@@ -1,0 +1,147 @@
+//! Reading the store's tables column by column, and the key every report groups by.
+
+use polars::prelude::*;
+
+fn missing(name: &str) -> PolarsError {
+    PolarsError::NoData(format!("a null in column {name}").into())
+}
+
+pub fn strings(frame: &DataFrame, name: &str) -> PolarsResult<Vec<String>> {
+    frame
+        .column(name)?
+        .str()?
+        .iter()
+        .map(|v| v.map(str::to_owned).ok_or_else(|| missing(name)))
+        .collect()
+}
+
+pub fn optional_u32s(frame: &DataFrame, name: &str) -> PolarsResult<Vec<Option<u32>>> {
+    Ok(frame.column(name)?.u32()?.iter().collect())
+}
+
+pub fn u32s(frame: &DataFrame, name: &str) -> PolarsResult<Vec<u32>> {
+    optional_u32s(frame, name)?
+        .into_iter()
+        .map(|v| v.ok_or_else(|| missing(name)))
+        .collect()
+}
+
+pub fn f64s(frame: &DataFrame, name: &str) -> PolarsResult<Vec<f64>> {
+    let column = frame.column(name)?.cast(&DataType::Float64)?;
+    column
+        .f64()?
+        .iter()
+        .map(|v| v.ok_or_else(|| missing(name)))
+        .collect()
+}
+
+/// A policy as the tables name it: its label and, for a learned one, its N_train.
+#[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct PolicyKey {
+    pub policy: String,
+    pub n_train: Option<u32>,
+}
+
+impl PolicyKey {
+    pub fn label(&self) -> String {
+        match self.n_train {
+            Some(n) => format!("{} (N_train={n})", self.policy),
+            None => self.policy.clone(),
+        }
+    }
+}
+
+/// The rows of one (map, policy, N_train, N_test), the unit of the summary.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct GroupKey {
+    pub map: String,
+    pub policy: PolicyKey,
+    pub n_test: u32,
+}
+
+impl GroupKey {
+    /// Every row's group, in row order.
+    pub fn of_rows(frame: &DataFrame) -> PolarsResult<Vec<GroupKey>> {
+        let maps = strings(frame, "map")?;
+        let policies = strings(frame, "policy")?;
+        let n_trains = optional_u32s(frame, "n_train")?;
+        let n_tests = u32s(frame, "n_test")?;
+        Ok(maps
+            .into_iter()
+            .zip(policies)
+            .zip(n_trains)
+            .zip(n_tests)
+            .map(|(((map, policy), n_train), n_test)| GroupKey {
+                map,
+                policy: PolicyKey { policy, n_train },
+                n_test,
+            })
+            .collect())
+    }
+
+    pub fn label(&self) -> String {
+        format!(
+            "{}, {}, N_test={}",
+            self.map,
+            self.policy.label(),
+            self.n_test
+        )
+    }
+
+    pub fn stem(&self) -> Vec<String> {
+        let mut parts = vec![self.map.clone(), self.policy.policy.clone()];
+        if let Some(n) = self.policy.n_train {
+            parts.push(format!("train{n}"));
+        }
+        parts.push(format!("test{}", self.n_test));
+        parts
+    }
+}
+
+/// The distinct values of `items` in order of first appearance.
+pub fn distinct<T: Clone + PartialEq>(items: impl IntoIterator<Item = T>) -> Vec<T> {
+    let mut seen: Vec<T> = Vec::new();
+    for item in items {
+        if !seen.contains(&item) {
+            seen.push(item);
+        }
+    }
+    seen
+}
+
+/// Row indices grouped by key, groups in order of first appearance.
+pub fn group_rows<T: Clone + PartialEq>(keys: &[T]) -> Vec<(T, Vec<usize>)> {
+    let mut groups: Vec<(T, Vec<usize>)> = Vec::new();
+    for (row, key) in keys.iter().enumerate() {
+        match groups.iter_mut().find(|(k, _)| k == key) {
+            Some((_, rows)) => rows.push(row),
+            None => groups.push((key.clone(), vec![row])),
+        }
+    }
+    groups
+}
+
+/// A seed named by text, so a statistic's resampling does not depend on row order.
+pub fn named_seed(name: &str) -> world::Seed {
+    let hash = blake3::hash(name.as_bytes());
+    let bytes: [u8; 8] = hash.as_bytes()[..8]
+        .try_into()
+        .expect("a blake3 hash has 32 bytes");
+    world::Seed::new(u64::from_le_bytes(bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn groups_keep_first_appearance_order() {
+        let keys = ["b", "a", "b", "c", "a"];
+        let groups = group_rows(&keys);
+        assert_eq!(
+            groups,
+            vec![("b", vec![0, 2]), ("a", vec![1, 4]), ("c", vec![3])]
+        );
+        assert_eq!(distinct(keys), vec!["b", "a", "c"]);
+    }
+}

@@ -1,0 +1,78 @@
+//! Tables as Markdown: every column of a frame, numbers to four significant digits, so a
+//! reader sees the Parquet table's values (the Parquet file holds them exactly).
+
+use polars::prelude::*;
+
+/// A Markdown table of `frame`; nulls are empty cells.
+pub fn table(frame: &DataFrame) -> PolarsResult<String> {
+    let names: Vec<String> = frame
+        .get_column_names()
+        .iter()
+        .map(|n| n.to_string())
+        .collect();
+    let mut text = format!("| {} |\n", names.join(" | "));
+    text += &format!("|{}\n", "---|".repeat(names.len()));
+    let columns = frame.columns();
+    for row in 0..frame.height() {
+        let cells: Vec<String> = columns
+            .iter()
+            .map(|c| c.get(row).map(|v| cell(&v)))
+            .collect::<PolarsResult<_>>()?;
+        text += &format!("| {} |\n", cells.join(" | "));
+    }
+    Ok(text)
+}
+
+fn cell(value: &AnyValue) -> String {
+    match value {
+        AnyValue::Null => String::new(),
+        AnyValue::Float64(v) => number(*v),
+        AnyValue::Float32(v) => number(*v as f64),
+        AnyValue::String(s) => s.to_string(),
+        AnyValue::StringOwned(s) => s.to_string(),
+        other => other.to_string(),
+    }
+}
+
+/// Four significant digits; scientific notation for very large or small magnitudes.
+pub fn number(value: f64) -> String {
+    if value == 0.0 || !value.is_finite() {
+        return format!("{value}");
+    }
+    let magnitude = value.abs().log10().floor() as i32;
+    if !(-3..6).contains(&magnitude) {
+        return format!("{value:.3e}");
+    }
+    let decimals = (3 - magnitude).max(0) as usize;
+    format!("{value:.decimals$}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_keep_four_significant_digits() {
+        assert_eq!(number(0.0), "0");
+        assert_eq!(number(44.04), "44.04");
+        assert_eq!(number(0.12346), "0.1235");
+        assert_eq!(number(-313.66), "-313.7");
+        assert_eq!(number(12345.0), "12345");
+        assert_eq!(number(2.5e7), "2.500e7");
+        assert_eq!(number(1.0e-5), "1.000e-5");
+    }
+
+    #[test]
+    fn frames_become_pipe_tables() {
+        let frame = df!(
+            "policy" => ["gcs", "random"],
+            "n_train" => [None, Some(4u32)],
+            "mean" => [1.5, 20.25],
+        )
+        .unwrap();
+        assert_eq!(
+            table(&frame).unwrap(),
+            "| policy | n_train | mean |\n|---|---|---|\n| gcs |  | 1.500 |\n| random | 4 | 20.25 |\n"
+        );
+    }
+}

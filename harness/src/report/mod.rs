@@ -1,0 +1,225 @@
+//! Reports: `reports/<scenario>/README.md` answers a sweep's research question with tables
+//! (Markdown beside the Parquet they came from) and figures (PNG and SVG).
+//!
+//! Every section builds its table first and draws its figure from that table alone, so a
+//! figure never shows a number the report's tables do not hold. Penalties are in units of
+//! 10^6, as in the paper.
+
+mod behaviour;
+pub mod chart;
+mod columns;
+mod comparison;
+mod illustration;
+pub mod markdown;
+mod motion;
+mod penalty;
+mod training;
+mod transfer;
+
+use std::path::{Path, PathBuf};
+
+use polars::prelude::*;
+
+use crate::atomic_file::write_atomic;
+use crate::store::{Store, StoreError, tables};
+use chart::{ChartError, Figure, render};
+
+/// Penalties are reported in millions, as in the paper.
+pub const PENALTY_UNIT: f64 = 1e6;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    #[error("{0}")]
+    Polars(#[from] PolarsError),
+    #[error(transparent)]
+    Chart(#[from] ChartError),
+    #[error(transparent)]
+    Stats(#[from] crate::stats::StatsError),
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{0} holds no sweep (no sweep.json)")]
+    NoSweep(PathBuf),
+}
+
+/// What a report wrote.
+#[derive(Debug)]
+pub struct ReportSummary {
+    pub folder: PathBuf,
+    pub tables: usize,
+    pub figures: usize,
+}
+
+/// Writes the report of the sweep in `store` to `reports_root/<scenario>/`.
+pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary, ReportError> {
+    let manifest = store
+        .manifest()?
+        .ok_or_else(|| ReportError::NoSweep(store.root().to_owned()))?;
+    let mut report = ReportWriter::new(reports_root.join(&manifest.scenario))?;
+    report.heading(1, &format!("Report: {}", manifest.scenario));
+    report.paragraph(&format!(
+        "The sweep `{}` ({} cells, code version `{}`, scenario blake3 `{}`). Cumulative \
+         penalties are per test episode, in units of 10^6; intervals are 95 % stratified \
+         bootstrap intervals over test episodes within training runs.",
+        manifest.scenario,
+        manifest.cells.len(),
+        manifest.code_version,
+        &manifest.scenario_hash[..16.min(manifest.scenario_hash.len())],
+    ));
+    let summary = store.table("summary")?;
+    let episodes = store.table("episodes")?;
+    let comparisons = comparison::comparisons(&episodes)?;
+    penalty::section(&mut report, &summary, &comparisons)?;
+    comparison::section(&mut report, &comparisons)?;
+    transfer::section(&mut report, &summary)?;
+    if let Some(training) = optional_table(store, "training")? {
+        training::section(&mut report, &training)?;
+    }
+    if let Some(trajectories) = optional_table(store, "trajectories")? {
+        let motion = motion::section(&mut report, &trajectories, store)?;
+        behaviour::section(&mut report, &motion)?;
+    }
+    if let (Some(snapshots), Some(trajectories)) = (
+        optional_table(store, "snapshots")?,
+        optional_table(store, "trajectories")?,
+    ) {
+        illustration::section(&mut report, &snapshots, &trajectories, store)?;
+    }
+    report.finish()
+}
+
+/// A sweep table, or `None` when the sweep did not build it.
+fn optional_table(store: &Store, name: &str) -> Result<Option<DataFrame>, ReportError> {
+    if !store.root().join(format!("{name}.parquet")).exists() {
+        return Ok(None);
+    }
+    Ok(Some(store.table(name)?))
+}
+
+/// The report folder being written: the README's text, and its tables and figures.
+pub struct ReportWriter {
+    folder: PathBuf,
+    readme: String,
+    tables: usize,
+    figures: usize,
+}
+
+impl ReportWriter {
+    fn new(folder: PathBuf) -> Result<Self, ReportError> {
+        for sub in ["tables", "figures"] {
+            let path = folder.join(sub);
+            std::fs::create_dir_all(&path).map_err(|source| ReportError::Io { path, source })?;
+        }
+        Ok(Self {
+            folder,
+            readme: String::new(),
+            tables: 0,
+            figures: 0,
+        })
+    }
+
+    fn heading(&mut self, level: usize, text: &str) {
+        self.readme += &format!("{} {text}\n\n", "#".repeat(level));
+    }
+
+    fn paragraph(&mut self, text: &str) {
+        self.readme += text;
+        self.readme += "\n\n";
+    }
+
+    /// Writes `tables/NAME.parquet` and `tables/NAME.md`, and shows the table in the README.
+    fn table(&mut self, name: &str, frame: &DataFrame) -> Result<(), ReportError> {
+        let markdown = markdown::table(frame)?;
+        self.write(
+            &format!("tables/{name}.parquet"),
+            &tables::parquet_bytes(frame)?,
+        )?;
+        self.write(&format!("tables/{name}.md"), markdown.as_bytes())?;
+        self.tables += 1;
+        self.readme += &markdown;
+        self.readme += &format!("\n([Parquet](tables/{name}.parquet))\n\n");
+        Ok(())
+    }
+
+    /// Writes a table too long to read (per step or per cell) as Parquet only, and links it.
+    fn linked_table(
+        &mut self,
+        name: &str,
+        frame: &DataFrame,
+        what: &str,
+    ) -> Result<(), ReportError> {
+        self.write(
+            &format!("tables/{name}.parquet"),
+            &tables::parquet_bytes(frame)?,
+        )?;
+        self.tables += 1;
+        self.readme += &format!(
+            "{what}: [Parquet](tables/{name}.parquet) ({} rows).\n\n",
+            frame.height()
+        );
+        Ok(())
+    }
+
+    /// Writes `figures/NAME.png` and `figures/NAME.svg` and shows the PNG in the README.
+    fn figure(
+        &mut self,
+        name: &str,
+        figure: &impl Figure,
+        caption: &str,
+    ) -> Result<(), ReportError> {
+        let rendered = render(figure)?;
+        self.write(&format!("figures/{name}.png"), &rendered.png)?;
+        self.write(&format!("figures/{name}.svg"), rendered.svg.as_bytes())?;
+        self.figures += 1;
+        self.readme += &format!(
+            "![{caption}](figures/{name}.png)\n\n*{caption}* ([SVG](figures/{name}.svg))\n\n"
+        );
+        Ok(())
+    }
+
+    fn write(&self, relative: &str, bytes: &[u8]) -> Result<(), ReportError> {
+        let path = self.folder.join(relative);
+        write_atomic(&path, bytes).map_err(|source| ReportError::Io { path, source })
+    }
+
+    fn finish(self) -> Result<ReportSummary, ReportError> {
+        self.write("README.md", self.readme.as_bytes())?;
+        Ok(ReportSummary {
+            folder: self.folder,
+            tables: self.tables,
+            figures: self.figures,
+        })
+    }
+}
+
+/// A name safe in file names: letters, digits and `-`, everything else `_`.
+fn file_stem(parts: &[&str]) -> String {
+    parts
+        .join("_")
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn file_stems_are_plain() {
+        assert_eq!(
+            file_stem(&["open", "ma-g-ppo[mini]@smoke", "n4"]),
+            "open_ma-g-ppo_mini__smoke_n4"
+        );
+    }
+}

@@ -1,0 +1,263 @@
+//! Trajectories (RQ1, RQ3, RQ5): every agent's trail over the recorded test episode on its
+//! map, and its motion over time: y(t) (the four-room oscillation of RQ3), sin(theta(t))
+//! about the map centre (the open map's tours) and the team's penalty per step.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use polars::prelude::*;
+use world::Map;
+
+use super::chart::grid::{GridFigure, GridPanel, Shade};
+use super::chart::lines::{Line, LineChart, Panel};
+use super::columns::{GroupKey, f64s, group_rows, strings, u32s};
+use super::{ReportError, ReportWriter, file_stem};
+use crate::store::{Store, StoreError};
+
+/// The maps of a store by name, from its `cells` table and map files.
+pub fn maps(store: &Store) -> Result<HashMap<String, Map>, ReportError> {
+    let cells = store.table("cells")?;
+    let names = strings(&cells, "map")?;
+    let hashes = strings(&cells, "map_hash")?;
+    let mut maps = HashMap::new();
+    for (name, hash) in names.into_iter().zip(hashes) {
+        if maps.contains_key(&name) {
+            continue;
+        }
+        let text = store.map_text(&hash)?;
+        let file = Path::new("maps").join(format!("{hash}.txt"));
+        let map = Map::parse_text(&name, &text, &file).map_err(|e| StoreError::Corrupt {
+            path: store.root().join(&file),
+            problem: e.to_string(),
+        })?;
+        maps.insert(name, map);
+    }
+    Ok(maps)
+}
+
+/// One recorded episode's motion: per agent, per step.
+pub struct Motion {
+    pub group: GroupKey,
+    pub agents: usize,
+    pub steps: Vec<u32>,
+    /// `x[agent][t]`, cell coordinates.
+    pub x: Vec<Vec<f64>>,
+    pub y: Vec<Vec<f64>>,
+    pub sin_theta: Vec<Vec<f64>>,
+    pub penalty: Vec<f64>,
+}
+
+pub fn section(
+    report: &mut ReportWriter,
+    trajectories: &DataFrame,
+    store: &Store,
+) -> Result<Vec<Motion>, ReportError> {
+    report.heading(2, "Trajectories and motion");
+    let maps = maps(store)?;
+    let motions = motions(trajectories, &maps)?;
+    report.paragraph(
+        "The first test episode of the first training run at every N_test. Trails are the \
+         agents' cells over the whole episode (circles: where they end). sin(theta) is the \
+         sine of an agent's angle about the map centre: a steady oscillation is a tour \
+         around the centre.",
+    );
+    report.linked_table(
+        "motion",
+        &frame(&motions)?,
+        "Every agent's position, y, sin(theta) and the penalty per step",
+    )?;
+    for motion in &motions {
+        let Some(map) = maps.get(&motion.group.map) else {
+            continue;
+        };
+        report.heading(3, &motion.group.label());
+        let stem: Vec<String> = motion.group.stem();
+        let stem: Vec<&str> = stem.iter().map(String::as_str).collect();
+        report.figure(
+            &file_stem(&[&["trajectory"][..], &stem[..]].concat()),
+            &trails(motion, map),
+            &format!("Trails of every agent: {}", motion.group.label()),
+        )?;
+        report.figure(
+            &file_stem(&[&["motion"][..], &stem[..]].concat()),
+            &signals(motion),
+            &format!(
+                "y(t), sin(theta(t)) about the map centre, and the penalty per step: {}",
+                motion.group.label()
+            ),
+        )?;
+    }
+    Ok(motions)
+}
+
+fn motions(
+    trajectories: &DataFrame,
+    maps: &HashMap<String, Map>,
+) -> Result<Vec<Motion>, ReportError> {
+    let groups = GroupKey::of_rows(trajectories)?;
+    let steps = u32s(trajectories, "step")?;
+    let agents = u32s(trajectories, "agent")?;
+    let xs = f64s(trajectories, "x")?;
+    let ys = f64s(trajectories, "y")?;
+    let penalties = f64s(trajectories, "penalty")?;
+    let mut motions = Vec::new();
+    for (group, rows) in group_rows(&groups) {
+        let Some(map) = maps.get(&group.map) else {
+            continue;
+        };
+        let centre = (map.width() as f64 / 2.0, map.height() as f64 / 2.0);
+        let count = rows
+            .iter()
+            .map(|&r| agents[r] as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut motion = Motion {
+            group,
+            agents: count,
+            steps: Vec::new(),
+            x: vec![Vec::new(); count],
+            y: vec![Vec::new(); count],
+            sin_theta: vec![Vec::new(); count],
+            penalty: Vec::new(),
+        };
+        for &r in &rows {
+            let agent = agents[r] as usize;
+            if agent == 0 {
+                motion.steps.push(steps[r]);
+                motion.penalty.push(penalties[r]);
+            }
+            motion.x[agent].push(xs[r]);
+            motion.y[agent].push(ys[r]);
+            motion.sin_theta[agent].push(sin_theta(xs[r], ys[r], centre));
+        }
+        motions.push(motion);
+    }
+    Ok(motions)
+}
+
+/// The sine of the angle of cell (x, y)'s centre about `centre`; 0 at the centre itself.
+pub fn sin_theta(x: f64, y: f64, centre: (f64, f64)) -> f64 {
+    let (dx, dy) = (x + 0.5 - centre.0, y + 0.5 - centre.1);
+    let radius = dx.hypot(dy);
+    if radius == 0.0 { 0.0 } else { dy / radius }
+}
+
+fn frame(motions: &[Motion]) -> PolarsResult<DataFrame> {
+    let mut columns: [Vec<String>; 2] = Default::default();
+    let (mut n_train, mut n_test, mut step, mut agent) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut x, mut y, mut sin, mut penalty) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for m in motions {
+        for a in 0..m.agents {
+            for t in 0..m.steps.len() {
+                columns[0].push(m.group.map.clone());
+                columns[1].push(m.group.policy.policy.clone());
+                n_train.push(m.group.policy.n_train);
+                n_test.push(m.group.n_test);
+                step.push(m.steps[t]);
+                agent.push(a as u32);
+                x.push(m.x[a][t]);
+                y.push(m.y[a][t]);
+                sin.push(m.sin_theta[a][t]);
+                penalty.push(m.penalty[t]);
+            }
+        }
+    }
+    let [map, policy] = columns;
+    df!(
+        "map" => map, "policy" => policy, "n_train" => n_train, "n_test" => n_test,
+        "step" => step, "agent" => agent, "x" => x, "y" => y, "sin_theta" => sin,
+        "penalty" => penalty,
+    )
+}
+
+fn trails(motion: &Motion, map: &Map) -> GridFigure {
+    let cells = (0..map.height())
+        .flat_map(|y| (0..map.width()).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            if map.is_obstacle(x as i64, y as i64) {
+                Shade::Obstacle
+            } else {
+                Shade::Free
+            }
+        })
+        .collect();
+    let centre = |v: f64| v + 0.5;
+    GridFigure {
+        panels: vec![GridPanel {
+            title: motion.group.label(),
+            width: map.width(),
+            height: map.height(),
+            cells,
+            trails: (0..motion.agents)
+                .map(|a| {
+                    motion.x[a]
+                        .iter()
+                        .zip(&motion.y[a])
+                        .map(|(&x, &y)| (centre(x), centre(y)))
+                        .collect()
+                })
+                .collect(),
+            markers: (0..motion.agents)
+                .filter_map(|a| Some((centre(*motion.x[a].last()?), centre(*motion.y[a].last()?))))
+                .collect(),
+        }],
+    }
+}
+
+fn signals(motion: &Motion) -> LineChart {
+    let steps: Vec<f64> = motion.steps.iter().map(|&s| s as f64).collect();
+    let per_agent = |values: &[Vec<f64>]| -> Vec<Line> {
+        values
+            .iter()
+            .enumerate()
+            .map(|(a, v)| Line {
+                label: format!("agent {a}"),
+                points: steps.iter().copied().zip(v.iter().copied()).collect(),
+                band: None,
+            })
+            .collect()
+    };
+    LineChart {
+        x_label: "step".into(),
+        panels: vec![
+            Panel {
+                title: "y(t)".into(),
+                y_label: "y (cells)".into(),
+                lines: per_agent(&motion.y),
+            },
+            Panel {
+                title: "sin(theta(t)) about the map centre".into(),
+                y_label: "sin(theta)".into(),
+                lines: per_agent(&motion.sin_theta),
+            },
+            Panel {
+                title: "team penalty per step".into(),
+                y_label: "penalty".into(),
+                lines: vec![Line {
+                    label: "penalty".into(),
+                    points: steps
+                        .iter()
+                        .copied()
+                        .zip(motion.penalty.iter().copied())
+                        .collect(),
+                    band: None,
+                }],
+            },
+        ],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn angles_are_about_the_centre_of_cells() {
+        let centre = (2.0, 2.0);
+        assert_eq!(sin_theta(1.5, 3.5, centre), 1.0, "straight above");
+        assert_eq!(sin_theta(1.5, -0.5, centre), -1.0, "straight below");
+        assert_eq!(sin_theta(1.5, 1.5, centre), 0.0, "at the centre");
+        assert!((sin_theta(3.5, 3.5, centre) - 0.5f64.sqrt()).abs() < 1e-12);
+    }
+}

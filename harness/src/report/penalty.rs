@@ -1,0 +1,275 @@
+//! RQ1: the cumulative penalty of every policy, per map and N_test, as a table and grouped
+//! bars with 95 % intervals, and the answer: the best policy at every (map, N_test) against
+//! the runner-up, with the probability of improvement between them.
+
+use polars::prelude::*;
+
+use super::chart::bars::{BarSeries, GroupedBars, Interval};
+use super::columns::{GroupKey, PolicyKey, distinct, f64s, group_rows, u32s};
+use super::comparison::Comparison;
+use super::markdown::number;
+use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
+
+/// The summary's rows of one map, penalties in 10^6.
+struct MapRows {
+    map: String,
+    groups: Vec<GroupKey>,
+    episodes: Vec<u32>,
+    mean: Vec<f64>,
+    low: Vec<f64>,
+    high: Vec<f64>,
+    iqm: Vec<f64>,
+}
+
+pub fn section(
+    report: &mut ReportWriter,
+    summary: &DataFrame,
+    comparisons: &[Comparison],
+) -> Result<(), ReportError> {
+    report.heading(2, "RQ1: cumulative penalty of every policy");
+    for rows in map_rows(summary)? {
+        report.heading(3, &format!("Map `{}`", rows.map));
+        let frame = rows.frame()?;
+        report.figure(
+            &file_stem(&["penalty", &rows.map]),
+            &rows.bars(),
+            &format!(
+                "Mean cumulative penalty (10^6) on `{}` by N_test, with 95 % intervals",
+                rows.map
+            ),
+        )?;
+        report.table(&file_stem(&["penalty", &rows.map]), &frame)?;
+    }
+    let best = best_frame(summary, comparisons)?;
+    report.heading(3, "Answer: the best policy at every map and N_test");
+    report.paragraph(&answer_text(&best)?);
+    report.table("best_policy", &best)
+}
+
+fn map_rows(summary: &DataFrame) -> Result<Vec<MapRows>, ReportError> {
+    let groups = GroupKey::of_rows(summary)?;
+    let episodes = u32s(summary, "episodes")?;
+    let scaled = |name| -> PolarsResult<Vec<f64>> {
+        Ok(f64s(summary, name)?
+            .into_iter()
+            .map(|v| v / PENALTY_UNIT)
+            .collect())
+    };
+    let (mean, low, high, iqm) = (
+        scaled("mean")?,
+        scaled("mean_ci_low")?,
+        scaled("mean_ci_high")?,
+        scaled("iqm")?,
+    );
+    let maps: Vec<String> = groups.iter().map(|g| g.map.clone()).collect();
+    Ok(group_rows(&maps)
+        .into_iter()
+        .map(|(map, rows)| {
+            let pick = |values: &[f64]| rows.iter().map(|&r| values[r]).collect();
+            MapRows {
+                map,
+                groups: rows.iter().map(|&r| groups[r].clone()).collect(),
+                episodes: rows.iter().map(|&r| episodes[r]).collect(),
+                mean: pick(&mean),
+                low: pick(&low),
+                high: pick(&high),
+                iqm: pick(&iqm),
+            }
+        })
+        .collect())
+}
+
+impl MapRows {
+    fn frame(&self) -> PolarsResult<DataFrame> {
+        df!(
+            "policy" => self.groups.iter().map(|g| g.policy.policy.clone()).collect::<Vec<_>>(),
+            "n_train" => self.groups.iter().map(|g| g.policy.n_train).collect::<Vec<_>>(),
+            "n_test" => self.groups.iter().map(|g| g.n_test).collect::<Vec<_>>(),
+            "episodes" => &self.episodes,
+            "mean" => &self.mean,
+            "mean_ci_low" => &self.low,
+            "mean_ci_high" => &self.high,
+            "iqm" => &self.iqm,
+        )
+    }
+
+    fn bars(&self) -> GroupedBars {
+        let n_tests = distinct(self.groups.iter().map(|g| g.n_test));
+        let policies: Vec<PolicyKey> = distinct(self.groups.iter().map(|g| g.policy.clone()));
+        let series = policies
+            .iter()
+            .map(|policy| BarSeries {
+                label: policy.label(),
+                values: n_tests
+                    .iter()
+                    .map(|&n| {
+                        let row = self
+                            .groups
+                            .iter()
+                            .position(|g| &g.policy == policy && g.n_test == n)?;
+                        Some(Interval {
+                            value: self.mean[row],
+                            low: self.low[row],
+                            high: self.high[row],
+                        })
+                    })
+                    .collect(),
+            })
+            .collect();
+        GroupedBars {
+            title: format!("Cumulative penalty on {}", self.map),
+            x_label: "N_test (agents)".into(),
+            y_label: "cumulative penalty (10^6)".into(),
+            groups: n_tests.iter().map(|n| n.to_string()).collect(),
+            series,
+        }
+    }
+}
+
+/// Per (map, N_test): the policy of lowest mean, the runner-up, and their comparison.
+fn best_frame(summary: &DataFrame, comparisons: &[Comparison]) -> Result<DataFrame, ReportError> {
+    let groups = GroupKey::of_rows(summary)?;
+    let means = f64s(summary, "mean")?;
+    let settings: Vec<(String, u32)> = groups.iter().map(|g| (g.map.clone(), g.n_test)).collect();
+    let mut columns = BestColumns::default();
+    for ((map, n_test), rows) in group_rows(&settings) {
+        let mut ranked = rows.clone();
+        ranked.sort_by(|&a, &b| means[a].total_cmp(&means[b]));
+        let best = &groups[ranked[0]].policy;
+        let runner_up = ranked.get(1).map(|&r| &groups[r].policy);
+        let versus = runner_up.and_then(|r| find(comparisons, &map, n_test, best, r));
+        columns.push(
+            &map,
+            n_test,
+            best,
+            means[ranked[0]],
+            runner_up,
+            ranked.get(1).map(|&r| means[r]),
+            versus,
+        );
+    }
+    Ok(columns.frame()?)
+}
+
+/// The comparison of `best` against `other`, oriented so that `p` is P(best better).
+fn find(
+    comparisons: &[Comparison],
+    map: &str,
+    n_test: u32,
+    best: &PolicyKey,
+    other: &PolicyKey,
+) -> Option<(f64, f64, f64)> {
+    comparisons
+        .iter()
+        .filter(|c| c.map == map && c.n_test == n_test)
+        .find_map(|c| {
+            let (p, low, high) = c.p_improvement;
+            if &c.a == best && &c.b == other {
+                Some((p, low, high))
+            } else if &c.a == other && &c.b == best {
+                Some((1.0 - p, 1.0 - high, 1.0 - low))
+            } else {
+                None
+            }
+        })
+}
+
+#[derive(Default)]
+struct BestColumns {
+    map: Vec<String>,
+    n_test: Vec<u32>,
+    best: Vec<String>,
+    best_mean: Vec<f64>,
+    runner_up: Vec<Option<String>>,
+    runner_up_mean: Vec<Option<f64>>,
+    p_best_better: Vec<Option<f64>>,
+    p_ci_low: Vec<Option<f64>>,
+    p_ci_high: Vec<Option<f64>>,
+}
+
+impl BestColumns {
+    #[allow(clippy::too_many_arguments)]
+    fn push(
+        &mut self,
+        map: &str,
+        n_test: u32,
+        best: &PolicyKey,
+        best_mean: f64,
+        runner_up: Option<&PolicyKey>,
+        runner_up_mean: Option<f64>,
+        versus: Option<(f64, f64, f64)>,
+    ) {
+        self.map.push(map.to_owned());
+        self.n_test.push(n_test);
+        self.best.push(best.label());
+        self.best_mean.push(best_mean / PENALTY_UNIT);
+        self.runner_up.push(runner_up.map(PolicyKey::label));
+        self.runner_up_mean
+            .push(runner_up_mean.map(|m| m / PENALTY_UNIT));
+        self.p_best_better.push(versus.map(|v| v.0));
+        self.p_ci_low.push(versus.map(|v| v.1));
+        self.p_ci_high.push(versus.map(|v| v.2));
+    }
+
+    fn frame(self) -> PolarsResult<DataFrame> {
+        df!(
+            "map" => self.map,
+            "n_test" => self.n_test,
+            "best" => self.best,
+            "best_mean" => self.best_mean,
+            "runner_up" => self.runner_up,
+            "runner_up_mean" => self.runner_up_mean,
+            "p_best_better" => self.p_best_better,
+            "p_ci_low" => self.p_ci_low,
+            "p_ci_high" => self.p_ci_high,
+        )
+    }
+}
+
+/// One sentence per row of the best-policy table, numbers as the table holds them.
+fn answer_text(best: &DataFrame) -> Result<String, ReportError> {
+    let maps = super::columns::strings(best, "map")?;
+    let n_tests = u32s(best, "n_test")?;
+    let winners = super::columns::strings(best, "best")?;
+    let means = f64s(best, "best_mean")?;
+    let runner_ups: Vec<Option<String>> = best
+        .column("runner_up")?
+        .str()?
+        .iter()
+        .map(|v| v.map(str::to_owned))
+        .collect();
+    let column =
+        |name| -> PolarsResult<Vec<Option<f64>>> { Ok(best.column(name)?.f64()?.iter().collect()) };
+    let (p, low, high) = (
+        column("p_best_better")?,
+        column("p_ci_low")?,
+        column("p_ci_high")?,
+    );
+    let mut lines = Vec::new();
+    for i in 0..best.height() {
+        let mut line = format!(
+            "- `{}`, N_test = {}: **{}** has the lowest mean, {}",
+            maps[i],
+            n_tests[i],
+            winners[i],
+            number(means[i])
+        );
+        if let (Some(runner), Some(p), Some(low), Some(high)) =
+            (&runner_ups[i], p[i], low[i], high[i])
+        {
+            line += &format!(
+                "; against {runner} its probability of improvement is {} [{}, {}]{}",
+                number(p),
+                number(low),
+                number(high),
+                if low > 0.5 {
+                    ""
+                } else {
+                    " (the interval includes 0.5: not a clear win)"
+                }
+            );
+        }
+        lines.push(line + ".");
+    }
+    Ok(lines.join("\n"))
+}

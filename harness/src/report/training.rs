@@ -1,0 +1,208 @@
+//! Training curves: a learned policy's training penalty per episode (mean over training runs),
+//! as the rolling mean over 500 episodes with a +-0.5 standard deviation band (the paper's
+//! figures). Policies trained with the same N_train on one map share a plot, so RQ2's three
+//! input choices appear together.
+
+use polars::prelude::*;
+
+use super::chart::lines::{Line, LineChart, Panel};
+use super::columns::{PolicyKey, distinct, f64s, group_rows, optional_u32s, strings};
+use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
+
+/// The paper's rolling window, in episodes.
+const WINDOW: usize = 500;
+/// Points kept per curve; longer curves are sampled evenly (their last episode always kept).
+const POINTS: usize = 2000;
+
+struct Curve {
+    map: String,
+    policy: PolicyKey,
+    episode: Vec<u64>,
+    mean: Vec<f64>,
+    std: Vec<f64>,
+}
+
+pub fn section(report: &mut ReportWriter, training: &DataFrame) -> Result<(), ReportError> {
+    report.heading(2, "Training curves");
+    let curves = curves(training)?;
+    let frame = frame(&curves)?;
+    report.paragraph(&format!(
+        "Training penalty per episode (10^6, the mean over training runs), rolling mean over \
+         {WINDOW} episodes with a +-0.5 standard deviation band."
+    ));
+    report.linked_table("training_curves", &frame, "The curves")?;
+    let settings = distinct(curves.iter().map(|c| (c.map.clone(), c.policy.n_train)));
+    for (map, n_train) in settings {
+        let chosen: Vec<&Curve> = curves
+            .iter()
+            .filter(|c| c.map == map && c.policy.n_train == n_train)
+            .collect();
+        let n = n_train.map_or("?".into(), |n| n.to_string());
+        let chart = LineChart {
+            x_label: "training episode".into(),
+            panels: vec![Panel {
+                title: format!("Training on {map}, N_train = {n}"),
+                y_label: "penalty (10^6)".into(),
+                lines: chosen.iter().map(|c| line(c)).collect(),
+            }],
+        };
+        report.figure(
+            &file_stem(&["training", &map, &format!("train{n}")]),
+            &chart,
+            &format!("Rolling mean ({WINDOW} episodes) +-0.5 std of the training penalty on `{map}`, N_train = {n}"),
+        )?;
+    }
+    Ok(())
+}
+
+fn line(curve: &Curve) -> Line {
+    let xs = curve.episode.iter().map(|&e| e as f64);
+    Line {
+        label: curve.policy.policy.clone(),
+        points: xs.clone().zip(curve.mean.iter().copied()).collect(),
+        band: Some(
+            curve
+                .mean
+                .iter()
+                .zip(&curve.std)
+                .map(|(m, s)| (m - 0.5 * s, m + 0.5 * s))
+                .collect(),
+        ),
+    }
+}
+
+fn curves(training: &DataFrame) -> Result<Vec<Curve>, ReportError> {
+    let maps = strings(training, "map")?;
+    let policies = strings(training, "policy")?;
+    let n_trains = optional_u32s(training, "n_train")?;
+    let episodes: Vec<u64> = f64s(training, "episode")?
+        .into_iter()
+        .map(|e| e as u64)
+        .collect();
+    let penalties = f64s(training, "penalty")?;
+    let keys: Vec<(String, PolicyKey)> = (0..training.height())
+        .map(|i| {
+            let policy = PolicyKey {
+                policy: policies[i].clone(),
+                n_train: n_trains[i],
+            };
+            (maps[i].clone(), policy)
+        })
+        .collect();
+    Ok(group_rows(&keys)
+        .into_iter()
+        .map(|((map, policy), rows)| {
+            let per_episode = mean_per_episode(
+                rows.iter()
+                    .map(|&r| (episodes[r], penalties[r] / PENALTY_UNIT)),
+            );
+            let (mean, std) = rolling(&per_episode.iter().map(|p| p.1).collect::<Vec<_>>(), WINDOW);
+            let keep = sample(per_episode.len(), POINTS);
+            Curve {
+                map,
+                policy,
+                episode: keep.iter().map(|&i| per_episode[i].0).collect(),
+                mean: keep.iter().map(|&i| mean[i]).collect(),
+                std: keep.iter().map(|&i| std[i]).collect(),
+            }
+        })
+        .collect())
+}
+
+/// The mean penalty of every episode index over training runs, by episode.
+fn mean_per_episode(rows: impl Iterator<Item = (u64, f64)>) -> Vec<(u64, f64)> {
+    let mut sums: std::collections::BTreeMap<u64, (f64, u32)> = Default::default();
+    for (episode, penalty) in rows {
+        let entry = sums.entry(episode).or_default();
+        *entry = (entry.0 + penalty, entry.1 + 1);
+    }
+    sums.into_iter()
+        .map(|(e, (sum, n))| (e, sum / n as f64))
+        .collect()
+}
+
+/// The mean and standard deviation (divisor n) of the last `window` values at every index
+/// (fewer at the start).
+fn rolling(values: &[f64], window: usize) -> (Vec<f64>, Vec<f64>) {
+    let (mut means, mut stds) = (
+        Vec::with_capacity(values.len()),
+        Vec::with_capacity(values.len()),
+    );
+    for end in 1..=values.len() {
+        let slice = &values[end.saturating_sub(window)..end];
+        let mean = slice.iter().sum::<f64>() / slice.len() as f64;
+        let variance = slice.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / slice.len() as f64;
+        means.push(mean);
+        stds.push(variance.sqrt());
+    }
+    (means, stds)
+}
+
+/// At most `points` indices of `0..len`, evenly spread, the last one included.
+fn sample(len: usize, points: usize) -> Vec<usize> {
+    let step = len.div_ceil(points.max(1)).max(1);
+    let mut kept: Vec<usize> = (0..len).step_by(step).collect();
+    if len > 0 && kept.last() != Some(&(len - 1)) {
+        kept.push(len - 1);
+    }
+    kept
+}
+
+fn frame(curves: &[Curve]) -> PolarsResult<DataFrame> {
+    let repeat = |f: &dyn Fn(&Curve) -> String| -> Vec<String> {
+        curves
+            .iter()
+            .flat_map(|c| vec![f(c); c.episode.len()])
+            .collect()
+    };
+    df!(
+        "map" => repeat(&|c| c.map.clone()),
+        "policy" => repeat(&|c| c.policy.policy.clone()),
+        "n_train" => curves.iter().flat_map(|c| vec![c.policy.n_train; c.episode.len()]).collect::<Vec<_>>(),
+        "episode" => curves.iter().flat_map(|c| c.episode.clone()).collect::<Vec<_>>(),
+        "rolling_mean" => curves.iter().flat_map(|c| c.mean.clone()).collect::<Vec<_>>(),
+        "rolling_std" => curves.iter().flat_map(|c| c.std.clone()).collect::<Vec<_>>(),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rolling_windows_grow_then_slide() {
+        let (mean, std) = rolling(&[1.0, 3.0, 5.0, 7.0], 2);
+        assert_eq!(mean, vec![1.0, 2.0, 4.0, 6.0]);
+        assert_eq!(std, vec![0.0, 1.0, 1.0, 1.0]);
+    }
+
+    #[test]
+    fn runs_are_averaged_per_episode_and_long_curves_sampled() {
+        let rows = [(1, 4.0), (0, 1.0), (1, 2.0), (0, 3.0)];
+        assert_eq!(mean_per_episode(rows.into_iter()), vec![(0, 2.0), (1, 3.0)]);
+        assert_eq!(sample(10, 4), vec![0, 3, 6, 9]);
+        assert_eq!(sample(5, 2), vec![0, 3, 4]);
+        assert_eq!(sample(3, 10), vec![0, 1, 2]);
+    }
+
+    #[test]
+    fn a_training_table_gives_one_curve_per_policy() {
+        let episodes: Vec<u64> = (0..6).chain(0..6).collect();
+        let frame = df!(
+            "map" => vec!["open"; 12],
+            "policy" => [vec!["ma-g-ppo"; 6], vec!["ma-ppo"; 6]].concat(),
+            "n_train" => vec![Some(4u32); 12],
+            "episode" => episodes,
+            "penalty" => (0..12).map(|i| i as f64 * 1e6).collect::<Vec<_>>(),
+        )
+        .unwrap();
+        let curves = curves(&frame).unwrap();
+        assert_eq!(curves.len(), 2);
+        assert_eq!(curves[1].mean[0], 6.0);
+        assert_eq!(frame_height(&curves), 12);
+    }
+
+    fn frame_height(curves: &[Curve]) -> usize {
+        frame(curves).unwrap().height()
+    }
+}

@@ -1,0 +1,171 @@
+//! What a sweep keeps of a cell's first test episode at every N_test beyond its score: every
+//! agent's cell and the team's penalty at every step (`trajectories`), and at the last step
+//! the penalty map with the local map and mini-map the first agent sees (`snapshots`).
+//!
+//! The reports draw trajectories, motion and the map illustration from these tables alone, so
+//! a figure never holds a number the store does not. Only repetition 0 is recorded: one
+//! episode per (map, policy, N_train, N_test) is what the figures show, and the tables stay
+//! small.
+
+use polars::prelude::*;
+use world::{Episode, ObservationConfig, Observer};
+
+use crate::cell::CellConfig;
+use crate::store::tables::cell_columns;
+use crate::store::{SNAPSHOTS_FILE, StoreError, TRAJECTORIES_FILE, tables};
+
+/// Layer names of the `snapshots` table.
+pub mod layer {
+    /// The whole map: a free cell's penalty (<= 0), obstacles 150.
+    pub const PENALTY: &str = "penalty";
+    /// Agent 0's local map, in the paper's codes (obstacle 150, agent 200).
+    pub const LOCAL: &str = "local";
+    /// Agent 0's mini-map, in the paper's codes.
+    pub const MINI: &str = "mini";
+}
+
+/// The recorded steps and snapshots of a cell's chosen test episodes.
+#[derive(Default)]
+pub struct CellRecording {
+    enabled: bool,
+    steps: StepColumns,
+    snapshot: SnapshotColumns,
+}
+
+#[derive(Default)]
+struct StepColumns {
+    n_test: Vec<u32>,
+    episode: Vec<u32>,
+    step: Vec<u32>,
+    agent: Vec<u32>,
+    x: Vec<u32>,
+    y: Vec<u32>,
+    penalty: Vec<f64>,
+}
+
+#[derive(Default)]
+struct SnapshotColumns {
+    n_test: Vec<u32>,
+    episode: Vec<u32>,
+    step: Vec<u32>,
+    layer: Vec<&'static str>,
+    x: Vec<u32>,
+    y: Vec<u32>,
+    value: Vec<f32>,
+}
+
+impl CellRecording {
+    pub fn for_cell(config: &CellConfig) -> Self {
+        Self {
+            enabled: config.repetition == 0,
+            ..Self::default()
+        }
+    }
+
+    /// Whether test episode `episode` is one to record.
+    pub fn records(&self, episode: u32) -> bool {
+        self.enabled && episode == 0
+    }
+
+    /// Records the episode's state after a step; `last` is the episode's final step, where
+    /// the snapshot is taken.
+    pub fn observe(&mut self, episode: &Episode, n_test: u32, index: u32, last: usize) {
+        let step = episode.time();
+        for (agent, cell) in episode.positions().iter().enumerate() {
+            let s = &mut self.steps;
+            s.n_test.push(n_test);
+            s.episode.push(index);
+            s.step.push(step as u32);
+            s.agent.push(agent as u32);
+            s.x.push(cell.x as u32);
+            s.y.push(cell.y as u32);
+            s.penalty.push(-episode.reward());
+        }
+        if step == last {
+            self.snapshot(episode, n_test, index);
+        }
+    }
+
+    fn snapshot(&mut self, episode: &Episode, n_test: u32, index: u32) {
+        let world = episode.world();
+        let (map, grid) = (world.map(), episode.penalty());
+        let mut push = |layer, x: usize, y: usize, value: f32| {
+            let s = &mut self.snapshot;
+            s.n_test.push(n_test);
+            s.episode.push(index);
+            s.step.push(episode.time() as u32);
+            s.layer.push(layer);
+            s.x.push(x as u32);
+            s.y.push(y as u32);
+            s.value.push(value);
+        };
+        for y in 0..map.height() {
+            for x in 0..map.width() {
+                let padded = (y + grid.pad()) * grid.stride() + x + grid.pad();
+                push(layer::PENALTY, x, y, grid.codes()[padded]);
+            }
+        }
+        let mut observer = Observer::new(world, ObservationConfig::default());
+        let mut images = vec![0.0; episode.agents() * observer.per_agent()];
+        observer.write(episode, &mut images);
+        let side = observer.side();
+        let rmax = world.params().rmax();
+        for (channel, name) in [layer::LOCAL, layer::MINI].into_iter().enumerate() {
+            let image = &images[channel * side * side..(channel + 1) * side * side];
+            for (i, value) in image.iter().enumerate() {
+                push(name, i % side, i / side, value * rmax);
+            }
+        }
+    }
+
+    /// The per-cell files: none when nothing was recorded.
+    pub fn files(
+        &self,
+        key: &str,
+        config: &CellConfig,
+    ) -> Result<Vec<(&'static str, Vec<u8>)>, StoreError> {
+        if self.steps.step.is_empty() {
+            return Ok(Vec::new());
+        }
+        Ok(vec![
+            (
+                TRAJECTORIES_FILE,
+                tables::parquet_bytes(&self.trajectories_frame(key, config)?)?,
+            ),
+            (
+                SNAPSHOTS_FILE,
+                tables::parquet_bytes(&self.snapshots_frame(key, config)?)?,
+            ),
+        ])
+    }
+
+    fn trajectories_frame(&self, key: &str, config: &CellConfig) -> PolarsResult<DataFrame> {
+        let s = &self.steps;
+        let mut columns = cell_columns(key, config, s.step.len());
+        columns.extend([
+            Column::new("n_test".into(), &s.n_test),
+            Column::new("episode".into(), &s.episode),
+            Column::new("step".into(), &s.step),
+            Column::new("agent".into(), &s.agent),
+            Column::new("x".into(), &s.x),
+            Column::new("y".into(), &s.y),
+            Column::new("penalty".into(), &s.penalty),
+        ]);
+        DataFrame::new(s.step.len(), columns)
+    }
+
+    fn snapshots_frame(&self, key: &str, config: &CellConfig) -> PolarsResult<DataFrame> {
+        let s = &self.snapshot;
+        let mut columns = cell_columns(key, config, s.step.len());
+        columns.extend([
+            Column::new("n_test".into(), &s.n_test),
+            Column::new("episode".into(), &s.episode),
+            Column::new("step".into(), &s.step),
+            Column::new("layer".into(), &s.layer),
+            Column::new("x".into(), &s.x),
+            Column::new("y".into(), &s.y),
+            Column::new("value".into(), &s.value),
+        ]);
+        DataFrame::new(s.step.len(), columns)
+    }
+}

@@ -1,0 +1,368 @@
+//! `harness report` and `harness record` as a user runs them: a small sweep, its report
+//! (every figure decodes, every link resolves, the tables hold the store's numbers) and a
+//! rerun recording read back with rerun's own loader.
+
+mod common;
+
+use common::{harness, scratch, succeed};
+
+use std::path::{Path, PathBuf};
+
+use polars::prelude::*;
+
+const SCENARIO: &str = "name: tiny
+seed: 11
+maps:
+  - inline:
+      name: rooms
+      grid: |
+        ##############
+        #.....#......#
+        #.....#......#
+        #............#
+        #.....#......#
+        #.....#......#
+        ##############
+world: {fov: 5, test_steps: 60, train_steps: 10}
+policies:
+  - baseline: {name: random}
+  - baseline: {name: gcs}
+agents:
+  test: [2, 3]
+repetitions: 2
+test_episodes: 4
+";
+
+const TEST_STEPS: i64 = 60;
+
+/// A sweep of the tiny scenario in a fresh folder, and its report.
+fn sweep_and_report(test: &str) -> (PathBuf, PathBuf) {
+    let dir = scratch(test);
+    let scenario = dir.join("tiny.yaml");
+    std::fs::write(&scenario, SCENARIO).unwrap();
+    let store = dir.join("store");
+    succeed(harness(&[
+        "sweep",
+        scenario.to_str().unwrap(),
+        "--out",
+        store.to_str().unwrap(),
+        "--jobs",
+        "2",
+        "--no-report",
+    ]));
+    let reports = dir.join("reports");
+    let printed = succeed(harness(&[
+        "report",
+        store.to_str().unwrap(),
+        "--to",
+        reports.to_str().unwrap(),
+    ]));
+    println!("{printed}");
+    (store, reports.join("tiny"))
+}
+
+fn files_in(folder: &Path, extension: &str) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(folder)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == extension))
+        .collect();
+    files.sort();
+    files
+}
+
+/// The size every figure of a kind is drawn at.
+fn expected_size(stem: &str) -> (u32, u32) {
+    let kinds = [
+        ("penalty_", (960, 540)),
+        ("trajectory_", (520, 560)),
+        ("motion_", (960, 60 + 3 * 330)),
+        ("illustration_", (3 * 520, 560)),
+    ];
+    kinds
+        .iter()
+        .find(|(prefix, _)| stem.starts_with(prefix))
+        .map(|k| k.1)
+        .unwrap_or_else(|| panic!("a figure of unknown kind: {stem}"))
+}
+
+fn assert_well_formed_svg(path: &Path) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut reader = quick_xml::Reader::from_str(&text);
+    let (mut depth, mut root) = (0i64, None);
+    loop {
+        match reader.read_event() {
+            Ok(quick_xml::events::Event::Start(tag)) => {
+                root.get_or_insert_with(|| tag.name().as_ref().to_vec());
+                depth += 1;
+            }
+            Ok(quick_xml::events::Event::End(_)) => depth -= 1,
+            Ok(quick_xml::events::Event::Eof) => break,
+            Ok(_) => {}
+            Err(e) => panic!("{}: {e}", path.display()),
+        }
+    }
+    assert_eq!(depth, 0, "{}: unbalanced tags", path.display());
+    assert_eq!(root.as_deref(), Some(&b"svg"[..]), "{}", path.display());
+}
+
+/// Every link target of a Markdown text: `](target)`.
+fn links(markdown: &str) -> Vec<String> {
+    markdown
+        .split("](")
+        .skip(1)
+        .map(|rest| rest.split(')').next().unwrap().to_owned())
+        .collect()
+}
+
+/// The rows of a Markdown table as cells, header first.
+fn markdown_rows(text: &str) -> Vec<Vec<String>> {
+    text.lines()
+        .filter(|l| l.starts_with('|') && !l.starts_with("|---"))
+        .map(|l| {
+            l.trim_matches('|')
+                .split('|')
+                .map(|c| c.trim().to_owned())
+                .collect()
+        })
+        .collect()
+}
+
+fn read_parquet(path: &Path) -> DataFrame {
+    ParquetReader::new(std::fs::File::open(path).unwrap())
+        .finish()
+        .unwrap()
+}
+
+#[test]
+fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
+    let (store, report) = sweep_and_report("report");
+    let readme = std::fs::read_to_string(report.join("README.md")).unwrap();
+
+    let pngs = files_in(&report.join("figures"), "png");
+    let svgs = files_in(&report.join("figures"), "svg");
+    // Penalty bars, a trail and a motion figure per (policy, N_test), the illustration.
+    assert_eq!(pngs.len(), 1 + 2 * 2 * 2 + 1);
+    assert_eq!(pngs.len(), svgs.len());
+    for png in &pngs {
+        let stem = png.file_stem().unwrap().to_str().unwrap();
+        let image = image::open(png).unwrap_or_else(|e| panic!("{}: {e}", png.display()));
+        assert_eq!(
+            (image.width(), image.height()),
+            expected_size(stem),
+            "{stem}"
+        );
+        assert_well_formed_svg(&png.with_extension("svg"));
+    }
+    println!("{} PNG and {} SVG figures decode", pngs.len(), svgs.len());
+
+    let targets = links(&readme);
+    assert!(targets.len() > 2 * pngs.len(), "{} links", targets.len());
+    for target in &targets {
+        assert!(
+            report.join(target).exists(),
+            "README links to a missing {target}"
+        );
+    }
+    for png in &pngs {
+        let name = format!("figures/{}", png.file_name().unwrap().to_str().unwrap());
+        assert!(targets.contains(&name), "{name} is not in the README");
+    }
+
+    // The penalty table holds the summary's means and intervals (in 10^6), to its digits.
+    let summary = read_parquet(&store.join("summary.parquet"));
+    let table = std::fs::read_to_string(report.join("tables/penalty_rooms.md")).unwrap();
+    let rows = markdown_rows(&table);
+    assert_eq!(
+        rows[0][..5],
+        ["policy", "n_train", "n_test", "episodes", "mean"]
+    );
+    assert_eq!(rows.len() - 1, summary.height(), "one row per summary row");
+    let column = |name: &str| -> Vec<f64> {
+        summary
+            .column(name)
+            .unwrap()
+            .f64()
+            .unwrap()
+            .into_no_null_iter()
+            .collect()
+    };
+    let (means, lows, highs) = (
+        column("mean"),
+        column("mean_ci_low"),
+        column("mean_ci_high"),
+    );
+    let policies: Vec<String> = summary
+        .column("policy")
+        .unwrap()
+        .str()
+        .unwrap()
+        .iter()
+        .map(|p| p.unwrap().to_owned())
+        .collect();
+    for (i, row) in rows[1..].iter().enumerate() {
+        assert_eq!(row[0], policies[i]);
+        for (cell, stored) in [(&row[4], means[i]), (&row[5], lows[i]), (&row[6], highs[i])] {
+            let shown: f64 = cell.parse().unwrap();
+            let expected = stored / 1e6;
+            assert!(
+                (shown - expected).abs() <= 5e-4 * expected.abs().max(1e-3),
+                "row {i}: {shown} shown, {expected} stored"
+            );
+        }
+    }
+    // The Parquet beside it holds the same numbers exactly.
+    let parquet = read_parquet(&report.join("tables/penalty_rooms.parquet"));
+    let exact: Vec<f64> = parquet
+        .column("mean")
+        .unwrap()
+        .f64()
+        .unwrap()
+        .into_no_null_iter()
+        .collect();
+    assert_eq!(exact, means.iter().map(|m| m / 1e6).collect::<Vec<_>>());
+
+    // The comparisons cover every pair of policies at every N_test, probabilities in [0, 1].
+    let comparisons = read_parquet(&report.join("tables/comparisons.parquet"));
+    assert_eq!(
+        comparisons.height(),
+        2,
+        "random against gcs at N_test 2 and 3"
+    );
+    for name in ["p_a_better", "p_ci_low", "p_ci_high"] {
+        let values = comparisons.column(name).unwrap().f64().unwrap();
+        assert!(
+            values.into_no_null_iter().all(|p| (0.0..=1.0).contains(&p)),
+            "{name}"
+        );
+    }
+    // Behaviour is stated per agent of every recorded episode: 2 policies x (2 + 3) agents.
+    let roles = read_parquet(&report.join("tables/roles.parquet"));
+    assert_eq!(roles.height(), 2 * (2 + 3));
+    let rhythm = read_parquet(&report.join("tables/rhythm.parquet"));
+    assert_eq!(
+        rhythm.height(),
+        2 * roles.height(),
+        "y and sin(theta) per agent"
+    );
+    assert!(readme.contains("Emergent behaviour"));
+}
+
+#[test]
+fn a_recording_of_a_stored_episode_reads_back() {
+    let dir = scratch("record");
+    let scenario = dir.join("tiny.yaml");
+    // With a learned policy too (a token training run), whose recordings show attention.
+    let learned = "  - ma-g-ppo: {profile: fast, episodes: 2, set: {network: compact, environments: 2}}\n";
+    let with_learned = SCENARIO
+        .replace("agents:\n", &format!("{learned}agents:\n  train: [2]\n"));
+    std::fs::write(&scenario, with_learned).unwrap();
+    let store = dir.join("store");
+    let reports = dir.join("reports");
+    let printed = succeed(harness(&[
+        "sweep",
+        scenario.to_str().unwrap(),
+        "--out",
+        store.to_str().unwrap(),
+        "--report-to",
+        reports.to_str().unwrap(),
+    ]));
+    assert!(printed.contains("report: "), "{printed}");
+    assert!(
+        reports.join("tiny/README.md").exists(),
+        "the sweep writes its report"
+    );
+    let cells = read_parquet(&store.join("cells.parquet"));
+    let key = cells
+        .column("cell_key")
+        .unwrap()
+        .str()
+        .unwrap()
+        .get(0)
+        .unwrap()
+        .to_owned();
+    let out = dir.join("episode.rrd");
+    let printed = succeed(harness(&[
+        "record",
+        store.to_str().unwrap(),
+        "--cell",
+        &key,
+        "--n-test",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(printed.contains("episode.rrd"), "{printed}");
+    let contents = harness::recording::read_recording(&out).unwrap();
+    for entity in [
+        "/map/penalty",
+        "/map/agents",
+        "/map/fov",
+        "/map/trails",
+        "/penalty/total",
+    ] {
+        assert!(
+            contents.entities.iter().any(|e| e == entity),
+            "{entity} in {:?}",
+            contents.entities
+        );
+    }
+    assert_eq!(contents.steps, Some((0, TEST_STEPS)));
+    assert_eq!(
+        contents.rows,
+        5 * (TEST_STEPS as u64 + 1),
+        "five entities at every step"
+    );
+
+    let learned_key = cells
+        .clone()
+        .lazy()
+        .filter(col("policy").eq(lit("ma-g-ppo@fast")))
+        .collect()
+        .unwrap()
+        .column("cell_key")
+        .unwrap()
+        .str()
+        .unwrap()
+        .get(0)
+        .unwrap()
+        .to_owned();
+    let attended = dir.join("attention.rrd");
+    succeed(harness(&[
+        "record",
+        store.to_str().unwrap(),
+        "--cell",
+        &learned_key,
+        "--n-test",
+        "3",
+        "--out",
+        attended.to_str().unwrap(),
+    ]));
+    let contents = harness::recording::read_recording(&attended).unwrap();
+    // Three agents, each attending to the two others.
+    let mut expected: Vec<String> = vec!["/map/attention".to_owned()];
+    for (agent, neighbour) in [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)] {
+        expected.push(format!("/attention/{agent}/{neighbour}"));
+    }
+    for entity in &expected {
+        assert!(
+            contents.entities.contains(entity),
+            "{entity} in {:?}",
+            contents.entities
+        );
+    }
+    assert_eq!(contents.steps, Some((0, TEST_STEPS)));
+
+    let missing = harness(&[
+        "record",
+        store.to_str().unwrap(),
+        "--cell",
+        &key,
+        "--n-test",
+        "7",
+    ]);
+    assert!(!missing.status.success());
+    let error = String::from_utf8_lossy(&missing.stderr);
+    assert!(error.contains("was not tested with 7 agents"), "{error}");
+}

@@ -253,7 +253,8 @@ impl StepLogger {
         )?;
         for &(agent, neighbour, weight) in edges {
             let path = format!("{}/{agent}/{neighbour}", entity::ATTENTION_WEIGHTS);
-            self.stream.log(path, &rerun::Scalars::new([weight as f64]))?;
+            self.stream
+                .log(path, &rerun::Scalars::new([weight as f64]))?;
         }
         Ok(())
     }

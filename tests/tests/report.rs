@@ -254,9 +254,9 @@ fn a_recording_of_a_stored_episode_reads_back() {
     let dir = scratch("record");
     let scenario = dir.join("tiny.yaml");
     // With a learned policy too (a token training run), whose recordings show attention.
-    let learned = "  - ma-g-ppo: {profile: fast, episodes: 2, set: {network: compact, environments: 2}}\n";
-    let with_learned = SCENARIO
-        .replace("agents:\n", &format!("{learned}agents:\n  train: [2]\n"));
+    let learned =
+        "  - ma-g-ppo: {profile: fast, episodes: 2, set: {network: compact, environments: 2}}\n";
+    let with_learned = SCENARIO.replace("agents:\n", &format!("{learned}agents:\n  train: [2]\n"));
     std::fs::write(&scenario, with_learned).unwrap();
     let store = dir.join("store");
     let reports = dir.join("reports");

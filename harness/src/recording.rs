@@ -14,7 +14,7 @@ use rerun::external::re_entity_db::EntityDb;
 use rerun::external::re_log_encoding::DecoderApp;
 use world::{Episode, Map, World};
 
-use policies::Policy;
+use policies::{AttentionEdges, Policy};
 
 use crate::execution::{CellError, observed_test_episode, stored_policy};
 use crate::store::{Store, StoreError};
@@ -128,7 +128,7 @@ pub fn record_episode(
 /// between agents that chose its actions, for the logger to draw.
 struct AttentionTap<'a> {
     policy: &'a mut dyn Policy,
-    last: Arc<Mutex<Option<Vec<(usize, usize, f32)>>>>,
+    last: Arc<Mutex<Option<AttentionEdges>>>,
 }
 
 impl Policy for AttentionTap<'_> {
@@ -171,7 +171,7 @@ impl StepLogger {
     fn log(
         &mut self,
         episode: &Episode,
-        attention: Option<Vec<(usize, usize, f32)>>,
+        attention: Option<AttentionEdges>,
     ) -> Result<(), rerun::RecordingStreamError> {
         let map = self.world.map();
         let (width, height) = (map.width(), map.height());
@@ -227,7 +227,7 @@ impl StepLogger {
     fn log_attention(
         &self,
         centres: &[[f32; 2]],
-        edges: &[(usize, usize, f32)],
+        edges: &AttentionEdges,
     ) -> Result<(), rerun::RecordingStreamError> {
         let lines: Vec<Vec<[f32; 2]>> = edges
             .iter()

@@ -10,7 +10,7 @@ use world::{Action, Cell, Episode, ObservationConfig, Observer, Seed, World};
 use crate::nn::{
     ActorCritic, AgentGraph, Architecture, CategoricalBatch, ModelWorkspace, Neighbours,
 };
-use crate::policy::Policy;
+use crate::policy::{AttentionEdges, Policy};
 use crate::ppo::config::{ArchitectureName, ConfigError, TrainingConfig};
 
 /// How an action is read from the policy's distribution.
@@ -118,7 +118,7 @@ impl Policy for LearnedPolicy {
         self.name
     }
 
-    fn attention(&self) -> Option<Vec<(usize, usize, f32)>> {
+    fn attention(&self) -> Option<AttentionEdges> {
         if self.model.config().architecture == Architecture::MaPpo {
             return None;
         }

@@ -21,5 +21,5 @@ pub mod viewpoints;
 pub use baseline::Baseline;
 pub use error::PlanError;
 pub use learned::{ActionChoice, LearnedPolicy};
-pub use policy::Policy;
+pub use policy::{AttentionEdges, Policy};
 pub use random::RandomPolicy;

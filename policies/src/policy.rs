@@ -2,6 +2,9 @@
 
 use world::{Action, Cell, Episode, Seed, World};
 
+/// Who attended to whom and how much: `(agent, neighbour, weight)`.
+pub type AttentionEdges = Vec<(usize, usize, f32)>;
+
 /// Chooses one action per agent per step.
 ///
 /// A centralised policy reads the whole episode state; a learned one builds observations from
@@ -26,7 +29,7 @@ pub trait Policy: Send {
     /// How much each agent attended to each other at the last `act`, averaged over heads, as
     /// `(agent, neighbour, weight)`; `None` for a policy without attention. For recordings
     /// and reports, not for the hot loop: it allocates.
-    fn attention(&self) -> Option<Vec<(usize, usize, f32)>> {
+    fn attention(&self) -> Option<AttentionEdges> {
         None
     }
 }

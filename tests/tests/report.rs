@@ -249,6 +249,32 @@ fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
     assert!(readme.contains("Emergent behaviour"));
 }
 
+/// The key of the first cell of `policy` in a cells table.
+fn first_cell_of(cells: &DataFrame, policy: &str) -> String {
+    let cells = cells
+        .clone()
+        .lazy()
+        .filter(col("policy").eq(lit(policy)))
+        .collect()
+        .unwrap();
+    let keys = cells.column("cell_key").unwrap().str().unwrap();
+    keys.get(0).unwrap().to_owned()
+}
+
+/// Records episode 0 with 3 agents of cell `key` into `out`; returns what it printed.
+fn record(store: &Path, key: &str, out: &Path) -> String {
+    succeed(harness(&[
+        "record",
+        store.to_str().unwrap(),
+        "--cell",
+        key,
+        "--n-test",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]))
+}
+
 #[test]
 fn a_recording_of_a_stored_episode_reads_back() {
     let dir = scratch("record");
@@ -274,25 +300,9 @@ fn a_recording_of_a_stored_episode_reads_back() {
         "the sweep writes its report"
     );
     let cells = read_parquet(&store.join("cells.parquet"));
-    let key = cells
-        .column("cell_key")
-        .unwrap()
-        .str()
-        .unwrap()
-        .get(0)
-        .unwrap()
-        .to_owned();
+    let key = first_cell_of(&cells, "random");
     let out = dir.join("episode.rrd");
-    let printed = succeed(harness(&[
-        "record",
-        store.to_str().unwrap(),
-        "--cell",
-        &key,
-        "--n-test",
-        "3",
-        "--out",
-        out.to_str().unwrap(),
-    ]));
+    let printed = record(&store, &key, &out);
     assert!(printed.contains("episode.rrd"), "{printed}");
     let contents = harness::recording::read_recording(&out).unwrap();
     for entity in [
@@ -315,30 +325,9 @@ fn a_recording_of_a_stored_episode_reads_back() {
         "five entities at every step"
     );
 
-    let learned_key = cells
-        .clone()
-        .lazy()
-        .filter(col("policy").eq(lit("ma-g-ppo@fast")))
-        .collect()
-        .unwrap()
-        .column("cell_key")
-        .unwrap()
-        .str()
-        .unwrap()
-        .get(0)
-        .unwrap()
-        .to_owned();
+    let learned = first_cell_of(&cells, "ma-g-ppo@fast");
     let attended = dir.join("attention.rrd");
-    succeed(harness(&[
-        "record",
-        store.to_str().unwrap(),
-        "--cell",
-        &learned_key,
-        "--n-test",
-        "3",
-        "--out",
-        attended.to_str().unwrap(),
-    ]));
+    record(&store, &learned, &attended);
     let contents = harness::recording::read_recording(&attended).unwrap();
     // Three agents, each attending to the two others.
     let mut expected: Vec<String> = vec!["/map/attention".to_owned()];

@@ -124,6 +124,45 @@ pub fn record_episode(
     logger.stream.flush_blocking().map_err(|e| rerun_error(&e))
 }
 
+/// Records, for every cell of `keys` from repetition 0, its first test episode with its
+/// largest N_test into `folder/KEY.rrd` (the sweep's `--record`), skipping unfinished cells
+/// (another shard's) and recordings that exist; returns how many it wrote. Each is written under a temporary name and renamed.
+pub fn record_cells(
+    store: &Store,
+    keys: &[String],
+    folder: &Path,
+) -> Result<usize, RecordingError> {
+    let io = |path: &Path, e: std::io::Error| RecordingError::Rerun {
+        path: path.to_owned(),
+        problem: e.to_string(),
+    };
+    std::fs::create_dir_all(folder).map_err(|e| io(folder, e))?;
+    let mut written = 0;
+    for key in keys {
+        let Some(record) = store.finished(key) else {
+            continue;
+        };
+        let path = folder.join(format!("{key}.rrd"));
+        let largest = record.config.n_test.iter().max();
+        let (Some(&n_test), 0) = (largest, record.config.repetition) else {
+            continue;
+        };
+        if path.exists() {
+            continue;
+        }
+        let partial = folder.join(format!(".{key}.rrd.partial"));
+        let choice = EpisodeChoice {
+            cell: key.clone(),
+            n_test,
+            episode: 0,
+        };
+        record_episode(store, &choice, &partial)?;
+        std::fs::rename(&partial, &path).map_err(|e| io(&path, e))?;
+        written += 1;
+    }
+    Ok(written)
+}
+
 /// Passes every call on to the recorded policy and keeps, after each step, the attention
 /// between agents that chose its actions, for the logger to draw.
 struct AttentionTap<'a> {

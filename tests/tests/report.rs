@@ -293,8 +293,13 @@ fn a_recording_of_a_stored_episode_reads_back() {
         store.to_str().unwrap(),
         "--report-to",
         reports.to_str().unwrap(),
+        "--record",
     ]));
     assert!(printed.contains("report: "), "{printed}");
+    // Repetition 0 of random, gcs and ma-g-ppo.
+    assert!(printed.contains("recordings: 3 written"), "{printed}");
+    let recorded = std::fs::read_dir(store.join("recordings")).unwrap().count();
+    assert_eq!(recorded, 3);
     assert!(
         reports.join("tiny/README.md").exists(),
         "the sweep writes its report"

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
+use crate::recording::record_cells;
 use crate::report::write_report;
 use crate::scenario::Scenario;
 use crate::shard::Shard;
@@ -26,6 +27,10 @@ pub struct SweepArgs {
     /// Do not write the report at the end (a shard never does: its store is partial).
     #[arg(long)]
     no_report: bool,
+    /// Also save rerun recordings (OUT/recordings/KEY.rrd) of the first test episode, with the
+    /// largest N_test, of every cell of repetition 0.
+    #[arg(long)]
+    record: bool,
     /// Folder of reports; the report goes to its subfolder named after the scenario.
     #[arg(long, default_value = "reports")]
     report_to: PathBuf,
@@ -68,6 +73,12 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         "{} cells failed",
         report.failed.len()
     );
+    if args.record {
+        let folder = out.join("recordings");
+        let keys: Vec<String> = scenario.cells().into_iter().map(|c| c.key).collect();
+        let written = record_cells(&Store::new(&out), &keys, &folder)?;
+        println!("recordings: {written} written in {}", folder.display());
+    }
     if !args.no_report && args.shard.is_none() {
         let written = write_report(&Store::new(&out), &args.report_to)?;
         println!(

@@ -66,7 +66,6 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
         .args([
             "sweep",
             &smoke(),
-            "--no-report",
             "--jobs",
             "1",
             "--out",

@@ -97,6 +97,20 @@ impl EnvironmentRollout {
         &self.positions[t * self.agents..(t + 1) * self.agents]
     }
 
+    /// Appends step `t`'s observations and its group of agents to a batch being assembled
+    /// (the rollout's policy batch, the update's minibatches).
+    pub fn push_step(
+        &self,
+        t: usize,
+        neighbours: Neighbours,
+        observations: &mut Vec<f32>,
+        graph: &mut AgentGraph,
+        points: &mut Vec<[f64; 2]>,
+    ) {
+        observations.extend_from_slice(self.observation(t));
+        push_agents(graph, neighbours, self.positions_at(t), points);
+    }
+
     fn observe(&mut self, t: usize) {
         let len = self.agents * self.observer.per_agent();
         let out = &mut self.observations[t * len..(t + 1) * len];
@@ -146,11 +160,11 @@ impl RolloutWorkspace {
             self.observations.clear();
             self.graph.clear();
             for env in environments.iter() {
-                self.observations.extend_from_slice(env.observation(t));
-                push_agents(
-                    &mut self.graph,
+                env.push_step(
+                    t,
                     neighbours,
-                    env.positions_at(t),
+                    &mut self.observations,
+                    &mut self.graph,
                     &mut self.points,
                 );
             }

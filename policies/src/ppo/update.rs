@@ -180,11 +180,11 @@ impl UpdateWorkspace {
             let env = &environments[e];
             let rows = t * env.agents..(t + 1) * env.agents;
             let targets = self.targets.offsets[e] + rows.start..self.targets.offsets[e] + rows.end;
-            self.observations.extend_from_slice(env.observation(t));
-            push_agents(
-                &mut self.graph,
+            env.push_step(
+                t,
                 neighbours,
-                env.positions_at(t),
+                &mut self.observations,
+                &mut self.graph,
                 &mut self.points,
             );
             self.actions

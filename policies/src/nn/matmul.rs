@@ -6,11 +6,14 @@
 //! splits only the output among threads and never the reduction, and its blocking depends on
 //! the shapes and the caches but not on the thread count, so every output element is summed
 //! in the same order whatever the pool size.
+//!
+//! A rollout step multiplies a few agents' rows by whole weight matrices; those products run
+//! as vectorised dot products here instead (`gemm` would repack the weights on every call).
 
 use gemm::Parallelism;
 use ndarray::{ArrayView2, ArrayViewMut2};
 
-use super::real::Real;
+use super::real::{LANES, LaneSums, Real};
 
 /// Products with fewer multiply-adds than this run on the calling thread: below it, handing
 /// work to the pool costs more than it saves (the rollout's batches of a few agents, whose
@@ -31,7 +34,16 @@ fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, mut c: ArrayViewMut2<T>,
     let ((m, k), (k_b, n)) = (a.dim(), b.dim());
     assert_eq!(k, k_b, "inner dimensions differ");
     assert_eq!(c.dim(), (m, n), "output shape differs");
-    let parallelism = if m * n * k < PARALLEL_MULTIPLY_ADDS {
+    let multiply_adds = m * n * k;
+    if m <= FEW_ROWS
+        && multiply_adds < PARALLEL_MULTIPLY_ADDS
+        && rows_are_contiguous(a)
+        && rows_are_contiguous(b.t())
+    {
+        few_rows_product(a, b, c, add);
+        return;
+    }
+    let parallelism = if multiply_adds < PARALLEL_MULTIPLY_ADDS {
         Parallelism::None
     } else {
         Parallelism::Rayon(rayon::current_num_threads())
@@ -67,6 +79,92 @@ fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, mut c: ArrayViewMut2<T>,
     }
 }
 
+/// Products of at most this many rows (a rollout step's agents times a weight matrix) are
+/// dot products of contiguous rows: `gemm` would copy the whole weight matrix into its
+/// packed layout on every call, several times the work of the product itself.
+const FEW_ROWS: usize = 16;
+
+/// Whether every row of `x` is one contiguous slice.
+fn rows_are_contiguous<T: Real>(x: ArrayView2<T>) -> bool {
+    x.ncols() <= 1 || x.strides()[1] == 1
+}
+
+/// `c[i][j] (+)= a[i] . b[.][j]`: each column of `b` is read once for a block of rows of `a`,
+/// and every dot product sums in the same order whatever the thread count.
+fn few_rows_product<T: Real>(
+    a: ArrayView2<T>,
+    b: ArrayView2<T>,
+    mut c: ArrayViewMut2<T>,
+    add: bool,
+) {
+    let mut rows: [&[T]; FEW_ROWS] = [&[]; FEW_ROWS];
+    for (slot, row) in rows.iter_mut().zip(a.rows()) {
+        *slot = contiguous(row);
+    }
+    let rows = &rows[..a.nrows()];
+    for (j, column) in b.t().rows().into_iter().enumerate() {
+        let column = contiguous(column);
+        let mut dots = [T::zero(); FEW_ROWS];
+        let mut blocks = rows.chunks_exact(ROW_BLOCK);
+        for (block, out) in blocks.by_ref().zip(dots.chunks_exact_mut(ROW_BLOCK)) {
+            let block: &[&[T]; ROW_BLOCK] = block.try_into().expect("exact chunk");
+            out.copy_from_slice(&block_dots(block, column));
+        }
+        let done = rows.len() - blocks.remainder().len();
+        for (row, out) in blocks.remainder().iter().zip(&mut dots[done..]) {
+            *out = block_dots(&[*row], column)[0];
+        }
+        for (i, dot) in dots[..rows.len()].iter().enumerate() {
+            let out = &mut c[[i, j]];
+            *out = if add { *out + *dot } else { *dot };
+        }
+    }
+}
+
+/// Rows of a small product computed side by side, each with its own accumulators.
+const ROW_BLOCK: usize = 4;
+
+/// The dot products of `R` rows with one column: `LANES` partial sums per row, summed as a
+/// balanced tree, then the tail.
+fn block_dots<T: Real, const R: usize>(rows: &[&[T]; R], column: &[T]) -> [T; R] {
+    let (column_chunks, column_tail) = column.as_chunks::<LANES>();
+    let row_chunks = rows.map(|row| row[..column.len()].as_chunks::<LANES>().0);
+    let mut sums = [T::Lanes::zero(); R];
+    for (chunk, y) in column_chunks.iter().enumerate() {
+        for (lanes, x) in sums.iter_mut().zip(&row_chunks) {
+            *lanes = lanes.add_products(&x[chunk], y);
+        }
+    }
+    let tail_start = column.len() - column_tail.len();
+    let mut dots = [T::zero(); R];
+    for ((dot, lanes), row) in dots.iter_mut().zip(&sums).zip(rows) {
+        let tail = row[tail_start..]
+            .iter()
+            .zip(column_tail)
+            .fold(T::zero(), |s, (&x, &y)| s + x * y);
+        *dot = pairwise_sum(&lanes.to_array()) + tail;
+    }
+    dots
+}
+
+/// A row checked by [`rows_are_contiguous`] as a slice.
+fn contiguous<T: Real>(row: ndarray::ArrayView1<'_, T>) -> &[T] {
+    row.to_slice().expect("rows checked contiguous")
+}
+
+/// The lanes summed as a balanced tree, as a vector reduction would.
+fn pairwise_sum<T: Real>(lanes: &[T; LANES]) -> T {
+    let mut width = LANES;
+    let mut partial = *lanes;
+    while width > 1 {
+        width /= 2;
+        for l in 0..width {
+            partial[l] += partial[l + width];
+        }
+    }
+    partial[0]
+}
+
 /// Row and column strides in elements.
 fn strides(strides: &[isize]) -> [isize; 2] {
     [strides[0], strides[1]]
@@ -87,11 +185,13 @@ mod tests {
     }
 
     /// The layers' shapes: a batch times a transposed weight, a transposed gradient times a
-    /// batch (long reduction), a small rollout batch; inputs in both memory orders.
-    const SHAPES: [(usize, usize, usize); 4] = [
+    /// batch (long reduction), small rollout batches (one of them with a partial block of
+    /// rows and a partial chunk of lanes); inputs in both memory orders.
+    const SHAPES: [(usize, usize, usize); 5] = [
         (4000, 500, 256),
         (16, 128, 20000),
         (4, 500, 256),
+        (6, 37, 21),
         (777, 33, 65),
     ];
 
@@ -128,9 +228,9 @@ mod tests {
                 let c = random((m, n), false, &mut rng);
                 let product = a.dot(&b);
                 let pair = fast.next().unwrap();
-                // Both sum with fused multiply-adds in order; they differ only where one of them
-                // splits a long reduction into blocks (a few ulps of the ~sqrt(k)/12 result).
-                let tolerance = 1e-8 * k as f32;
+                // They differ only in how they split a reduction into blocks and lanes (a few
+                // ulps of the ~sqrt(k)/12 result).
+                let tolerance = 2e-8 * k as f32;
                 for (got, want) in [(&pair[0], &c + &product), (&pair[1], product)] {
                     let error = (got - &want).iter().fold(0f32, |e, d| e.max(d.abs()));
                     assert!(error <= tolerance, "{m}x{n}x{k}: error {error}");

@@ -14,6 +14,7 @@ mod status;
 mod sweep;
 mod train;
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -65,6 +66,27 @@ pub fn main() -> anyhow::Result<()> {
 impl Cli {
     pub fn run(self) -> anyhow::Result<()> {
         match self.command {
+            // The sweep sizes its own pool (`--jobs`) and runs its cells on it.
+            command @ Command::Sweep(_) => command.run(),
+            command => on_a_pool_worker(|| command.run())?,
+        }
+    }
+}
+
+/// Runs `work` on a thread of a rayon pool sized to the machine. A parallel product called
+/// from such a thread shares its work with the other workers directly; called from outside
+/// any pool, every product is queued and the caller sleeps on a lock until it is done, which
+/// cost a quarter of a training episode.
+fn on_a_pool_worker<T: Send>(work: impl FnOnce() -> T + Send) -> anyhow::Result<T> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .build()
+        .context("starting the worker threads")?;
+    Ok(pool.install(work))
+}
+
+impl Command {
+    fn run(self) -> anyhow::Result<()> {
+        match self {
             Command::Run(args) => run::run(args),
             Command::Train(args) => train::run(args),
             Command::Curve(args) => curve::run(args),

@@ -4,7 +4,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{ChartError, FONT, Figure, padded_range, series_colour};
+use super::{ChartError, FONT, Figure, padded_range, series_colour, tick_label};
 
 /// A bar's height and its interval.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -47,6 +47,8 @@ impl Figure for GroupedBars {
         chart
             .configure_mesh()
             .disable_x_mesh()
+            .light_line_style(TRANSPARENT)
+            .y_label_formatter(&tick_label)
             .x_labels(groups.max(1) * 2 + 1)
             .x_label_formatter(&|x| group_label(labels, *x))
             .x_desc(&self.x_label)

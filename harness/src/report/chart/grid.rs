@@ -5,7 +5,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{ChartError, FONT, Figure, series_colour};
+use super::{ChartError, FONT, Figure, series_colour, tick_label};
 
 /// What a cell shows.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -61,6 +61,8 @@ fn draw_panel<DB: DrawingBackend>(
     chart
         .configure_mesh()
         .disable_mesh()
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
         .label_style((FONT, 13))
         .draw()?;
     let shaded = panel.cells.iter().enumerate().filter_map(|(i, shade)| {

@@ -4,7 +4,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{ChartError, FONT, Figure, padded_range, series_colour};
+use super::{ChartError, FONT, Figure, padded_range, series_colour, tick_label};
 
 pub struct Line {
     pub label: String,
@@ -61,6 +61,9 @@ impl LineChart {
             .build_cartesian_2d(x_range, y_range)?;
         chart
             .configure_mesh()
+            .light_line_style(TRANSPARENT)
+            .x_label_formatter(&tick_label)
+            .y_label_formatter(&tick_label)
             .x_desc(&self.x_label)
             .y_desc(&panel.y_label)
             .label_style((FONT, 14))

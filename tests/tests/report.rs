@@ -304,6 +304,12 @@ fn a_recording_of_a_stored_episode_reads_back() {
         reports.join("tiny/README.md").exists(),
         "the sweep writes its report"
     );
+    let curve = image::open(reports.join("tiny/figures/training_rooms_train2.png")).unwrap();
+    assert_eq!(
+        (curve.width(), curve.height()),
+        (960, 60 + 330),
+        "the training curve"
+    );
     let cells = read_parquet(&store.join("cells.parquet"));
     let key = first_cell_of(&cells, "random");
     let out = dir.join("episode.rrd");

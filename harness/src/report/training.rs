@@ -1,7 +1,8 @@
 //! Training curves: a learned policy's training penalty per episode (mean over training runs),
 //! as the rolling mean over 500 episodes with a +-0.5 standard deviation band (the paper's
 //! figures). Policies trained with the same N_train on one map share a plot, so RQ2's three
-//! input choices appear together.
+//! input choices appear together; with several maps, one more plot per N_train holds them
+//! all (RQ1's open against eight_room).
 
 use polars::prelude::*;
 
@@ -33,32 +34,66 @@ pub fn section(report: &mut ReportWriter, training: &DataFrame) -> Result<(), Re
     report.linked_table("training_curves", &frame, "The curves")?;
     let settings = distinct(curves.iter().map(|c| (c.map.clone(), c.policy.n_train)));
     for (map, n_train) in settings {
-        let chosen: Vec<&Curve> = curves
+        let n = n_train_label(n_train);
+        let lines = curves
             .iter()
             .filter(|c| c.map == map && c.policy.n_train == n_train)
+            .map(|c| line(c, c.policy.policy.clone()))
             .collect();
-        let n = n_train.map_or("?".into(), |n| n.to_string());
-        let chart = LineChart {
-            x_label: "training episode".into(),
-            panels: vec![Panel {
-                title: format!("Training on {map}, N_train = {n}"),
-                y_label: "penalty (10^6)".into(),
-                lines: chosen.iter().map(|c| line(c)).collect(),
-            }],
-        };
-        report.figure(
-            &file_stem(&["training", &map, &format!("train{n}")]),
-            &chart,
-            &format!("Rolling mean ({WINDOW} episodes) +-0.5 std of the training penalty on `{map}`, N_train = {n}"),
-        )?;
+        let stem = file_stem(&["training", &map, &format!("train{n}")]);
+        figure(report, &stem, &format!("on `{map}`, N_train = {n}"), lines)?;
+    }
+    // The paper also plots the maps against each other (RQ1: open against eight_room).
+    if distinct(curves.iter().map(|c| c.map.clone())).len() > 1 {
+        for n_train in distinct(curves.iter().map(|c| c.policy.n_train)) {
+            let n = n_train_label(n_train);
+            let lines = curves
+                .iter()
+                .filter(|c| c.policy.n_train == n_train)
+                .map(|c| line(c, format!("{}: {}", c.map, c.policy.policy)))
+                .collect();
+            let stem = file_stem(&["training", "all-maps", &format!("train{n}")]);
+            figure(
+                report,
+                &stem,
+                &format!("on every map, N_train = {n}"),
+                lines,
+            )?;
+        }
     }
     Ok(())
 }
 
-fn line(curve: &Curve) -> Line {
+fn n_train_label(n_train: Option<u32>) -> String {
+    n_train.map_or("?".into(), |n| n.to_string())
+}
+
+/// One plot of `lines`; `setting` completes its title and caption ("on `open`, N_train = 4").
+fn figure(
+    report: &mut ReportWriter,
+    stem: &str,
+    setting: &str,
+    lines: Vec<Line>,
+) -> Result<(), ReportError> {
+    let chart = LineChart {
+        x_label: "training episode".into(),
+        panels: vec![Panel {
+            title: format!("Training {}", setting.replace('`', "")),
+            y_label: "penalty (10^6)".into(),
+            lines,
+        }],
+    };
+    report.figure(
+        stem,
+        &chart,
+        &format!("Rolling mean ({WINDOW} episodes) +-0.5 std of the training penalty {setting}"),
+    )
+}
+
+fn line(curve: &Curve, label: String) -> Line {
     let xs = curve.episode.iter().map(|&e| e as f64);
     Line {
-        label: curve.policy.policy.clone(),
+        label,
         points: xs.clone().zip(curve.mean.iter().copied()).collect(),
         band: Some(
             curve

@@ -257,23 +257,69 @@ pub fn section(report: &mut ReportWriter, motions: &[Motion]) -> Result<(), Repo
 }
 
 fn rhythm_frame(motions: &[Motion], rows: &[Rhythm]) -> PolarsResult<DataFrame> {
-    let group = |r: &Rhythm| &motions[r.motion].group;
     let harmonic = |f: fn(&Harmonic) -> f64| -> Vec<Option<f64>> {
         rows.iter().map(|r| r.harmonic.as_ref().map(f)).collect()
     };
-    df!(
-        "map" => rows.iter().map(|r| group(r).map.clone()).collect::<Vec<_>>(),
-        "policy" => rows.iter().map(|r| group(r).policy.policy.clone()).collect::<Vec<_>>(),
-        "n_train" => rows.iter().map(|r| group(r).policy.n_train).collect::<Vec<_>>(),
-        "n_test" => rows.iter().map(|r| group(r).n_test).collect::<Vec<_>>(),
-        "agent" => rows.iter().map(|r| r.agent as u32).collect::<Vec<_>>(),
-        "signal" => rows.iter().map(|r| r.signal).collect::<Vec<_>>(),
-        "period" => rows.iter().map(|r| r.period).collect::<Vec<_>>(),
-        "team_period" => rows.iter().map(|r| r.team_period).collect::<Vec<_>>(),
-        "amplitude" => harmonic(|h| h.amplitude),
-        "phase_to_agent_0" => rows.iter().map(|r| r.phase_to_agent_0).collect::<Vec<_>>(),
-        "r_squared" => harmonic(|h| h.r_squared),
-    )
+    let named = rows.iter().map(|r| (r.motion, r.agent));
+    let mut columns = agent_columns(motions, named);
+    columns.extend([
+        Column::new(
+            "signal".into(),
+            rows.iter().map(|r| r.signal).collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "period".into(),
+            rows.iter().map(|r| r.period).collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "team_period".into(),
+            rows.iter().map(|r| r.team_period).collect::<Vec<_>>(),
+        ),
+        Column::new("amplitude".into(), harmonic(|h| h.amplitude)),
+        Column::new(
+            "phase_to_agent_0".into(),
+            rows.iter().map(|r| r.phase_to_agent_0).collect::<Vec<_>>(),
+        ),
+        Column::new("r_squared".into(), harmonic(|h| h.r_squared)),
+    ]);
+    DataFrame::new(rows.len(), columns)
+}
+
+/// The columns that name an agent of a recorded episode, `(motions index, agent)` per row:
+/// map, policy, n_train, n_test, agent.
+fn agent_columns(
+    motions: &[Motion],
+    rows: impl Iterator<Item = (usize, usize)> + Clone,
+) -> Vec<Column> {
+    let group = |(motion, _): (usize, usize)| &motions[motion].group;
+    vec![
+        Column::new(
+            "map".into(),
+            rows.clone()
+                .map(|r| group(r).map.clone())
+                .collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "policy".into(),
+            rows.clone()
+                .map(|r| group(r).policy.policy.clone())
+                .collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "n_train".into(),
+            rows.clone()
+                .map(|r| group(r).policy.n_train)
+                .collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "n_test".into(),
+            rows.clone().map(|r| group(r).n_test).collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "agent".into(),
+            rows.map(|(_, a)| a as u32).collect::<Vec<_>>(),
+        ),
+    ]
 }
 
 /// An agent of a recorded episode (`motions[motion]`), its features and its role.
@@ -311,17 +357,26 @@ fn agent_roles(motions: &[Motion]) -> Vec<AgentRole> {
 }
 
 fn role_frame(motions: &[Motion], rows: &[AgentRole]) -> PolarsResult<DataFrame> {
-    let group = |r: &AgentRole| &motions[r.motion].group;
-    df!(
-        "map" => rows.iter().map(|r| group(r).map.clone()).collect::<Vec<_>>(),
-        "policy" => rows.iter().map(|r| group(r).policy.policy.clone()).collect::<Vec<_>>(),
-        "n_train" => rows.iter().map(|r| group(r).policy.n_train).collect::<Vec<_>>(),
-        "n_test" => rows.iter().map(|r| group(r).n_test).collect::<Vec<_>>(),
-        "agent" => rows.iter().map(|r| r.agent as u32).collect::<Vec<_>>(),
-        "radius_of_gyration" => rows.iter().map(|r| r.features.radius_of_gyration).collect::<Vec<_>>(),
-        "moving_share" => rows.iter().map(|r| r.features.moving_share).collect::<Vec<_>>(),
-        "role" => rows.iter().map(|r| r.role).collect::<Vec<_>>(),
-    )
+    let mut columns = agent_columns(motions, rows.iter().map(|r| (r.motion, r.agent)));
+    columns.extend([
+        Column::new(
+            "radius_of_gyration".into(),
+            rows.iter()
+                .map(|r| r.features.radius_of_gyration)
+                .collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "moving_share".into(),
+            rows.iter()
+                .map(|r| r.features.moving_share)
+                .collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "role".into(),
+            rows.iter().map(|r| r.role).collect::<Vec<_>>(),
+        ),
+    ]);
+    DataFrame::new(rows.len(), columns)
 }
 
 /// One sentence per recorded episode: the team's periods, the phases of its agents against

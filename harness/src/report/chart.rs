@@ -10,6 +10,7 @@ use std::sync::OnceLock;
 
 use image::ImageEncoder;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
@@ -84,6 +85,22 @@ fn register_embedded_font() -> Result<(), ChartError> {
         true => Ok(()),
         false => Err(ChartError("the embedded font does not load".into())),
     }
+}
+
+/// The series' legend, boxed on a translucent white, in the corner `position`.
+pub fn draw_legend<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    position: SeriesLabelPosition,
+    font_size: u32,
+) -> Result<(), ChartError> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((FONT, font_size))
+        .draw()?;
+    Ok(())
 }
 
 /// The colour of series `index`: distinct, and the same series keeps its colour everywhere.

@@ -4,7 +4,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{ChartError, FONT, Figure, padded_range, series_colour, tick_label};
+use super::{ChartError, FONT, Figure, draw_legend, padded_range, series_colour, tick_label};
 
 /// A bar's height and its interval.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,13 +84,7 @@ impl Figure for GroupedBars {
                 )
             }))?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font((FONT, 14))
-            .draw()?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 14)?;
         Ok(())
     }
 }

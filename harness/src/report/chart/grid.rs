@@ -5,7 +5,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{ChartError, FONT, Figure, series_colour, tick_label};
+use super::{ChartError, FONT, Figure, draw_legend, series_colour, tick_label};
 
 /// What a cell shows.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -97,13 +97,7 @@ fn draw_panel<DB: DrawingBackend>(
             .map(|(agent, &at)| Circle::new(at, 6, series_colour(agent).stroke_width(3))),
     )?;
     if !panel.trails.is_empty() {
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font((FONT, 12))
-            .draw()?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 12)?;
     }
     Ok(())
 }

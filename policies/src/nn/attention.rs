@@ -203,7 +203,7 @@ impl GraphAttention {
         weights
             .iter_mut()
             .zip(log_weights.iter())
-            .for_each(|(w, l)| *w = l.exp());
+            .for_each(|(w, l)| *w = l.exp_portable());
         ws.entropy = entropy_sum / T::from_count((ws.batch * heads).max(1));
     }
 

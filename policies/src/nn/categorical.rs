@@ -46,7 +46,7 @@ impl<T: Real> CategoricalBatch<T> {
         let log_probs = self.log_probs.slice((row + 1) * self.actions);
         let row_log_probs = &log_probs[row * self.actions..];
         for (action, l) in row_log_probs.iter().enumerate() {
-            cumulative += l.as_f64().exp();
+            cumulative += libm::exp(l.as_f64());
             if uniform < cumulative {
                 return action;
             }

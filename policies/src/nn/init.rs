@@ -54,7 +54,7 @@ pub fn fill_uniform<T: Real, R: Rng + ?Sized>(values: &mut [T], bound: f64, rng:
 fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
     let u1 = 1.0 - rng.random::<f64>();
     let u2 = rng.random::<f64>();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    (-2.0 * libm::log(u1)).sqrt() * libm::cos(std::f64::consts::TAU * u2)
 }
 
 /// PyTorch's `orthogonal_`: a Gaussian matrix, the Q of its QR decomposition with the signs

@@ -7,6 +7,8 @@ use std::ops::{AddAssign, DivAssign, MulAssign, SubAssign};
 
 use ndarray::LinalgScalar;
 
+use super::matmul::{PackingBuffers, TileKernel};
+
 /// A float the layers compute in.
 pub trait Real:
     num_traits::Float
@@ -20,6 +22,8 @@ pub trait Real:
     + Debug
     + Send
     + Sync
+    + TileKernel
+    + PackingBuffers
     + 'static
 {
     /// Rounds a constant or an `f64` draw to this type, so that the same seed gives the same
@@ -36,6 +40,13 @@ pub trait Real:
 
     /// Partial sums of a dot product, one per lane.
     type Lanes: LaneSums<Self>;
+
+    /// `e^self` from the `libm` crate: the C library's `exp` differs between its versions
+    /// and between its variants for different CPUs.
+    fn exp_portable(self) -> Self;
+
+    /// The natural logarithm from the `libm` crate, for the same reason.
+    fn ln_portable(self) -> Self;
 }
 
 /// Lanes of [`LaneSums`]: one AVX2 register of `f32`.
@@ -95,6 +106,14 @@ impl Real for f32 {
     }
 
     type Lanes = wide::f32x8;
+
+    fn exp_portable(self) -> Self {
+        libm::expf(self)
+    }
+
+    fn ln_portable(self) -> Self {
+        libm::logf(self)
+    }
 }
 
 impl Real for f64 {
@@ -107,4 +126,12 @@ impl Real for f64 {
     }
 
     type Lanes = [f64; LANES];
+
+    fn exp_portable(self) -> Self {
+        libm::exp(self)
+    }
+
+    fn ln_portable(self) -> Self {
+        libm::log(self)
+    }
 }

@@ -9,11 +9,11 @@ use super::real::Real;
 /// An empty row stays empty and has entropy 0.
 pub fn log_softmax_in_place<T: Real>(row: &mut [T]) -> T {
     let max = row.iter().copied().fold(T::neg_infinity(), T::max);
-    let log_sum = row.iter().map(|&z| (z - max).exp()).sum::<T>().ln() + max;
+    let log_sum = row.iter().map(|&z| (z - max).exp_portable()).sum::<T>().ln_portable() + max;
     let mut entropy = T::zero();
     for z in row.iter_mut() {
         *z -= log_sum;
-        entropy -= z.exp() * *z;
+        entropy -= z.exp_portable() * *z;
     }
     entropy
 }
@@ -23,9 +23,9 @@ pub fn log_softmax_in_place<T: Real>(row: &mut [T]) -> T {
 /// gradient with respect to the row's entropy, whose own gradient is `-p_k (log p_k + H)`.
 pub fn log_softmax_backward_in_place<T: Real>(log_probs: &[T], grads: &mut [T], entropy_grad: T) {
     let grad_sum = grads.iter().copied().sum::<T>();
-    let entropy = -log_probs.iter().map(|&l| l.exp() * l).sum::<T>();
+    let entropy = -log_probs.iter().map(|&l| l.exp_portable() * l).sum::<T>();
     for (g, &l) in grads.iter_mut().zip(log_probs) {
-        let p = l.exp();
+        let p = l.exp_portable();
         *g = *g - p * grad_sum - entropy_grad * p * (l + entropy);
     }
 }

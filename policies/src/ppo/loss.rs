@@ -139,7 +139,7 @@ pub fn ppo_loss<T: Real>(
             Advantages::ReturnMinusValue => ret - value,
         };
         let log_ratio = log_prob - samples.old_log_probs[row].as_f64();
-        let ratio = log_ratio.exp();
+        let ratio = libm::exp(log_ratio);
         let clipped = ratio.clamp(1.0 - c.clip, 1.0 + c.clip);
         let (unclipped_term, clipped_term) = (ratio * advantage, clipped * advantage);
         terms.policy -= unclipped_term.min(clipped_term);

@@ -1,17 +1,25 @@
 //! Every matrix product of the layers goes through here, on `ndarray` views of any strides, so
 //! transposes are read in place rather than copied.
 //!
-//! The products run on the `gemm` crate, which picks AVX-512, AVX2 + FMA or scalar kernels at
-//! run time (matrixmultiply has no AVX-512 kernel, and this machine class has it). `gemm`
-//! splits only the output among threads and never the reduction, and its blocking depends on
-//! the shapes and the caches but not on the thread count, so every output element is summed
-//! in the same order whatever the pool size.
+//! Products give the same bits on every x86-64 CPU at any thread count: the arithmetic is
+//! defined element by element, never by the hardware. Two paths, chosen by the shape alone:
+//! - a rollout step multiplies a few agents' rows by whole weight matrices: those run as
+//!   vectorised dot products (8 lanes of products, rounded then summed, then a fixed tree),
+//!   which read each weight once and pack nothing;
+//! - every other product runs on our packed, cache-blocked kernels (`packed.rs`), where each
+//!   output element is one chain of fused multiply-adds over the reduction in order.
 //!
-//! A rollout step multiplies a few agents' rows by whole weight matrices; those products run
-//! as vectorised dot products here instead (`gemm` would repack the weights on every call).
+//! We replaced the `gemm` crate, which chose AVX-512 or AVX2 kernels at run time and blocked
+//! by the cache sizes it read from the CPU: the same training run gave other numbers on
+//! another machine.
 
-use gemm::Parallelism;
+mod kernel;
+mod packed;
+
 use ndarray::{ArrayView2, ArrayViewMut2};
+
+pub use kernel::TileKernel;
+pub use packed::PackingBuffers;
 
 use super::real::{LANES, LaneSums, Real};
 
@@ -30,7 +38,7 @@ pub fn matmul_add<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<
     product(a, b, c, true);
 }
 
-fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, mut c: ArrayViewMut2<T>, add: bool) {
+fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>, add: bool) {
     let ((m, k), (k_b, n)) = (a.dim(), b.dim());
     assert_eq!(k, k_b, "inner dimensions differ");
     assert_eq!(c.dim(), (m, n), "output shape differs");
@@ -43,45 +51,17 @@ fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, mut c: ArrayViewMut2<T>,
         few_rows_product(a, b, c, add);
         return;
     }
-    let parallelism = if multiply_adds < PARALLEL_MULTIPLY_ADDS {
-        Parallelism::None
+    let threads = if multiply_adds < PARALLEL_MULTIPLY_ADDS {
+        1
     } else {
-        Parallelism::Rayon(rayon::current_num_threads())
+        rayon::current_num_threads()
     };
-    let [c_rs, c_cs] = strides(c.strides());
-    let [a_rs, a_cs] = strides(a.strides());
-    let [b_rs, b_cs] = strides(b.strides());
-    // SAFETY: the pointers and strides come from live `ndarray` views of the stated shapes,
-    // so every element `gemm` touches is in bounds; `c` is borrowed mutably, so it aliases
-    // neither input. `gemm` reads `c` only when `add` (`read_dst`) is set.
-    unsafe {
-        gemm::gemm(
-            m,
-            n,
-            k,
-            c.as_mut_ptr(),
-            c_cs,
-            c_rs,
-            add,
-            a.as_ptr(),
-            a_cs,
-            a_rs,
-            b.as_ptr(),
-            b_cs,
-            b_rs,
-            T::one(),
-            T::one(),
-            false,
-            false,
-            false,
-            parallelism,
-        );
-    }
+    packed::product(a, b, c, add, threads);
 }
 
 /// Products of at most this many rows (a rollout step's agents times a weight matrix) are
-/// dot products of contiguous rows: `gemm` would copy the whole weight matrix into its
-/// packed layout on every call, several times the work of the product itself.
+/// dot products of contiguous rows: the packed path would copy the whole weight matrix into
+/// its panels on every call, several times the work of the product itself.
 const FEW_ROWS: usize = 16;
 
 /// Whether every row of `x` is one contiguous slice.
@@ -163,11 +143,6 @@ fn pairwise_sum<T: Real>(lanes: &[T; LANES]) -> T {
         }
     }
     partial[0]
-}
-
-/// Row and column strides in elements.
-fn strides(strides: &[isize]) -> [isize; 2] {
-    [strides[0], strides[1]]
 }
 
 #[cfg(test)]

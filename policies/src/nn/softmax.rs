@@ -9,7 +9,12 @@ use super::real::Real;
 /// An empty row stays empty and has entropy 0.
 pub fn log_softmax_in_place<T: Real>(row: &mut [T]) -> T {
     let max = row.iter().copied().fold(T::neg_infinity(), T::max);
-    let log_sum = row.iter().map(|&z| (z - max).exp_portable()).sum::<T>().ln_portable() + max;
+    let log_sum = row
+        .iter()
+        .map(|&z| (z - max).exp_portable())
+        .sum::<T>()
+        .ln_portable()
+        + max;
     let mut entropy = T::zero();
     for z in row.iter_mut() {
         *z -= log_sum;

@@ -82,12 +82,20 @@ impl TileKernel for f32 {
     #[inline]
     unsafe fn multiply_tile(depth: usize, a: Panel<f32>, b: Panel<f32>, tile: &mut [f32; TILE]) {
         // SAFETY: the same contract.
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"))]
+        #[cfg(all(
+            target_arch = "x86_64",
+            target_feature = "avx2",
+            target_feature = "fma"
+        ))]
         unsafe {
             avx2::multiply_tile(depth, a, b, tile)
         }
         // SAFETY: the same contract.
-        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma")))]
+        #[cfg(not(all(
+            target_arch = "x86_64",
+            target_feature = "avx2",
+            target_feature = "fma"
+        )))]
         unsafe {
             portable_tile(depth, a, b, tile)
         }
@@ -96,7 +104,11 @@ impl TileKernel for f32 {
 
 /// The kernel of builds for x86-64-v3 (the workspace's default target). The choice is made at
 /// compile time, so every machine that runs one binary runs the same instructions.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"))]
+#[cfg(all(
+    target_arch = "x86_64",
+    target_feature = "avx2",
+    target_feature = "fma"
+))]
 mod avx2 {
     use std::arch::x86_64::{
         __m256, _mm256_broadcast_ss, _mm256_fmadd_ps, _mm256_loadu_ps, _mm256_storeu_ps,
@@ -107,7 +119,12 @@ mod avx2 {
     /// # Safety
     /// As [`super::TileKernel::multiply_tile`].
     #[inline]
-    pub unsafe fn multiply_tile(depth: usize, a: Panel<f32>, b: Panel<f32>, tile: &mut [f32; TILE]) {
+    pub unsafe fn multiply_tile(
+        depth: usize,
+        a: Panel<f32>,
+        b: Panel<f32>,
+        tile: &mut [f32; TILE],
+    ) {
         debug_assert_eq!(b.index_stride, 1);
         // SAFETY: the caller promises `depth` steps of both panels, `b`'s values contiguous
         // within a step; the tile has `MR` rows of `NR` values. Unaligned loads and stores
@@ -115,7 +132,10 @@ mod avx2 {
         unsafe {
             let t = tile.as_mut_ptr();
             let mut acc: [[__m256; 2]; MR] = std::array::from_fn(|i| {
-                [_mm256_loadu_ps(t.add(i * NR)), _mm256_loadu_ps(t.add(i * NR + 8))]
+                [
+                    _mm256_loadu_ps(t.add(i * NR)),
+                    _mm256_loadu_ps(t.add(i * NR + 8)),
+                ]
             });
             let (mut a_k, mut b_k) = (a.ptr, b.ptr);
             for _ in 0..depth {
@@ -151,18 +171,28 @@ mod tests {
 
     /// A panel of `depth` steps of `width` values laid out with the given strides.
     fn panel(values: &[f32], k_stride: isize, index_stride: isize) -> Panel<f32> {
-        Panel { ptr: values.as_ptr(), k_stride, index_stride }
+        Panel {
+            ptr: values.as_ptr(),
+            k_stride,
+            index_stride,
+        }
     }
 
     #[test]
     fn the_build_kernel_equals_the_portable_definition_bit_for_bit() {
         let mut rng = Pcg64Mcg::seed_from_u64(11);
         for depth in [0, 1, 7, 256, 1000] {
-            let (a, b) = (values(depth * MR + MR, &mut rng), values(depth * (NR + 3), &mut rng));
+            let (a, b) = (
+                values(depth * MR + MR, &mut rng),
+                values(depth * (NR + 3), &mut rng),
+            );
             let start: [f32; TILE] = values(TILE, &mut rng).try_into().unwrap();
             // `a` step-major (packed) and index-major (a row-major operand); `b` packed and
             // with a longer row than the panel.
-            let a_layouts = [panel(&a, MR as isize, 1), panel(&a, 1, depth.max(1) as isize)];
+            let a_layouts = [
+                panel(&a, MR as isize, 1),
+                panel(&a, 1, depth.max(1) as isize),
+            ];
             let b_layouts = [panel(&b, NR as isize, 1), panel(&b, NR as isize + 3, 1)];
             for (a_panel, b_panel) in a_layouts.into_iter().zip(b_layouts) {
                 let (mut fast, mut portable) = (start, start);
@@ -171,7 +201,11 @@ mod tests {
                     f32::multiply_tile(depth, a_panel, b_panel, &mut fast);
                     portable_tile(depth, a_panel, b_panel, &mut portable);
                 }
-                assert!(fast.iter().zip(&portable).all(|(x, y)| x.to_bits() == y.to_bits()));
+                assert!(
+                    fast.iter()
+                        .zip(&portable)
+                        .all(|(x, y)| x.to_bits() == y.to_bits())
+                );
                 if depth >= 7 {
                     let unfused = (0..TILE).map(|e| {
                         let (i, j) = (e / NR, e % NR);

@@ -41,7 +41,11 @@ unsafe impl<T: Sync> Sync for Operand<T> {}
 impl<T: Copy> Operand<T> {
     fn of(view: &ArrayView2<T>) -> Self {
         let s = view.strides();
-        Self { ptr: view.as_ptr(), row_stride: s[0], column_stride: s[1] }
+        Self {
+            ptr: view.as_ptr(),
+            row_stride: s[0],
+            column_stride: s[1],
+        }
     }
 
     /// # Safety
@@ -86,7 +90,11 @@ pub fn product<T: Real>(
     let (a, b) = (Operand::of(&a), Operand::of(&b));
     let out = {
         let (row_stride, column_stride) = (c.strides()[0], c.strides()[1]);
-        Output(Operand { ptr: c.as_mut_ptr(), row_stride, column_stride })
+        Output(Operand {
+            ptr: c.as_mut_ptr(),
+            row_stride,
+            column_stride,
+        })
     };
     let parts = split(m, n, threads);
     let run = |part: &Rectangle| {
@@ -109,13 +117,30 @@ fn split(m: usize, n: usize, threads: usize) -> Vec<Rectangle> {
         let units = len.div_ceil(unit);
         let count = threads.clamp(1, units.max(1));
         (0..count)
-            .map(|p| ((units * p / count * unit).min(len), (units * (p + 1) / count * unit).min(len)))
+            .map(|p| {
+                (
+                    (units * p / count * unit).min(len),
+                    (units * (p + 1) / count * unit).min(len),
+                )
+            })
             .collect()
     };
     if m.div_ceil(MC) >= threads || n <= NR {
-        bands(m, MC).into_iter().map(|rows| Rectangle { rows, columns: (0, n) }).collect()
+        bands(m, MC)
+            .into_iter()
+            .map(|rows| Rectangle {
+                rows,
+                columns: (0, n),
+            })
+            .collect()
     } else {
-        bands(n, NR).into_iter().map(|columns| Rectangle { rows: (0, m), columns }).collect()
+        bands(n, NR)
+            .into_iter()
+            .map(|columns| Rectangle {
+                rows: (0, m),
+                columns,
+            })
+            .collect()
     }
 }
 
@@ -144,7 +169,10 @@ unsafe fn rectangle<T: Real>(
                 let b_block = unsafe { BlockOfB::new(b, (pc, kc), (jc, nc), rows, b_packed) };
                 for ic in (part.rows.0..part.rows.1).step_by(MC) {
                     let mc = MC.min(part.rows.1 - ic);
-                    let block = Rectangle { rows: (ic, ic + mc), columns: (jc, jc + nc) };
+                    let block = Rectangle {
+                        rows: (ic, ic + mc),
+                        columns: (jc, jc + nc),
+                    };
                     let continues = add || pc > 0;
                     // SAFETY: the block is inside `part`, and rows `ic..ic + mc` and columns
                     // `pc..pc + kc` are inside `a`.
@@ -176,8 +204,15 @@ impl<T: Real> BlockOfB<T> {
         buffer: &mut Vec<T>,
     ) -> Self {
         // SAFETY: by the caller's promise.
-        let corner = Operand { ptr: unsafe { b.at(pc, jc) }, ..b };
-        let panels_in_place = if b.column_stride == 1 && rows <= IN_PLACE_ROWS { nc / NR } else { 0 };
+        let corner = Operand {
+            ptr: unsafe { b.at(pc, jc) },
+            ..b
+        };
+        let panels_in_place = if b.column_stride == 1 && rows <= IN_PLACE_ROWS {
+            nc / NR
+        } else {
+            0
+        };
         let first = panels_in_place * NR;
         let len = nc - first;
         if b.column_stride == 1 {
@@ -197,7 +232,12 @@ impl<T: Real> BlockOfB<T> {
             unsafe { pack(buffer, kc, len, NR, |k, j| *corner.at(k, first + j)) };
         }
         let in_place = Some(corner).filter(|_| panels_in_place > 0);
-        Self { in_place, panels_in_place, packed: buffer.as_ptr(), kc }
+        Self {
+            in_place,
+            panels_in_place,
+            packed: buffer.as_ptr(),
+            kc,
+        }
     }
 
     /// The panel of columns `jr..jr + NR` of the block.
@@ -211,7 +251,9 @@ impl<T: Real> BlockOfB<T> {
                 index_stride: 1,
             },
             _ => Panel {
-                ptr: self.packed.wrapping_add((p - self.panels_in_place) * NR * self.kc),
+                ptr: self
+                    .packed
+                    .wrapping_add((p - self.panels_in_place) * NR * self.kc),
                 k_stride: NR as isize,
                 index_stride: 1,
             },
@@ -237,14 +279,25 @@ unsafe fn block_tiles<T: Real>(
     continues: bool,
 ) {
     let Output(c) = out;
-    let (mc, nc) = (block.rows.1 - block.rows.0, block.columns.1 - block.columns.0);
+    let (mc, nc) = (
+        block.rows.1 - block.rows.0,
+        block.columns.1 - block.columns.0,
+    );
     // Panels of `a` are read in place where each row is contiguous along `k`, but for a last
     // panel of fewer than `MR` rows; otherwise the block is packed.
-    let in_place_rows = if a.column_stride == 1 { mc / MR * MR } else { 0 };
+    let in_place_rows = if a.column_stride == 1 {
+        mc / MR * MR
+    } else {
+        0
+    };
     if in_place_rows < mc {
         let first = block.rows.0 + in_place_rows;
         // SAFETY: rows `first..block.rows.1` and columns `pc..pc + kc` are inside `a`.
-        unsafe { pack(a_packed, kc, mc - in_place_rows, MR, |k, i| *a.at(first + i, pc + k)) };
+        unsafe {
+            pack(a_packed, kc, mc - in_place_rows, MR, |k, i| {
+                *a.at(first + i, pc + k)
+            })
+        };
     }
     for jr in (0..nc).step_by(NR) {
         let b_panel = b_block.panel(jr);
@@ -254,10 +307,18 @@ unsafe fn block_tiles<T: Real>(
             let a_panel = if ir < in_place_rows {
                 // SAFETY: row `block.rows.0 + ir` and column `pc` are inside `a`.
                 let ptr = unsafe { a.at(block.rows.0 + ir, pc) };
-                Panel { ptr, k_stride: a.column_stride, index_stride: a.row_stride }
+                Panel {
+                    ptr,
+                    k_stride: a.column_stride,
+                    index_stride: a.row_stride,
+                }
             } else {
                 let packed = a_packed[(ir - in_place_rows) * kc..].as_ptr();
-                Panel { ptr: packed, k_stride: MR as isize, index_stride: 1 }
+                Panel {
+                    ptr: packed,
+                    k_stride: MR as isize,
+                    index_stride: 1,
+                }
             };
             // SAFETY: the tile's rows and columns inside the output are inside the block.
             let target = unsafe { c.at(block.rows.0 + ir, block.columns.0 + jr) } as *mut T;
@@ -282,13 +343,23 @@ unsafe fn block_tiles<T: Real>(
 /// # Safety
 /// The `rows x cols` elements from `target` are inside the output, and owned by this thread
 /// when `store`.
-unsafe fn copy_tile<T: Real>(target: Operand<T>, rows: usize, cols: usize, tile: &mut [T; TILE], store: bool) {
+unsafe fn copy_tile<T: Real>(
+    target: Operand<T>,
+    rows: usize,
+    cols: usize,
+    tile: &mut [T; TILE],
+    store: bool,
+) {
     for (i, tile_row) in tile.chunks_exact_mut(NR).take(rows).enumerate() {
         let tile_row = &mut tile_row[..cols];
         if target.column_stride == 1 {
             // SAFETY: the row's `cols` elements are inside the output.
             let out = unsafe { std::slice::from_raw_parts_mut(target.at(i, 0) as *mut T, cols) };
-            if store { out.copy_from_slice(tile_row) } else { tile_row.copy_from_slice(out) }
+            if store {
+                out.copy_from_slice(tile_row)
+            } else {
+                tile_row.copy_from_slice(out)
+            }
         } else {
             for (j, t) in tile_row.iter_mut().enumerate() {
                 // SAFETY: inside the output.

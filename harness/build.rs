@@ -1,45 +1,21 @@
 //! Records the code version that keys every cached sweep result (see `code_version.rs`): a
-//! hash of the workspace's source tree, and the git commit where git is available.
+//! hash of the sources that can change a result (`src/source_hash.rs`), and the git commit
+//! where git is available.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Everything whose change can change a result: the three crates' sources and manifests, and
-/// the lock file that pins every dependency.
-const INPUTS: [&str; 7] = [
-    "world",
-    "policies",
-    "harness/src",
-    "harness/build.rs",
-    "harness/Cargo.toml",
-    "Cargo.toml",
-    "Cargo.lock",
-];
+#[path = "src/source_hash.rs"]
+#[allow(dead_code)]
+mod source_hash;
 
 fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap());
     let root = manifest.parent().unwrap_or(&manifest).to_owned();
-    let mut files = Vec::new();
-    for input in INPUTS {
-        let path = root.join(input);
-        println!("cargo:rerun-if-changed={}", path.display());
-        collect(&path, &mut files);
+    for input in source_hash::NUMERIC_SOURCES.iter().chain(&[source_hash::LOCK_FILE]) {
+        println!("cargo:rerun-if-changed={}", root.join(input).display());
     }
-    files.sort();
-    let mut hasher = blake3::Hasher::new();
-    for file in &files {
-        let relative = file.strip_prefix(&root).unwrap_or(file);
-        hasher.update(relative.to_string_lossy().as_bytes());
-        hasher.update(&[0]);
-        hasher.update(&std::fs::read(file).unwrap_or_default());
-        hasher.update(&[0]);
-    }
-    let source_hash = if files.is_empty() {
-        String::new()
-    } else {
-        hasher.finalize().to_hex()[..16].to_owned()
-    };
-    println!("cargo:rustc-env=VPM_SOURCE_HASH={source_hash}");
+    println!("cargo:rustc-env=VPM_SOURCE_HASH={}", source_hash::source_hash(&root));
     println!("cargo:rustc-env=VPM_GIT_COMMIT={}", git_describe(&root));
     if let Some(log) = git_head_log(&root) {
         println!("cargo:rerun-if-changed={}", log.display());
@@ -56,21 +32,6 @@ fn git_head_log(root: &Path) -> Option<PathBuf> {
         .filter(|o| o.status.success())?;
     let path = PathBuf::from(String::from_utf8_lossy(&output.stdout).trim());
     Some(root.join(path)).filter(|p| p.exists())
-}
-
-/// Source files under `path` (itself if a file), skipping build output and hidden entries.
-fn collect(path: &Path, files: &mut Vec<PathBuf>) {
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-    if name.starts_with('.') || name == "target" {
-        return;
-    }
-    if path.is_file() {
-        files.push(path.to_owned());
-    } else if let Ok(entries) = std::fs::read_dir(path) {
-        for entry in entries.flatten() {
-            collect(&entry.path(), files);
-        }
-    }
 }
 
 /// `git describe --always --dirty`, or empty outside a git checkout.

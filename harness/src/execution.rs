@@ -14,7 +14,7 @@ use world::{StartError, World};
 
 use crate::cell::{Cell, CellConfig};
 use crate::code_version::{code_version, git_commit};
-use crate::provenance::{host_name, utc_timestamp};
+use crate::provenance::{cpu_description, host_name, utc_timestamp};
 use crate::runner::run_episode;
 use crate::scenario::PolicySpec;
 use crate::scenario::format::BaselineSpec;
@@ -108,6 +108,8 @@ pub fn run_cell(
         code_version: code_version(),
         git_commit: git_commit().to_owned(),
         host: host_name(),
+        cpu: cpu_description(),
+        kernels: policies::nn::matmul::INSTRUCTIONS.to_owned(),
         started: utc_timestamp(started),
         finished: utc_timestamp(SystemTime::now()),
         wall_seconds: clock.elapsed().as_secs_f64(),

@@ -22,6 +22,7 @@ pub mod runner;
 pub mod scenario;
 pub mod shard;
 pub mod slurm;
+pub mod source_hash;
 pub mod stats;
 pub mod status;
 pub mod store;

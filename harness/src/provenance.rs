@@ -11,6 +11,38 @@ pub fn host_name() -> String {
         .unwrap_or_default()
 }
 
+/// The CPU's model name and the vector extensions it has that matter to numeric code, e.g.
+/// `AMD EPYC 9R14 (avx512f avx2 fma)`: the record of where a result was made, so that an
+/// audit elsewhere says what it compared.
+pub fn cpu_description() -> String {
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|info| {
+            info.lines()
+                .find_map(|l| l.strip_prefix("model name")?.split_once(':'))
+                .map(|(_, name)| name.trim().to_owned())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_owned());
+    format!("{model} ({})", vector_extensions().join(" "))
+}
+
+/// The vector extensions of the running CPU, of those our kernels could use.
+fn vector_extensions() -> Vec<&'static str> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        [
+            ("avx512f", std::arch::is_x86_feature_detected!("avx512f")),
+            ("avx2", std::arch::is_x86_feature_detected!("avx2")),
+            ("fma", std::arch::is_x86_feature_detected!("fma")),
+        ]
+        .into_iter()
+        .filter_map(|(name, present)| present.then_some(name))
+        .collect()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    Vec::new()
+}
+
 /// `time` as UTC ISO 8601 with milliseconds, e.g. `2026-05-09T07:29:33.186Z`.
 pub fn utc_timestamp(time: SystemTime) -> String {
     let since_epoch = time.duration_since(UNIX_EPOCH).unwrap_or_default();

@@ -2,6 +2,13 @@
 //! `safetensors.torch.load_file` gives a state dict), Adam's moments in a second safetensors
 //! file under the same names, and the metadata (configuration, seed, episode, optimiser step,
 //! versions) as JSON. This module turns state into bytes and back; callers do the file I/O.
+//!
+//! Tensors are stored in PyTorch's conventions, so that a state dict loaded into the paper's
+//! PyTorch network is the same network: convolution weights `[out, in, kh, kw]`, linear
+//! weights `[out, in]`, and the columns that read a CNN's flattened output in `nn.Flatten`'s
+//! order on NCHW (channel, then row, then column). Our CNN flattens channels-last, so those
+//! columns are reordered on the way out and back (format version 2). Version 1 files, written
+//! in our own order, are still read.
 
 use std::collections::HashMap;
 
@@ -10,7 +17,7 @@ use rand_pcg::Pcg64Mcg;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use serde::{Deserialize, Serialize};
 
-use crate::nn::{ActorCritic, Adam, NnError, ParamStore};
+use crate::nn::{ActorCritic, Adam, NnError, ParamSpec, ParamStore};
 use crate::ppo::config::{ConfigError, TrainingConfig};
 use crate::ppo::trainer::{TrainingState, adam_config};
 
@@ -18,7 +25,9 @@ pub const WEIGHTS_FILE: &str = "checkpoint.safetensors";
 pub const OPTIMIZER_FILE: &str = "checkpoint.optimizer.safetensors";
 pub const METADATA_FILE: &str = "checkpoint.json";
 /// Bumped whenever the files change meaning.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
+/// The first version, whose CNN-feature columns were in our channels-last order.
+const CHANNELS_LAST_VERSION: u32 = 1;
 
 /// The JSON file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -59,7 +68,7 @@ pub enum CheckpointError {
         shape: Vec<usize>,
         expected: Vec<usize>,
     },
-    #[error("{METADATA_FILE}: format version {found}, this build reads {FORMAT_VERSION}")]
+    #[error("{METADATA_FILE}: format version {found}, this build reads 1 and {FORMAT_VERSION}")]
     Version { found: u32 },
     #[error("{METADATA_FILE}: {0}")]
     Config(#[from] ConfigError),
@@ -89,9 +98,14 @@ pub fn save(state: &TrainingState) -> CheckpointFiles {
         adam_steps: state.adam.steps(),
         parameters: params.len(),
     };
+    let layout = PyTorchLayout::of(&state.model);
     CheckpointFiles {
-        weights: tensors_to_bytes(params, &[("", params.values())]),
-        optimizer: tensors_to_bytes(params, &[("exp_avg.", first), ("exp_avg_sq.", second)]),
+        weights: tensors_to_bytes(params, &layout, &[("", params.values())]),
+        optimizer: tensors_to_bytes(
+            params,
+            &layout,
+            &[("exp_avg.", first), ("exp_avg_sq.", second)],
+        ),
         metadata: serde_json::to_string_pretty(&metadata).expect("metadata serialises"),
     }
 }
@@ -100,7 +114,7 @@ pub fn save(state: &TrainingState) -> CheckpointFiles {
 pub fn read_metadata(text: &str) -> Result<CheckpointMetadata, CheckpointError> {
     let metadata: CheckpointMetadata =
         serde_json::from_str(text).map_err(|e| format_error(METADATA_FILE, e))?;
-    if metadata.format_version != FORMAT_VERSION {
+    if ![CHANNELS_LAST_VERSION, FORMAT_VERSION].contains(&metadata.format_version) {
         return Err(CheckpointError::Version {
             found: metadata.format_version,
         });
@@ -118,8 +132,9 @@ pub fn load_model(
     // The initial draw is overwritten by the stored weights.
     let mut model = ActorCritic::new(&model_config, &mut Pcg64Mcg::seed_from_u64(0))?;
     let specs = model.params().specs().to_vec();
+    let layout = PyTorchLayout::of_file(&model, metadata);
     let values = model.params_mut().values_mut();
-    read_tensors(WEIGHTS_FILE, weights, &specs, "", values)?;
+    read_tensors(WEIGHTS_FILE, weights, &specs, &layout, "", values)?;
     Ok(model)
 }
 
@@ -131,10 +146,11 @@ pub fn load_state(
 ) -> Result<TrainingState, CheckpointError> {
     let model = load_model(metadata, weights)?;
     let specs = model.params().specs();
+    let layout = PyTorchLayout::of_file(&model, metadata);
     let mut first = vec![0.0; model.params().len()];
     let mut second = vec![0.0; model.params().len()];
-    read_tensors(OPTIMIZER_FILE, optimizer, specs, "exp_avg.", &mut first)?;
-    read_tensors(OPTIMIZER_FILE, optimizer, specs, "exp_avg_sq.", &mut second)?;
+    read_tensors(OPTIMIZER_FILE, optimizer, specs, &layout, "exp_avg.", &mut first)?;
+    read_tensors(OPTIMIZER_FILE, optimizer, specs, &layout, "exp_avg_sq.", &mut second)?;
     let adam_config = adam_config(&metadata.config);
     let adam = Adam::from_state(adam_config, metadata.adam_steps, first, second);
     Ok(TrainingState {
@@ -147,15 +163,78 @@ pub fn load_state(
     })
 }
 
+/// Where the stored order of a tensor's values differs from ours: the CNN-feature columns of
+/// some weight matrices (see the module doc).
+struct PyTorchLayout {
+    /// The tensors whose first `features` columns are reordered.
+    reordered: Vec<&'static str>,
+    /// `ours[c]` is our column of the stored (PyTorch) column `c`, for `c < features`.
+    ours: Vec<usize>,
+}
+
+impl PyTorchLayout {
+    fn of(model: &ActorCritic<f32>) -> Self {
+        let shape = model.cnn_output_shape();
+        let (channels, height, width) = (shape.channels, shape.height, shape.width);
+        let ours = (0..channels)
+            .flat_map(|c| (0..height * width).map(move |p| p * channels + c))
+            .collect();
+        Self {
+            reordered: model.cnn_feature_inputs(),
+            ours,
+        }
+    }
+
+    /// The layout of a file: none for version 1, whose columns are in our order.
+    fn of_file(model: &ActorCritic<f32>, metadata: &CheckpointMetadata) -> Self {
+        if metadata.format_version == CHANNELS_LAST_VERSION {
+            Self {
+                reordered: Vec::new(),
+                ours: Vec::new(),
+            }
+        } else {
+            Self::of(model)
+        }
+    }
+
+    /// A tensor's values in stored order.
+    fn to_stored(&self, spec: &ParamSpec, values: &[f32]) -> Vec<f32> {
+        let mut stored = values.to_vec();
+        if self.reordered.contains(&spec.name.as_str()) {
+            for (stored_row, row) in stored.chunks_exact_mut(spec.shape[1]).zip(values.chunks_exact(spec.shape[1])) {
+                for (c, &ours) in self.ours.iter().enumerate() {
+                    stored_row[c] = row[ours];
+                }
+            }
+        }
+        stored
+    }
+
+    /// Stored values back in our order.
+    fn from_stored(&self, spec: &ParamSpec, stored: &[f32], values: &mut [f32]) {
+        values.copy_from_slice(stored);
+        if self.reordered.contains(&spec.name.as_str()) {
+            for (row, stored_row) in values.chunks_exact_mut(spec.shape[1]).zip(stored.chunks_exact(spec.shape[1])) {
+                for (c, &ours) in self.ours.iter().enumerate() {
+                    row[ours] = stored_row[c];
+                }
+            }
+        }
+    }
+}
+
 /// One safetensors file holding, for each `(prefix, flat)`, every tensor of `params` named
-/// `prefix + name` with its data taken from `flat`.
-fn tensors_to_bytes(params: &ParamStore<f32>, sets: &[(&str, &[f32])]) -> Vec<u8> {
+/// `prefix + name` with its data taken from `flat`, in stored order.
+fn tensors_to_bytes(
+    params: &ParamStore<f32>,
+    layout: &PyTorchLayout,
+    sets: &[(&str, &[f32])],
+) -> Vec<u8> {
     let mut named: Vec<(String, Vec<usize>, Vec<u8>)> = Vec::new();
     for (prefix, flat) in sets {
         for spec in params.specs() {
-            let bytes = spec
-                .slot
-                .of(flat)
+            let bytes = layout
+                .to_stored(spec, spec.slot.of(flat))
                 .iter()
                 .flat_map(|v| v.to_le_bytes())
                 .collect();
@@ -174,7 +253,8 @@ fn tensors_to_bytes(params: &ParamStore<f32>, sets: &[(&str, &[f32])]) -> Vec<u8
 fn read_tensors(
     file: &'static str,
     bytes: &[u8],
-    specs: &[crate::nn::ParamSpec],
+    specs: &[ParamSpec],
+    layout: &PyTorchLayout,
     prefix: &str,
     flat: &mut [f32],
 ) -> Result<(), CheckpointError> {
@@ -196,10 +276,113 @@ fn read_tensors(
                 expected: spec.shape.clone(),
             });
         }
-        let target = spec.slot.of_mut(flat);
-        for (v, chunk) in target.iter_mut().zip(tensor.data().chunks_exact(4)) {
-            *v = f32::from_le_bytes(chunk.try_into().expect("chunks of four bytes"));
-        }
+        let stored: Vec<f32> = tensor
+            .data()
+            .chunks_exact(4)
+            .map(|chunk| f32::from_le_bytes(chunk.try_into().expect("chunks of four bytes")))
+            .collect();
+        layout.from_stored(spec, &stored, spec.slot.of_mut(flat));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ppo::Profile;
+
+    fn state(architecture: &str) -> TrainingState {
+        let config = TrainingConfig::profile(Profile::Fast)
+            .with_overrides(&[format!("architecture={architecture}")])
+            .unwrap();
+        let model_config = config.model_config(25).unwrap();
+        let mut rng = Pcg64Mcg::seed_from_u64(4);
+        let model = ActorCritic::new(&model_config, &mut rng).unwrap();
+        let len = model.params().len();
+        let moment = |scale: f32| (0..len).map(|i| i as f32 * scale).collect::<Vec<_>>();
+        let adam = Adam::from_state(adam_config(&config), 3, moment(1e-3), moment(1e-6));
+        TrainingState {
+            config,
+            seed: 4,
+            episodes_done: 8,
+            wall_seconds: 1.5,
+            model,
+            adam,
+        }
+    }
+
+    fn bits(values: &[f32]) -> Vec<u32> {
+        values.iter().map(|v| v.to_bits()).collect()
+    }
+
+    fn stored_tensor(bytes: &[u8], name: &str) -> (Vec<usize>, Vec<f32>) {
+        let tensors = SafeTensors::deserialize(bytes).unwrap();
+        let tensor = tensors.tensor(name).unwrap();
+        let values = tensor
+            .data()
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        (tensor.shape().to_vec(), values)
+    }
+
+    #[test]
+    fn a_saved_state_loads_back_bit_for_bit() {
+        for architecture in ["ma_g_ppo", "ma_ppo"] {
+            let original = state(architecture);
+            let files = save(&original);
+            let metadata = read_metadata(&files.metadata).unwrap();
+            let loaded = load_state(&metadata, &files.weights, &files.optimizer).unwrap();
+            let (params, loaded_params) = (original.model.params(), loaded.model.params());
+            assert_eq!(bits(params.values()), bits(loaded_params.values()));
+            let (m, v) = original.adam.moments();
+            let (loaded_m, loaded_v) = loaded.adam.moments();
+            assert_eq!((bits(m), bits(v)), (bits(loaded_m), bits(loaded_v)));
+        }
+    }
+
+    /// The paper's CNN ends in 32 channels of 2 x 2: PyTorch's column `c * 4 + p` (channel
+    /// `c`, position `p`) is our column `p * 32 + c`.
+    #[test]
+    fn cnn_feature_columns_are_stored_in_pytorchs_flatten_order() {
+        let original = state("ma_g_ppo");
+        let files = save(&original);
+        let model = &original.model;
+        assert_eq!(
+            model.cnn_feature_inputs(),
+            ["actor.attention.weight", "actor.mlp.0.weight", "critic.mlp.0.weight"]
+        );
+        for spec in model.params().specs() {
+            let ours = spec.slot.of(model.params().values());
+            let (shape, stored) = stored_tensor(&files.weights, &spec.name);
+            assert_eq!(shape, spec.shape, "{}", spec.name);
+            if !model.cnn_feature_inputs().contains(&spec.name.as_str()) {
+                assert_eq!(bits(&stored), bits(ours), "{}", spec.name);
+                continue;
+            }
+            let columns = spec.shape[1];
+            for (row, stored_row) in ours.chunks_exact(columns).zip(stored.chunks_exact(columns)) {
+                for (c, p) in (0..32).flat_map(|c| (0..4).map(move |p| (c, p))) {
+                    assert_eq!(stored_row[c * 4 + p].to_bits(), row[p * 32 + c].to_bits());
+                }
+                // The attention's half of the actor's first layer is not spatial.
+                assert_eq!(bits(&stored_row[128..]), bits(&row[128..]), "{}", spec.name);
+            }
+        }
+    }
+
+    #[test]
+    fn version_1_files_are_read_in_our_own_order() {
+        let original = state("ma_g_ppo");
+        let params = original.model.params();
+        let unchanged = PyTorchLayout {
+            reordered: Vec::new(),
+            ours: Vec::new(),
+        };
+        let weights = tensors_to_bytes(params, &unchanged, &[("", params.values())]);
+        let mut metadata = read_metadata(&save(&original).metadata).unwrap();
+        metadata.format_version = 1;
+        let loaded = load_model(&metadata, &weights).unwrap();
+        assert_eq!(bits(params.values()), bits(loaded.params().values()));
+    }
 }

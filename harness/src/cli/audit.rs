@@ -1,8 +1,10 @@
 //! `harness audit DIR`: plays stored test episodes again and fails on any difference.
 
+use std::collections::BTreeSet;
 use std::path::PathBuf;
 
-use crate::audit::{TrainingAuditLine, audit, audit_training};
+use crate::audit::{AuditLine, TrainingAuditLine, audit, audit_training};
+use crate::provenance;
 use crate::store::Store;
 
 #[derive(clap::Args)]
@@ -24,6 +26,7 @@ pub fn run(args: AuditArgs) -> anyhow::Result<()> {
     let store = Store::new(&args.store);
     let lines = audit(&store, args.sample, args.seed)?;
     let trained = audit_training(&store, args.training_sample, args.seed)?;
+    show_platforms(&store, &lines, &trained);
     let mut differing = trained.iter().filter(|line| !show_training(line)).count();
     for line in &lines {
         let s = &line.stored;
@@ -57,6 +60,31 @@ pub fn run(args: AuditArgs) -> anyhow::Result<()> {
         trained.len()
     );
     Ok(())
+}
+
+/// Prints where the audited cells were made and where they run again now: equal bits across
+/// CPUs are the point of an audit on another machine.
+fn show_platforms(store: &Store, lines: &[AuditLine], trained: &[TrainingAuditLine]) {
+    let platform = |host: &str, cpu: &str, kernels: &str| {
+        let unknown = |s: &str| if s.is_empty() { "unrecorded".to_owned() } else { s.to_owned() };
+        format!("host {}, CPU {}, kernels {}", unknown(host), unknown(cpu), unknown(kernels))
+    };
+    let here = platform(
+        &provenance::host_name(),
+        &provenance::cpu_description(),
+        policies::nn::matmul::INSTRUCTIONS,
+    );
+    println!("re-run on {here}");
+    let keys: BTreeSet<&str> = lines
+        .iter()
+        .map(|l| l.cell_key.as_str())
+        .chain(trained.iter().map(|l| l.cell_key.as_str()))
+        .collect();
+    for key in keys {
+        if let Some(r) = store.finished(key) {
+            println!("cell {key} made on {}", platform(&r.host, &r.cpu, &r.kernels));
+        }
+    }
 }
 
 /// Prints a training run's line; returns whether it came back bit for bit.

@@ -17,6 +17,13 @@ pub struct CellRecord {
     pub code_version: String,
     pub git_commit: String,
     pub host: String,
+    /// The CPU's model and vector extensions (`provenance::cpu_description`); empty in
+    /// records written before it was kept.
+    #[serde(default)]
+    pub cpu: String,
+    /// The instructions of the matrix kernels that computed it (`nn::matmul::INSTRUCTIONS`).
+    #[serde(default)]
+    pub kernels: String,
     /// UTC, ISO 8601.
     pub started: String,
     pub finished: String,

@@ -121,6 +121,8 @@ pub fn cells_frame(records: &[CellRecord]) -> Result<DataFrame, StoreError> {
             column(records, |r| r.git_commit.clone()),
         ),
         Column::new("host".into(), column(records, |r| r.host.clone())),
+        Column::new("cpu".into(), column(records, |r| r.cpu.clone())),
+        Column::new("kernels".into(), column(records, |r| r.kernels.clone())),
         Column::new("started".into(), column(records, |r| r.started.clone())),
         Column::new("finished".into(), column(records, |r| r.finished.clone())),
         Column::new("wall_seconds".into(), column(records, |r| r.wall_seconds)),

@@ -82,6 +82,11 @@ impl CnnEncoder {
         self.convs[0].input_shape().len()
     }
 
+    /// The shape of the last convolution's output, which the features flatten channels-last.
+    pub fn output_shape(&self) -> ImageShape {
+        self.convs[self.convs.len() - 1].output_shape()
+    }
+
     /// Features per sample.
     pub fn features(&self) -> usize {
         self.convs[self.convs.len() - 1].output_shape().len()

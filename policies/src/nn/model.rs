@@ -260,6 +260,22 @@ impl<T: Real> ActorCritic<T> {
         &self.config
     }
 
+    /// The weight matrices whose input columns `0..features` are a CNN's flattened output:
+    /// the attention's `W` and both MLPs' first layers. We flatten channels-last; PyTorch's
+    /// `nn.Flatten` on NCHW flattens channels-first, so checkpoints reorder these columns.
+    pub fn cnn_feature_inputs(&self) -> Vec<&'static str> {
+        let mut names = vec!["actor.mlp.0.weight", "critic.mlp.0.weight"];
+        if self.attention.is_some() {
+            names.insert(0, "actor.attention.weight");
+        }
+        names
+    }
+
+    /// The shape of both CNNs' output (they are alike).
+    pub fn cnn_output_shape(&self) -> ImageShape {
+        self.actor_cnn.output_shape()
+    }
+
     pub fn params(&self) -> &ParamStore<T> {
         &self.params
     }

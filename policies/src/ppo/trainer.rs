@@ -344,7 +344,7 @@ mod tests {
         assert_eq!(first.shape(), &[3, 2, 3, 3]);
         let broken = files
             .metadata
-            .replace("\"format_version\": 1", "\"format_version\": 99");
+            .replace("\"format_version\": 2", "\"format_version\": 99");
         assert!(checkpoint::read_metadata(&broken).is_err());
         let error = checkpoint::load_model(&metadata, &files.weights[..40]).unwrap_err();
         assert!(

@@ -8,6 +8,13 @@
 //! bits. The portable kernel is the definition; the AVX2 kernel is tested against it bit for
 //! bit, on panels read in place with any strides and on packed ones.
 
+/// The instructions of this build's tile kernel, chosen at compile time, for the record of
+/// where a result was made (they change the speed, never the bits).
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"))]
+pub const INSTRUCTIONS: &str = "avx2+fma, 8 lanes";
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma")))]
+pub const INSTRUCTIONS: &str = "portable (scalar fma)";
+
 /// Rows of a tile: 6 rows x 2 vectors of 8 lanes are 12 accumulators, which with the two
 /// loaded vectors of `b` and one broadcast of `a` fill 15 of the 16 AVX2 registers.
 pub const MR: usize = 6;

@@ -18,7 +18,7 @@ mod packed;
 
 use ndarray::{ArrayView2, ArrayViewMut2};
 
-pub use kernel::TileKernel;
+pub use kernel::{INSTRUCTIONS, TileKernel};
 pub use packed::PackingBuffers;
 
 use super::real::{LANES, LaneSums, Real};

@@ -12,10 +12,16 @@ mod source_hash;
 fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap());
     let root = manifest.parent().unwrap_or(&manifest).to_owned();
-    for input in source_hash::NUMERIC_SOURCES.iter().chain(&[source_hash::LOCK_FILE]) {
+    for input in source_hash::NUMERIC_SOURCES
+        .iter()
+        .chain(&[source_hash::LOCK_FILE])
+    {
         println!("cargo:rerun-if-changed={}", root.join(input).display());
     }
-    println!("cargo:rustc-env=VPM_SOURCE_HASH={}", source_hash::source_hash(&root));
+    println!(
+        "cargo:rustc-env=VPM_SOURCE_HASH={}",
+        source_hash::source_hash(&root)
+    );
     println!("cargo:rustc-env=VPM_GIT_COMMIT={}", git_describe(&root));
     if let Some(log) = git_head_log(&root) {
         println!("cargo:rerun-if-changed={}", log.display());

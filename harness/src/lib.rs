@@ -13,6 +13,7 @@ pub mod execution;
 pub mod merge;
 pub mod nn_bench;
 pub mod policy_bench;
+pub mod probe;
 pub mod progress;
 pub mod provenance;
 pub mod recording;

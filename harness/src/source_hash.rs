@@ -99,10 +99,18 @@ impl<'a> LockEntry<'a> {
         let dependencies = text
             .split_once("dependencies = [")
             .map(|(_, list)| list.split(']').next().unwrap_or(""))
-            .map(|list| list.lines().map(|l| l.trim().trim_end_matches(',').trim_matches('"')))
+            .map(|list| {
+                list.lines()
+                    .map(|l| l.trim().trim_end_matches(',').trim_matches('"'))
+            })
             .map(|names| names.filter(|n| !n.is_empty()).collect())
             .unwrap_or_default();
-        Self { text, name: field("name"), version: field("version"), dependencies }
+        Self {
+            text,
+            name: field("name"),
+            version: field("version"),
+            dependencies,
+        }
     }
 
     /// Whether a dependency line (`name`, `name version` or `name version (source)`) names
@@ -116,7 +124,11 @@ impl<'a> LockEntry<'a> {
 /// The lock file's entries of every crate the numeric packages depend on, directly or not,
 /// themselves included, in the file's order.
 fn numeric_lock_entries(lock: &str) -> Vec<&str> {
-    let entries: Vec<LockEntry> = lock.split("[[package]]").skip(1).map(LockEntry::parse).collect();
+    let entries: Vec<LockEntry> = lock
+        .split("[[package]]")
+        .skip(1)
+        .map(LockEntry::parse)
+        .collect();
     let mut by_name: HashMap<&str, Vec<usize>> = HashMap::new();
     for (index, entry) in entries.iter().enumerate() {
         by_name.entry(entry.name).or_default().push(index);
@@ -136,7 +148,10 @@ fn numeric_lock_entries(lock: &str) -> Vec<&str> {
             pending.extend(candidates.iter().filter(|&&c| entries[c].is(dependency)));
         }
     }
-    reached.into_iter().map(|index| entries[index].text).collect()
+    reached
+        .into_iter()
+        .map(|index| entries[index].text)
+        .collect()
 }
 
 #[cfg(test)]
@@ -165,7 +180,11 @@ mod tests {
     fn workspace_copy() -> Scratch {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
         let copy = std::env::temp_dir().join(format!("vpm-source-hash-{}", std::process::id()));
-        for path in NUMERIC_SOURCES.iter().chain(&[LOCK_FILE]).chain(&OTHER_SOURCES) {
+        for path in NUMERIC_SOURCES
+            .iter()
+            .chain(&[LOCK_FILE])
+            .chain(&OTHER_SOURCES)
+        {
             copy_tree(&root.join(path), &copy.join(path));
         }
         Scratch(copy)
@@ -202,30 +221,70 @@ mod tests {
         let root = copy.0.as_path();
         let original = source_hash(root);
         assert_eq!(original.len(), 16);
-        let cosmetic = OTHER_SOURCES.map(|s| if s.ends_with(".rs") || s.ends_with(".md") { s.to_owned() } else { format!("{s}/mod.rs") });
+        let cosmetic = OTHER_SOURCES.map(|s| {
+            if s.ends_with(".rs") || s.ends_with(".md") {
+                s.to_owned()
+            } else {
+                format!("{s}/mod.rs")
+            }
+        });
         for file in &cosmetic {
             append(root, file, "\n// a cosmetic edit\n");
             assert_eq!(source_hash(root), original, "{file} moved the key");
         }
-        replace(root, LOCK_FILE, "name = \"polars\"\nversion = \"", "name = \"polars\"\nversion = \"9");
-        assert_eq!(source_hash(root), original, "a report-only dependency moved the key");
+        replace(
+            root,
+            LOCK_FILE,
+            "name = \"polars\"\nversion = \"",
+            "name = \"polars\"\nversion = \"9",
+        );
+        assert_eq!(
+            source_hash(root),
+            original,
+            "a report-only dependency moved the key"
+        );
         let mut previous = original;
-        for file in ["policies/src/nn/matmul/kernel.rs", "world/src/lib.rs", "harness/src/execution.rs"] {
+        for file in [
+            "policies/src/nn/matmul/kernel.rs",
+            "world/src/lib.rs",
+            "harness/src/execution.rs",
+        ] {
             append(root, file, "\n// a numeric edit\n");
             let moved = source_hash(root);
             assert_ne!(moved, previous, "{file} did not move the key");
             previous = moved;
         }
-        replace(root, LOCK_FILE, "name = \"wide\"\nversion = \"", "name = \"wide\"\nversion = \"9");
-        assert_ne!(source_hash(root), previous, "an upgrade of a numeric dependency did not move the key");
+        replace(
+            root,
+            LOCK_FILE,
+            "name = \"wide\"\nversion = \"",
+            "name = \"wide\"\nversion = \"9",
+        );
+        assert_ne!(
+            source_hash(root),
+            previous,
+            "an upgrade of a numeric dependency did not move the key"
+        );
     }
 
     #[test]
     fn the_lock_closure_holds_the_numeric_crates_dependencies_and_not_the_reports() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
         let lock = std::fs::read_to_string(root.join(LOCK_FILE)).unwrap();
-        let names: BTreeSet<&str> = numeric_lock_entries(&lock).into_iter().map(|e| LockEntry::parse(e).name).collect();
-        for name in ["world", "policies", "wide", "rand_pcg", "ndarray", "linfa-clustering", "libm", "rayon-core"] {
+        let names: BTreeSet<&str> = numeric_lock_entries(&lock)
+            .into_iter()
+            .map(|e| LockEntry::parse(e).name)
+            .collect();
+        for name in [
+            "world",
+            "policies",
+            "wide",
+            "rand_pcg",
+            "ndarray",
+            "linfa-clustering",
+            "libm",
+            "rayon-core",
+        ] {
             assert!(names.contains(name), "{name} missing");
         }
         for name in ["polars", "plotters", "rerun", "clap", "harness"] {

@@ -149,8 +149,22 @@ pub fn load_state(
     let layout = PyTorchLayout::of_file(&model, metadata);
     let mut first = vec![0.0; model.params().len()];
     let mut second = vec![0.0; model.params().len()];
-    read_tensors(OPTIMIZER_FILE, optimizer, specs, &layout, "exp_avg.", &mut first)?;
-    read_tensors(OPTIMIZER_FILE, optimizer, specs, &layout, "exp_avg_sq.", &mut second)?;
+    read_tensors(
+        OPTIMIZER_FILE,
+        optimizer,
+        specs,
+        &layout,
+        "exp_avg.",
+        &mut first,
+    )?;
+    read_tensors(
+        OPTIMIZER_FILE,
+        optimizer,
+        specs,
+        &layout,
+        "exp_avg_sq.",
+        &mut second,
+    )?;
     let adam_config = adam_config(&metadata.config);
     let adam = Adam::from_state(adam_config, metadata.adam_steps, first, second);
     Ok(TrainingState {
@@ -201,7 +215,10 @@ impl PyTorchLayout {
     fn to_stored(&self, spec: &ParamSpec, values: &[f32]) -> Vec<f32> {
         let mut stored = values.to_vec();
         if self.reordered.contains(&spec.name.as_str()) {
-            for (stored_row, row) in stored.chunks_exact_mut(spec.shape[1]).zip(values.chunks_exact(spec.shape[1])) {
+            for (stored_row, row) in stored
+                .chunks_exact_mut(spec.shape[1])
+                .zip(values.chunks_exact(spec.shape[1]))
+            {
                 for (c, &ours) in self.ours.iter().enumerate() {
                     stored_row[c] = row[ours];
                 }
@@ -214,7 +231,10 @@ impl PyTorchLayout {
     fn from_stored(&self, spec: &ParamSpec, stored: &[f32], values: &mut [f32]) {
         values.copy_from_slice(stored);
         if self.reordered.contains(&spec.name.as_str()) {
-            for (row, stored_row) in values.chunks_exact_mut(spec.shape[1]).zip(stored.chunks_exact(spec.shape[1])) {
+            for (row, stored_row) in values
+                .chunks_exact_mut(spec.shape[1])
+                .zip(stored.chunks_exact(spec.shape[1]))
+            {
                 for (c, &ours) in self.ours.iter().enumerate() {
                     row[ours] = stored_row[c];
                 }
@@ -350,7 +370,11 @@ mod tests {
         let model = &original.model;
         assert_eq!(
             model.cnn_feature_inputs(),
-            ["actor.attention.weight", "actor.mlp.0.weight", "critic.mlp.0.weight"]
+            [
+                "actor.attention.weight",
+                "actor.mlp.0.weight",
+                "critic.mlp.0.weight"
+            ]
         );
         for spec in model.params().specs() {
             let ours = spec.slot.of(model.params().values());

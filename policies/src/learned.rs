@@ -7,6 +7,7 @@ use rand_pcg::Pcg64Mcg;
 use world::seed::purpose;
 use world::{Action, Cell, Episode, ObservationConfig, Observer, Seed, World};
 
+use crate::nn::real::Real;
 use crate::nn::{
     ActorCritic, AgentGraph, Architecture, CategoricalBatch, ModelWorkspace, Neighbours,
 };
@@ -70,6 +71,21 @@ pub struct LearnedPolicy {
     observations: Vec<f32>,
     points: Vec<[f64; 2]>,
     streams: Vec<Pcg64Mcg>,
+    /// Actor and critic outputs for [`LearnedPolicy::inspect_last_step`].
+    inspection: ModelWorkspace<f32>,
+}
+
+/// What the network saw and answered at one step, for every agent: the inputs and outputs
+/// another implementation of the network must reproduce.
+pub struct Inspection<'a> {
+    /// Every agent's observation, `[agents, channels, side, side]` flat (NCHW).
+    pub observations: &'a [f32],
+    pub channels: usize,
+    pub side: usize,
+    /// Every agent's action probabilities, `[agents, 5]` (stay, +y, -x, -y, +x).
+    pub probabilities: Vec<f32>,
+    /// Every agent's value estimate.
+    pub values: &'a [f32],
 }
 
 impl LearnedPolicy {
@@ -109,7 +125,30 @@ impl LearnedPolicy {
             observations: Vec::new(),
             points: Vec::new(),
             streams: Vec::new(),
+            inspection: ModelWorkspace::default(),
         })
+    }
+
+    /// The observations of the last [`Policy::act`] and the whole network's outputs on them:
+    /// the actor's probabilities and the critic's values, on the same attention graph.
+    pub fn inspect_last_step(&mut self) -> Inspection<'_> {
+        self.model
+            .forward(&mut self.inspection, &self.observations, &self.graph);
+        let probabilities = self
+            .inspection
+            .policy()
+            .log_probs()
+            .iter()
+            .map(|l| l.exp_portable())
+            .collect();
+        let shape = self.model.config().observation_shape();
+        Inspection {
+            observations: &self.observations,
+            channels: shape.channels,
+            side: shape.height,
+            probabilities,
+            values: self.inspection.values(),
+        }
     }
 }
 

@@ -20,6 +20,6 @@ pub mod viewpoints;
 
 pub use baseline::Baseline;
 pub use error::PlanError;
-pub use learned::{ActionChoice, LearnedPolicy};
+pub use learned::{ActionChoice, Inspection, LearnedPolicy};
 pub use policy::{AttentionEdges, Policy};
 pub use random::RandomPolicy;

@@ -66,8 +66,19 @@ pub fn run(args: AuditArgs) -> anyhow::Result<()> {
 /// CPUs are the point of an audit on another machine.
 fn show_platforms(store: &Store, lines: &[AuditLine], trained: &[TrainingAuditLine]) {
     let platform = |host: &str, cpu: &str, kernels: &str| {
-        let unknown = |s: &str| if s.is_empty() { "unrecorded".to_owned() } else { s.to_owned() };
-        format!("host {}, CPU {}, kernels {}", unknown(host), unknown(cpu), unknown(kernels))
+        let unknown = |s: &str| {
+            if s.is_empty() {
+                "unrecorded".to_owned()
+            } else {
+                s.to_owned()
+            }
+        };
+        format!(
+            "host {}, CPU {}, kernels {}",
+            unknown(host),
+            unknown(cpu),
+            unknown(kernels)
+        )
     };
     let here = platform(
         &provenance::host_name(),
@@ -82,7 +93,10 @@ fn show_platforms(store: &Store, lines: &[AuditLine], trained: &[TrainingAuditLi
         .collect();
     for key in keys {
         if let Some(r) = store.finished(key) {
-            println!("cell {key} made on {}", platform(&r.host, &r.cpu, &r.kernels));
+            println!(
+                "cell {key} made on {}",
+                platform(&r.host, &r.cpu, &r.kernels)
+            );
         }
     }
 }

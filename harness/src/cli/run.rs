@@ -1,9 +1,11 @@
 //! `harness run`: one episode, printed; optionally fixed starts, replayed actions, a trace.
 
+use std::collections::BTreeSet;
 use std::path::PathBuf;
 
 use crate::atomic_file::write_atomic;
 use crate::checkpoint_dir;
+use crate::probe::ProbingPolicy;
 use crate::replay::{ReplayPolicy, parse_actions, parse_starts};
 use crate::runner::run_episode;
 use crate::trace::Trace;
@@ -41,6 +43,13 @@ pub struct RunArgs {
     /// Write the per-step trace (t, reward, x, y, action of every agent) to this CSV file.
     #[arg(long)]
     trace: Option<PathBuf>,
+    /// With a checkpoint policy: write every agent's observation, action probabilities and
+    /// value at the --probe-steps to this Parquet file.
+    #[arg(long)]
+    probe: Option<PathBuf>,
+    /// The steps --probe records, "0,10,100" (0 is the first action).
+    #[arg(long, default_value = "0", requires = "probe")]
+    probe_steps: String,
 }
 
 pub fn run(args: RunArgs) -> anyhow::Result<()> {
@@ -70,11 +79,20 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         None => (policy_by_name(&args, &world)?, args.steps.unwrap_or(2000)),
     };
+    let mut probing = args
+        .probe
+        .as_ref()
+        .map(|_| probing_policy(&args, &world))
+        .transpose()?;
+    let policy: &mut dyn Policy = match probing.as_mut() {
+        Some(probing) => probing,
+        None => policy.as_mut(),
+    };
     let mut trace = args.trace.as_ref().map(|_| Trace::new(args.agents));
     let outcome = run_episode(
         &world,
         args.agents,
-        policy.as_mut(),
+        &mut *policy,
         Seed::new(args.seed),
         starts.as_deref(),
         steps,
@@ -84,8 +102,13 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             }
         },
     )?;
+    let name = policy.name().to_owned();
     if let (Some(path), Some(trace)) = (&args.trace, trace) {
         write_atomic(path, trace.into_text().as_bytes())
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let (Some(path), Some(probing)) = (&args.probe, probing) {
+        write_atomic(path, &probing.into_parquet()?)
             .with_context(|| format!("writing {}", path.display()))?;
     }
     println!(
@@ -93,10 +116,40 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         outcome.cumulative_penalty / 1e6,
         outcome.steps,
         args.agents,
-        policy.name(),
+        name,
         args.seed
     );
     Ok(())
+}
+
+/// The checkpoint policy of `--policy`, recording the `--probe-steps`.
+fn probing_policy(
+    args: &RunArgs,
+    world: &std::sync::Arc<world::World>,
+) -> anyhow::Result<ProbingPolicy> {
+    let dir = checkpoint_dir::policy_dir(&args.policy).with_context(|| {
+        format!(
+            "--probe needs --policy checkpoint:DIR, not `{}`",
+            args.policy
+        )
+    })?;
+    anyhow::ensure!(
+        args.actions.is_none(),
+        "--probe cannot be combined with --actions"
+    );
+    let steps = args
+        .probe_steps
+        .split(',')
+        .map(|s| s.trim().parse::<usize>())
+        .collect::<Result<BTreeSet<_>, _>>()
+        .map_err(|e| anyhow::anyhow!("--probe-steps `{}`: {e}", args.probe_steps))?;
+    let choice = if args.greedy {
+        ActionChoice::Greedy
+    } else {
+        ActionChoice::Sampled
+    };
+    let policy = checkpoint_dir::load_policy(&dir, world, choice)?;
+    Ok(ProbingPolicy::new(policy, steps))
 }
 
 /// A baseline by name, or the learned policy of a `checkpoint:DIR`.

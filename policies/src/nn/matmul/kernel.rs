@@ -10,9 +10,17 @@
 
 /// The instructions of this build's tile kernel, chosen at compile time, for the record of
 /// where a result was made (they change the speed, never the bits).
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"))]
+#[cfg(all(
+    target_arch = "x86_64",
+    target_feature = "avx2",
+    target_feature = "fma"
+))]
 pub const INSTRUCTIONS: &str = "avx2+fma, 8 lanes";
-#[cfg(not(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma")))]
+#[cfg(not(all(
+    target_arch = "x86_64",
+    target_feature = "avx2",
+    target_feature = "fma"
+)))]
 pub const INSTRUCTIONS: &str = "portable (scalar fma)";
 
 /// Rows of a tile: 6 rows x 2 vectors of 8 lanes are 12 accumulators, which with the two

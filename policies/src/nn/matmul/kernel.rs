@@ -54,14 +54,30 @@ impl<T: Copy> Panel<T> {
     }
 }
 
+/// The `MR x NR` output a kernel updates in place: rows `row_stride` apart, each row's `NR`
+/// values contiguous (the output itself where it allows, else a copy).
+#[derive(Clone, Copy)]
+pub struct Tile<T> {
+    pub ptr: *mut T,
+    pub row_stride: isize,
+}
+
 /// A float with a tile kernel.
 pub trait TileKernel: Copy {
-    /// `tile[i][j] = fma(a[k][i], b[k][j], tile[i][j])` for `k` in `0..depth`, ascending.
+    /// `t[i][j] = fma(a[k][i], b[k][j], t[i][j])` for `k` in `0..depth`, ascending, starting
+    /// from the tile's values when `continues`, else from zero.
     ///
     /// # Safety
     /// `a` has `depth` steps of `MR` readable values and `b` `depth` steps of `NR`, with
-    /// `b.index_stride == 1`.
-    unsafe fn multiply_tile(depth: usize, a: Panel<Self>, b: Panel<Self>, tile: &mut [Self; TILE]);
+    /// `b.index_stride == 1`; the tile's `MR` rows of `NR` values are writable, and readable
+    /// when `continues`.
+    unsafe fn multiply_tile(
+        depth: usize,
+        a: Panel<Self>,
+        b: Panel<Self>,
+        tile: Tile<Self>,
+        continues: bool,
+    );
 }
 
 /// The definition of every kernel's result; the only kernel for `f64` (gradient checks).
@@ -72,10 +88,18 @@ pub unsafe fn portable_tile<T: num_traits::Float>(
     depth: usize,
     a: Panel<T>,
     b: Panel<T>,
-    tile: &mut [T; TILE],
+    tile: Tile<T>,
+    continues: bool,
 ) {
-    for k in 0..depth {
-        for (i, row) in tile.chunks_exact_mut(NR).enumerate() {
+    for i in 0..MR {
+        // SAFETY: by the caller's promise, row `i` has `NR` writable values.
+        let row = unsafe {
+            std::slice::from_raw_parts_mut(tile.ptr.offset(i as isize * tile.row_stride), NR)
+        };
+        if !continues {
+            row.fill(T::zero());
+        }
+        for k in 0..depth {
             // SAFETY: by the caller's promise.
             let a_ik = unsafe { a.get(k, i) };
             for (j, t) in row.iter_mut().enumerate() {
@@ -87,15 +111,27 @@ pub unsafe fn portable_tile<T: num_traits::Float>(
 }
 
 impl TileKernel for f64 {
-    unsafe fn multiply_tile(depth: usize, a: Panel<f64>, b: Panel<f64>, tile: &mut [f64; TILE]) {
+    unsafe fn multiply_tile(
+        depth: usize,
+        a: Panel<f64>,
+        b: Panel<f64>,
+        tile: Tile<f64>,
+        continues: bool,
+    ) {
         // SAFETY: the same contract.
-        unsafe { portable_tile(depth, a, b, tile) }
+        unsafe { portable_tile(depth, a, b, tile, continues) }
     }
 }
 
 impl TileKernel for f32 {
     #[inline]
-    unsafe fn multiply_tile(depth: usize, a: Panel<f32>, b: Panel<f32>, tile: &mut [f32; TILE]) {
+    unsafe fn multiply_tile(
+        depth: usize,
+        a: Panel<f32>,
+        b: Panel<f32>,
+        tile: Tile<f32>,
+        continues: bool,
+    ) {
         // SAFETY: the same contract.
         #[cfg(all(
             target_arch = "x86_64",
@@ -103,7 +139,7 @@ impl TileKernel for f32 {
             target_feature = "fma"
         ))]
         unsafe {
-            avx2::multiply_tile(depth, a, b, tile)
+            avx2::multiply_tile(depth, a, b, tile, continues)
         }
         // SAFETY: the same contract.
         #[cfg(not(all(
@@ -112,7 +148,7 @@ impl TileKernel for f32 {
             target_feature = "fma"
         )))]
         unsafe {
-            portable_tile(depth, a, b, tile)
+            portable_tile(depth, a, b, tile, continues)
         }
     }
 }
@@ -126,10 +162,11 @@ impl TileKernel for f32 {
 ))]
 mod avx2 {
     use std::arch::x86_64::{
-        __m256, _mm256_broadcast_ss, _mm256_fmadd_ps, _mm256_loadu_ps, _mm256_storeu_ps,
+        __m256, _mm256_broadcast_ss, _mm256_fmadd_ps, _mm256_loadu_ps, _mm256_setzero_ps,
+        _mm256_storeu_ps,
     };
 
-    use super::{MR, NR, Panel, TILE};
+    use super::{MR, Panel, Tile};
 
     /// # Safety
     /// As [`super::TileKernel::multiply_tile`].
@@ -138,34 +175,36 @@ mod avx2 {
         depth: usize,
         a: Panel<f32>,
         b: Panel<f32>,
-        tile: &mut [f32; TILE],
+        tile: Tile<f32>,
+        continues: bool,
     ) {
         debug_assert_eq!(b.index_stride, 1);
         // SAFETY: the caller promises `depth` steps of both panels, `b`'s values contiguous
-        // within a step; the tile has `MR` rows of `NR` values. Unaligned loads and stores
+        // within a step, and `MR` rows of `NR` values in the tile. Unaligned loads and stores
         // need no alignment; AVX2 and FMA are enabled for the whole build (the cfg above).
         unsafe {
-            let t = tile.as_mut_ptr();
+            let row = |i: usize| tile.ptr.offset(i as isize * tile.row_stride);
             let mut acc: [[__m256; 2]; MR] = std::array::from_fn(|i| {
-                [
-                    _mm256_loadu_ps(t.add(i * NR)),
-                    _mm256_loadu_ps(t.add(i * NR + 8)),
-                ]
+                if continues {
+                    [_mm256_loadu_ps(row(i)), _mm256_loadu_ps(row(i).add(8))]
+                } else {
+                    [_mm256_setzero_ps(); 2]
+                }
             });
             let (mut a_k, mut b_k) = (a.ptr, b.ptr);
             for _ in 0..depth {
                 let (b0, b1) = (_mm256_loadu_ps(b_k), _mm256_loadu_ps(b_k.add(8)));
-                for (i, row) in acc.iter_mut().enumerate() {
+                for (i, sums) in acc.iter_mut().enumerate() {
                     let a_ik = _mm256_broadcast_ss(&*a_k.offset(i as isize * a.index_stride));
-                    row[0] = _mm256_fmadd_ps(a_ik, b0, row[0]);
-                    row[1] = _mm256_fmadd_ps(a_ik, b1, row[1]);
+                    sums[0] = _mm256_fmadd_ps(a_ik, b0, sums[0]);
+                    sums[1] = _mm256_fmadd_ps(a_ik, b1, sums[1]);
                 }
                 a_k = a_k.offset(a.k_stride);
                 b_k = b_k.offset(b.k_stride);
             }
-            for (i, row) in acc.iter().enumerate() {
-                _mm256_storeu_ps(t.add(i * NR), row[0]);
-                _mm256_storeu_ps(t.add(i * NR + 8), row[1]);
+            for (i, sums) in acc.iter().enumerate() {
+                _mm256_storeu_ps(row(i), sums[0]);
+                _mm256_storeu_ps(row(i).add(8), sums[1]);
             }
         }
     }
@@ -209,24 +248,32 @@ mod tests {
                 panel(&a, 1, depth.max(1) as isize),
             ];
             let b_layouts = [panel(&b, NR as isize, 1), panel(&b, NR as isize + 3, 1)];
-            for (a_panel, b_panel) in a_layouts.into_iter().zip(b_layouts) {
+            let starts = [true, false];
+            for ((a_panel, b_panel), continues) in a_layouts.into_iter().zip(b_layouts).zip(starts)
+            {
                 let (mut fast, mut portable) = (start, start);
-                // SAFETY: `a` has `depth * MR` values and `b` `depth * (NR + 3)`.
+                let tile = |t: &mut [f32; TILE]| Tile {
+                    ptr: t.as_mut_ptr(),
+                    row_stride: NR as isize,
+                };
+                // SAFETY: `a` has `depth * MR` values and `b` `depth * (NR + 3)`; the tiles
+                // are `MR x NR`.
                 unsafe {
-                    f32::multiply_tile(depth, a_panel, b_panel, &mut fast);
-                    portable_tile(depth, a_panel, b_panel, &mut portable);
+                    f32::multiply_tile(depth, a_panel, b_panel, tile(&mut fast), continues);
+                    portable_tile(depth, a_panel, b_panel, tile(&mut portable), continues);
                 }
                 assert!(
                     fast.iter()
                         .zip(&portable)
                         .all(|(x, y)| x.to_bits() == y.to_bits())
                 );
+                let first = if continues { start } else { [0.0; TILE] };
                 if depth >= 7 {
                     let unfused = (0..TILE).map(|e| {
                         let (i, j) = (e / NR, e % NR);
                         // SAFETY: as above.
                         let term = |k| unsafe { a_panel.get(k, i) * b_panel.get(k, j) };
-                        (0..depth).fold(start[e], |t, k| t + term(k))
+                        (0..depth).fold(first[e], |t, k| t + term(k))
                     });
                     let differ = unfused.zip(&fast).any(|(u, f)| u.to_bits() != f.to_bits());
                     assert!(differ, "depth {depth}: the kernel does not fuse");

@@ -12,7 +12,7 @@ use std::cell::RefCell;
 use ndarray::{ArrayView2, ArrayViewMut2};
 use rayon::prelude::*;
 
-use super::kernel::{MR, NR, Panel, TILE};
+use super::kernel::{MR, NR, Panel, TILE, Tile};
 use crate::nn::real::Real;
 
 /// The depth of a packed block: a `KC x NR` panel of `b` (16 KiB) stays in L1.
@@ -24,7 +24,7 @@ const NC: usize = 4080;
 /// Up to this many rows of output, panels of a `b` with contiguous rows are read in place:
 /// too few tiles would reuse a packed copy to repay it. With more, packing wins, as rows of
 /// `b` a power of two apart in memory would compete for the same cache sets.
-const IN_PLACE_ROWS: usize = 4 * MR;
+const IN_PLACE_ROWS: usize = MR;
 
 /// A matrix operand as a pointer and element strides, shareable among the threads that read it.
 #[derive(Clone, Copy)]
@@ -214,23 +214,14 @@ impl<T: Real> BlockOfB<T> {
             0
         };
         let first = panels_in_place * NR;
-        let len = nc - first;
-        if b.column_stride == 1 {
-            let padded = len.div_ceil(NR) * NR;
-            buffer.resize(padded * kc, T::zero());
-            for (p, panel) in buffer.chunks_exact_mut(NR * kc).enumerate() {
-                let (start, count) = (first + p * NR, NR.min(len - p * NR));
-                for (k, step) in panel.chunks_exact_mut(NR).enumerate() {
-                    // SAFETY: row `k` and columns `start..start + count` are inside the block.
-                    let row = unsafe { std::slice::from_raw_parts(corner.at(k, start), count) };
-                    step[..count].copy_from_slice(row);
-                    step[count..].fill(T::zero());
-                }
-            }
-        } else {
-            // SAFETY: by the caller's promise.
-            unsafe { pack(buffer, kc, len, NR, |k, j| *corner.at(k, first + j)) };
-        }
+        let source = Panel {
+            // SAFETY: column `first` is inside the block, or just past it when all is in place.
+            ptr: corner.ptr.wrapping_offset(first as isize * b.column_stride),
+            k_stride: b.row_stride,
+            index_stride: b.column_stride,
+        };
+        // SAFETY: rows `0..kc` and columns `first..nc` of the block are inside `b`.
+        unsafe { pack(buffer, kc, nc - first, NR, source) };
         let in_place = Some(corner).filter(|_| panels_in_place > 0);
         Self {
             in_place,
@@ -261,8 +252,8 @@ impl<T: Real> BlockOfB<T> {
     }
 }
 
-/// Every tile of one block of the output. A tile at the edge of the output runs whole on a
-/// copy; its rows and columns outside the output are dropped.
+/// Every tile of one block of the output, updated in place; a tile at the edge of the output
+/// runs whole on a copy, whose rows and columns outside the output are dropped.
 ///
 /// # Safety
 /// `block` is inside the output and owned by this thread; its rows, and columns
@@ -292,12 +283,14 @@ unsafe fn block_tiles<T: Real>(
     };
     if in_place_rows < mc {
         let first = block.rows.0 + in_place_rows;
-        // SAFETY: rows `first..block.rows.1` and columns `pc..pc + kc` are inside `a`.
-        unsafe {
-            pack(a_packed, kc, mc - in_place_rows, MR, |k, i| {
-                *a.at(first + i, pc + k)
-            })
+        let source = Panel {
+            // SAFETY: row `first` and column `pc` are inside `a`.
+            ptr: unsafe { a.at(first, pc) },
+            k_stride: a.column_stride,
+            index_stride: a.row_stride,
         };
+        // SAFETY: rows `first..block.rows.1` and columns `pc..pc + kc` are inside `a`.
+        unsafe { pack(a_packed, kc, mc - in_place_rows, MR, source) };
     }
     for jr in (0..nc).step_by(NR) {
         let b_panel = b_block.panel(jr);
@@ -323,16 +316,30 @@ unsafe fn block_tiles<T: Real>(
             // SAFETY: the tile's rows and columns inside the output are inside the block.
             let target = unsafe { c.at(block.rows.0 + ir, block.columns.0 + jr) } as *mut T;
             let target = Operand { ptr: target, ..c };
-            let mut tile = [T::zero(); TILE];
+            if rows == MR && cols == NR && c.column_stride == 1 {
+                let tile = Tile {
+                    ptr: target.ptr as *mut T,
+                    row_stride: c.row_stride,
+                };
+                // SAFETY: both panels have `kc` steps of their width (in place: inside `a`
+                // and `b`; packed: the buffers hold them), `b`'s values contiguous within a
+                // step; the tile is a whole `MR x NR` corner of the block, rows contiguous.
+                unsafe { T::multiply_tile(kc, a_panel, b_panel, tile, continues) };
+                continue;
+            }
+            let mut edge = [T::zero(); TILE];
             if continues {
                 // SAFETY: as above.
-                unsafe { copy_tile(target, rows, cols, &mut tile, false) };
+                unsafe { copy_tile(target, rows, cols, &mut edge, false) };
             }
-            // SAFETY: both panels have `kc` steps of their width (in place: inside `a` and
-            // `b`; packed: the buffers hold them), `b`'s values contiguous within a step.
-            unsafe { T::multiply_tile(kc, a_panel, b_panel, &mut tile) };
+            let tile = Tile {
+                ptr: edge.as_mut_ptr(),
+                row_stride: NR as isize,
+            };
+            // SAFETY: as above, with the tile on a local copy.
+            unsafe { T::multiply_tile(kc, a_panel, b_panel, tile, true) };
             // SAFETY: as above; this thread owns the block.
-            unsafe { copy_tile(target, rows, cols, &mut tile, true) };
+            unsafe { copy_tile(target, rows, cols, &mut edge, true) };
         }
     }
 }
@@ -371,18 +378,18 @@ unsafe fn copy_tile<T: Real>(
     }
 }
 
-/// Copies a `depth x len` block, read through `value(k, index)`, into panels of `width`
-/// indices: panel `p` holds, for each `k`, indices `p * width..(p + 1) * width`, zero past
-/// `len`. The zeros only reach tile elements that are dropped.
+/// Copies `depth` steps of `len` values from `source` into panels of `width` values: panel
+/// `p` holds, for each step, values `p * width..(p + 1) * width`, zero past `len`. The zeros
+/// only reach tile elements that are dropped.
 ///
 /// # Safety
-/// `value` may be called for every `k < depth` and `index < len`.
+/// `source` has `depth` steps of `len` readable values.
 unsafe fn pack<T: Real>(
     panels: &mut Vec<T>,
     depth: usize,
     len: usize,
     width: usize,
-    value: impl Fn(usize, usize) -> T,
+    source: Panel<T>,
 ) {
     let size = len.div_ceil(width) * width * depth;
     if panels.len() < size {
@@ -393,8 +400,17 @@ unsafe fn pack<T: Real>(
         let count = width.min(len - first);
         for (k, step) in panel.chunks_exact_mut(width).enumerate() {
             let (inside, past) = step.split_at_mut(count);
-            for (index, slot) in inside.iter_mut().enumerate() {
-                *slot = value(k, first + index);
+            let start = k as isize * source.k_stride + first as isize * source.index_stride;
+            // SAFETY: step `k`, values `first..first + count` are readable by the promise.
+            let from = unsafe { source.ptr.offset(start) };
+            if source.index_stride == 1 {
+                // SAFETY: as above; the values are contiguous.
+                inside.copy_from_slice(unsafe { std::slice::from_raw_parts(from, count) });
+            } else {
+                for (index, slot) in inside.iter_mut().enumerate() {
+                    // SAFETY: as above.
+                    *slot = unsafe { *from.offset(index as isize * source.index_stride) };
+                }
             }
             past.fill(T::zero());
         }

@@ -206,8 +206,8 @@ impl Conv2d {
         dx: Option<&mut [T]>,
     ) {
         let (patch_len, outputs) = (self.dense.inputs(), self.dense.outputs());
-        // Computed as `[out, patch columns]`: the product's long reduction then runs along
-        // both operands' rows, which `gemm` handles faster than the transposed shape.
+        // Computed as `[out, patch columns]`, then added to the stored weight's gradient in
+        // its own order.
         let mut weight_grad = ws.weight_grad.matrix_mut(outputs, patch_len);
         matmul(
             dy.t(),

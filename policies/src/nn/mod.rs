@@ -1,5 +1,5 @@
 //! A small neural-network library written for the paper's models: hand-written forward and
-//! backward passes over whole batches, GEMMs through [`matmul`] (the `gemm` crate) on `ndarray`
+//! backward passes over whole batches, GEMMs through [`matmul`] (kernels of our own) on `ndarray`
 //! views, f32 for training and f64 for gradient checks.
 //!
 //! How the pieces fit:
@@ -17,7 +17,7 @@
 //!   consecutive rows, described for graph attention by an [`AgentGraph`].
 //! - All randomness comes from the caller's generator; results do not depend on the number of
 //!   threads (every output element is reduced by one thread in a fixed order, in our loops and
-//!   in `gemm`'s, which splits only the output among threads).
+//!   in [`matmul`]'s, which splits only the output among threads, and whatever the CPU).
 
 pub mod activation;
 pub mod adam;

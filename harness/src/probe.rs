@@ -51,6 +51,7 @@ impl ProbingPolicy {
     /// The recorded rows as Parquet.
     pub fn into_parquet(self) -> Result<Vec<u8>, StoreError> {
         let r = self.rows;
+        let height = r.value.len();
         let columns = vec![
             Column::new("step".into(), r.step),
             Column::new("agent".into(), r.agent),
@@ -63,7 +64,7 @@ impl ProbingPolicy {
             Column::new("probabilities".into(), r.probabilities),
             Column::new("value".into(), r.value),
         ];
-        parquet_bytes(&DataFrame::new(r.value.len(), columns)?)
+        parquet_bytes(&DataFrame::new(height, columns)?)
     }
 
     fn record(&mut self, positions: &[Cell], actions: &[Action]) {

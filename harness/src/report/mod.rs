@@ -70,6 +70,9 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
         manifest.code_version,
         &manifest.scenario_hash[..16.min(manifest.scenario_hash.len())],
     ));
+    if let Some(cells) = optional_table(store, "cells")? {
+        report.paragraph(&provenance(&cells)?);
+    }
     let summary = store.table("summary")?;
     let episodes = store.table("episodes")?;
     let comparisons = comparison::comparisons(&episodes)?;
@@ -90,6 +93,37 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
         illustration::section(&mut report, &snapshots, &trajectories, store)?;
     }
     report.finish()
+}
+
+/// Where the cells were computed: each CPU and kernel build with its count of cells, and the
+/// commits. Equal bits on every machine are the claim; the report names the machines.
+fn provenance(cells: &DataFrame) -> PolarsResult<String> {
+    let column = |name: &str| -> PolarsResult<Vec<String>> {
+        match cells.column(name) {
+            Ok(_) => columns::strings(cells, name),
+            Err(_) => Ok(vec![String::new(); cells.height()]),
+        }
+    };
+    let (cpus, kernels) = (column("cpu")?, column("kernels")?);
+    let platforms: Vec<String> = cpus
+        .iter()
+        .zip(&kernels)
+        .map(|(cpu, kernels)| match (cpu.as_str(), kernels.as_str()) {
+            ("", _) => "an unrecorded CPU".to_owned(),
+            (cpu, kernels) => format!("{cpu} with {kernels} kernels"),
+        })
+        .collect();
+    let counted: Vec<String> = columns::group_rows(&platforms)
+        .into_iter()
+        .map(|(platform, rows)| format!("{} on {platform}", rows.len()))
+        .collect();
+    let commits = columns::distinct(column("git_commit")?).join("`, `");
+    let wall_seconds: f64 = columns::f64s(cells, "wall_seconds")?.iter().sum();
+    Ok(format!(
+        "Cells computed: {} (commit `{commits}`), in {:.0} s of wall time summed over cells.",
+        counted.join("; "),
+        wall_seconds
+    ))
 }
 
 /// A sweep table, or `None` when the sweep did not build it.

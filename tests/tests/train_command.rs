@@ -88,7 +88,80 @@ fn trains_writes_its_files_and_resumes_to_the_same_weights() {
     assert!(sampled.contains("policy ma-g-ppo"), "{sampled}");
     assert_eq!(sampled, run(&[]), "seeded episodes repeat");
     assert!(run(&["--greedy"]).contains("cumulative penalty"));
+
+    let (probe, trace) = (dir.join("probe.parquet"), dir.join("trace.csv"));
+    let probed = run(&[
+        "--probe",
+        probe.to_str().unwrap(),
+        "--probe-steps",
+        "0,7",
+        "--trace",
+        trace.to_str().unwrap(),
+    ]);
+    assert_eq!(probed, sampled, "probing changes nothing in the episode");
+    check_probe(&probe, &trace);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The probe of steps 0 and 7 of a 3-agent episode with both channels: a row per step and
+/// agent, the positions and actions of the trace, whole observations, probabilities that sum
+/// to 1.
+fn check_probe(probe: &Path, trace: &Path) {
+    use polars::prelude::*;
+    let file = std::fs::File::open(probe).unwrap();
+    let frame = ParquetReader::new(file).finish().unwrap();
+    assert_eq!(frame.height(), 6);
+    let u32s = |name: &str| -> Vec<u32> {
+        frame
+            .column(name)
+            .unwrap()
+            .u32()
+            .unwrap()
+            .into_no_null_iter()
+            .collect()
+    };
+    let trace = std::fs::read_to_string(trace).unwrap();
+    let rows: Vec<Vec<&str>> = trace
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    let (steps, agents, xs, ys, actions) = (
+        u32s("step"),
+        u32s("agent"),
+        u32s("x"),
+        u32s("y"),
+        u32s("action"),
+    );
+    for r in 0..frame.height() {
+        let (step, agent) = (steps[r] as usize, agents[r] as usize);
+        assert_eq!(rows[step][2 + 3 * agent], xs[r].to_string(), "x at row {r}");
+        assert_eq!(rows[step][3 + 3 * agent], ys[r].to_string(), "y at row {r}");
+        assert_eq!(
+            rows[step + 1][4 + 3 * agent],
+            actions[r].to_string(),
+            "action at row {r}"
+        );
+    }
+    assert_eq!(steps, [0, 0, 0, 7, 7, 7]);
+    let lists = |name: &str| -> Vec<Vec<f32>> {
+        let column = frame.column(name).unwrap().list().unwrap().clone();
+        column
+            .amortized_iter()
+            .map(|l| {
+                let series = l.unwrap();
+                series.as_ref().f32().unwrap().into_no_null_iter().collect()
+            })
+            .collect()
+    };
+    let (channels, side) = (u32s("channels"), u32s("side"));
+    for ((observation, c), s) in lists("observation").iter().zip(channels).zip(side) {
+        assert_eq!((c, observation.len()), (2, (c * s * s) as usize));
+    }
+    for p in lists("probabilities") {
+        assert_eq!(p.len(), 5);
+        assert!((p.iter().sum::<f32>() - 1.0).abs() < 1e-5, "{p:?}");
+    }
 }
 
 #[test]

@@ -6,7 +6,6 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 #[path = "src/source_hash.rs"]
-#[allow(dead_code)]
 mod source_hash;
 
 fn main() {

@@ -17,7 +17,7 @@ use rand_pcg::Pcg64Mcg;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use serde::{Deserialize, Serialize};
 
-use crate::nn::{ActorCritic, Adam, NnError, ParamSpec, ParamStore};
+use crate::nn::{ActorCritic, Adam, NnError, ParamSlot, ParamSpec, ParamStore};
 use crate::ppo::config::{ConfigError, TrainingConfig};
 use crate::ppo::trainer::{TrainingState, adam_config};
 
@@ -181,7 +181,7 @@ pub fn load_state(
 /// some weight matrices (see the module doc).
 struct PyTorchLayout {
     /// The tensors whose first `features` columns are reordered.
-    reordered: Vec<&'static str>,
+    reordered: Vec<ParamSlot>,
     /// `ours[c]` is our column of the stored (PyTorch) column `c`, for `c < features`.
     ours: Vec<usize>,
 }
@@ -214,7 +214,7 @@ impl PyTorchLayout {
     /// A tensor's values in stored order.
     fn to_stored(&self, spec: &ParamSpec, values: &[f32]) -> Vec<f32> {
         let mut stored = values.to_vec();
-        if self.reordered.contains(&spec.name.as_str()) {
+        if self.reordered.contains(&spec.slot) {
             for (stored_row, row) in stored
                 .chunks_exact_mut(spec.shape[1])
                 .zip(values.chunks_exact(spec.shape[1]))
@@ -230,7 +230,7 @@ impl PyTorchLayout {
     /// Stored values back in our order.
     fn from_stored(&self, spec: &ParamSpec, stored: &[f32], values: &mut [f32]) {
         values.copy_from_slice(stored);
-        if self.reordered.contains(&spec.name.as_str()) {
+        if self.reordered.contains(&spec.slot) {
             for (row, stored_row) in values
                 .chunks_exact_mut(spec.shape[1])
                 .zip(stored.chunks_exact(spec.shape[1]))
@@ -368,8 +368,21 @@ mod tests {
         let original = state("ma_g_ppo");
         let files = save(&original);
         let model = &original.model;
+        let reordered = model.cnn_feature_inputs();
+        let names: Vec<&str> = reordered
+            .iter()
+            .map(|slot| {
+                let specs = model.params().specs();
+                specs
+                    .iter()
+                    .find(|s| s.slot == *slot)
+                    .unwrap()
+                    .name
+                    .as_str()
+            })
+            .collect();
         assert_eq!(
-            model.cnn_feature_inputs(),
+            names,
             [
                 "actor.attention.weight",
                 "actor.mlp.0.weight",
@@ -380,7 +393,7 @@ mod tests {
             let ours = spec.slot.of(model.params().values());
             let (shape, stored) = stored_tensor(&files.weights, &spec.name);
             assert_eq!(shape, spec.shape, "{}", spec.name);
-            if !model.cnn_feature_inputs().contains(&spec.name.as_str()) {
+            if !reordered.contains(&spec.slot) {
                 assert_eq!(bits(&stored), bits(ours), "{}", spec.name);
                 continue;
             }

@@ -101,6 +101,11 @@ impl GraphAttention {
         })
     }
 
+    /// Where `W` `[heads * out, in]` lives in the flat buffers.
+    pub(crate) fn weight_slot(&self) -> ParamSlot {
+        self.weight
+    }
+
     pub fn out_features(&self) -> usize {
         self.out_features
     }

@@ -89,7 +89,7 @@ impl CnnEncoder {
 
     /// Features per sample.
     pub fn features(&self) -> usize {
-        self.convs[self.convs.len() - 1].output_shape().len()
+        self.output_shape().len()
     }
 
     pub fn forward_flops_per_sample(&self) -> u64 {

@@ -9,7 +9,7 @@ use super::buffer::{AlternatingBuffers, ReusableBuffer};
 use super::error::NnError;
 use super::init::Init;
 use super::linear::Linear;
-use super::params::ParamStore;
+use super::params::{ParamSlot, ParamStore};
 use super::real::Real;
 
 /// Fully connected layers `sizes[0] -> sizes[1] -> ... -> sizes[n]`.
@@ -51,6 +51,11 @@ impl Mlp {
             })
             .collect::<Result<_, _>>()?;
         Ok(Mlp { layers })
+    }
+
+    /// Where the first layer's weight `[outputs, inputs]` lives in the flat buffers.
+    pub(crate) fn first_weight_slot(&self) -> ParamSlot {
+        self.layers[0].weight_slot()
     }
 
     pub fn inputs(&self) -> usize {

@@ -32,7 +32,7 @@ use super::error::NnError;
 use super::graph::AgentGraph;
 use super::init::Init;
 use super::mlp::{Mlp, MlpWorkspace};
-use super::params::ParamStore;
+use super::params::{ParamSlot, ParamStore};
 use super::real::Real;
 
 /// Attention heads in the paper.
@@ -263,12 +263,10 @@ impl<T: Real> ActorCritic<T> {
     /// The weight matrices whose input columns `0..features` are a CNN's flattened output:
     /// the attention's `W` and both MLPs' first layers. We flatten channels-last; PyTorch's
     /// `nn.Flatten` on NCHW flattens channels-first, so checkpoints reorder these columns.
-    pub fn cnn_feature_inputs(&self) -> Vec<&'static str> {
-        let mut names = vec!["actor.mlp.0.weight", "critic.mlp.0.weight"];
-        if self.attention.is_some() {
-            names.insert(0, "actor.attention.weight");
-        }
-        names
+    pub fn cnn_feature_inputs(&self) -> Vec<ParamSlot> {
+        let attention = self.attention.as_ref().map(GraphAttention::weight_slot);
+        let mlps = [&self.actor_mlp, &self.critic_mlp].map(Mlp::first_weight_slot);
+        attention.into_iter().chain(mlps).collect()
     }
 
     /// The shape of both CNNs' output (they are alike).

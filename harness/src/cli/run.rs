@@ -45,7 +45,7 @@ pub struct RunArgs {
     trace: Option<PathBuf>,
     /// With a checkpoint policy: write every agent's observation, action probabilities and
     /// value at the --probe-steps to this Parquet file.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "actions")]
     probe: Option<PathBuf>,
     /// The steps --probe records, "0,10,100" (0 is the first action).
     #[arg(long, default_value = "0", requires = "probe")]
@@ -63,7 +63,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         .map(parse_starts)
         .transpose()
         .map_err(anyhow::Error::msg)?;
-    let (mut policy, steps): (Box<dyn Policy>, usize) = match &args.actions {
+    let (mut policy, steps) = match &args.actions {
         Some(path) => {
             let text = std::fs::read_to_string(path)
                 .with_context(|| format!("reading {}", path.display()))?;
@@ -75,24 +75,16 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
                 path.display(),
                 rows.len()
             );
-            (Box::new(ReplayPolicy::new(rows)), steps)
+            let replay: Box<dyn Policy> = Box::new(ReplayPolicy::new(rows));
+            (EpisodePolicy::Any(replay), steps)
         }
-        None => (policy_by_name(&args, &world)?, args.steps.unwrap_or(2000)),
-    };
-    let mut probing = args
-        .probe
-        .as_ref()
-        .map(|_| probing_policy(&args, &world))
-        .transpose()?;
-    let policy: &mut dyn Policy = match probing.as_mut() {
-        Some(probing) => probing,
-        None => policy.as_mut(),
+        None => (episode_policy(&args, &world)?, args.steps.unwrap_or(2000)),
     };
     let mut trace = args.trace.as_ref().map(|_| Trace::new(args.agents));
     let outcome = run_episode(
         &world,
         args.agents,
-        &mut *policy,
+        policy.as_policy(),
         Seed::new(args.seed),
         starts.as_deref(),
         steps,
@@ -102,12 +94,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             }
         },
     )?;
-    let name = policy.name().to_owned();
+    let name = policy.as_policy().name().to_owned();
     if let (Some(path), Some(trace)) = (&args.trace, trace) {
         write_atomic(path, trace.into_text().as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    if let (Some(path), Some(probing)) = (&args.probe, probing) {
+    if let (Some(path), EpisodePolicy::Probing(probing)) = (&args.probe, policy) {
         write_atomic(path, &probing.into_parquet()?)
             .with_context(|| format!("writing {}", path.display()))?;
     }
@@ -122,34 +114,53 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The checkpoint policy of `--policy`, recording the `--probe-steps`.
-fn probing_policy(
+/// The policy that plays the episode, kept by value when it probes so that its rows can be
+/// written after the episode.
+enum EpisodePolicy {
+    Any(Box<dyn Policy>),
+    Probing(ProbingPolicy),
+}
+
+impl EpisodePolicy {
+    fn as_policy(&mut self) -> &mut dyn Policy {
+        match self {
+            EpisodePolicy::Any(policy) => policy.as_mut(),
+            EpisodePolicy::Probing(policy) => policy,
+        }
+    }
+}
+
+/// The `--policy`, probing the `--probe-steps` when `--probe` is given.
+fn episode_policy(
     args: &RunArgs,
     world: &std::sync::Arc<world::World>,
-) -> anyhow::Result<ProbingPolicy> {
+) -> anyhow::Result<EpisodePolicy> {
+    if args.probe.is_none() {
+        return Ok(EpisodePolicy::Any(policy_by_name(args, world)?));
+    }
     let dir = checkpoint_dir::policy_dir(&args.policy).with_context(|| {
         format!(
             "--probe needs --policy checkpoint:DIR, not `{}`",
             args.policy
         )
     })?;
-    anyhow::ensure!(
-        args.actions.is_none(),
-        "--probe cannot be combined with --actions"
-    );
     let steps = args
         .probe_steps
         .split(',')
         .map(|s| s.trim().parse::<usize>())
         .collect::<Result<BTreeSet<_>, _>>()
         .map_err(|e| anyhow::anyhow!("--probe-steps `{}`: {e}", args.probe_steps))?;
-    let choice = if args.greedy {
+    let policy = checkpoint_dir::load_policy(&dir, world, action_choice(args))?;
+    Ok(EpisodePolicy::Probing(ProbingPolicy::new(policy, steps)))
+}
+
+/// How a checkpoint policy picks its actions: `--greedy` or sampled.
+fn action_choice(args: &RunArgs) -> ActionChoice {
+    if args.greedy {
         ActionChoice::Greedy
     } else {
         ActionChoice::Sampled
-    };
-    let policy = checkpoint_dir::load_policy(&dir, world, choice)?;
-    Ok(ProbingPolicy::new(policy, steps))
+    }
 }
 
 /// A baseline by name, or the learned policy of a `checkpoint:DIR`.
@@ -158,12 +169,8 @@ fn policy_by_name(
     world: &std::sync::Arc<world::World>,
 ) -> anyhow::Result<Box<dyn Policy>> {
     if let Some(dir) = checkpoint_dir::policy_dir(&args.policy) {
-        let choice = if args.greedy {
-            ActionChoice::Greedy
-        } else {
-            ActionChoice::Sampled
-        };
-        return Ok(Box::new(checkpoint_dir::load_policy(&dir, world, choice)?));
+        let policy = checkpoint_dir::load_policy(&dir, world, action_choice(args))?;
+        return Ok(Box::new(policy));
     }
     let baseline: Baseline = args.policy.parse()?;
     Ok(baseline.build(world)?)

@@ -6,7 +6,9 @@ use std::sync::Arc;
 use world::World;
 
 use crate::error::PlanError;
-use crate::gcs::{Gcs, Retarget, default_radius};
+use crate::gcs::default_radius;
+use crate::gcs::paper_text::{PaperTextGcs, Retarget};
+use crate::gcs::released::ReleasedGcs;
 use crate::partition::Partition;
 use crate::policy::Policy;
 use crate::random::RandomPolicy;
@@ -16,7 +18,11 @@ use crate::tspc::Tspc;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Baseline {
     Random,
+    /// The authors' released rule, which made the paper's figures.
     Gcs,
+    /// The paper's text read literally.
+    GcsPaperText,
+    /// The paper's text, keeping a target until arrival.
     GcsOnArrival,
     Tspc,
     Partition,
@@ -24,9 +30,10 @@ pub enum Baseline {
 }
 
 impl Baseline {
-    pub const ALL: [Baseline; 6] = [
+    pub const ALL: [Baseline; 7] = [
         Baseline::Random,
         Baseline::Gcs,
+        Baseline::GcsPaperText,
         Baseline::GcsOnArrival,
         Baseline::Tspc,
         Baseline::Partition,
@@ -37,6 +44,7 @@ impl Baseline {
         match self {
             Baseline::Random => "random",
             Baseline::Gcs => "gcs",
+            Baseline::GcsPaperText => "gcs-paper-text",
             Baseline::GcsOnArrival => "gcs-arrival",
             Baseline::Tspc => "tspc",
             Baseline::Partition => "partition",
@@ -50,8 +58,13 @@ impl Baseline {
         let radius = default_radius(world);
         Ok(match self {
             Baseline::Random => Box::new(RandomPolicy::new()),
-            Baseline::Gcs => Box::new(Gcs::new(world, radius, Retarget::WhenSeen)),
-            Baseline::GcsOnArrival => Box::new(Gcs::new(world, radius, Retarget::OnArrival)),
+            Baseline::Gcs => Box::new(ReleasedGcs::new(world, radius)),
+            Baseline::GcsPaperText => {
+                Box::new(PaperTextGcs::new(world, radius, Retarget::WhenSeen))
+            }
+            Baseline::GcsOnArrival => {
+                Box::new(PaperTextGcs::new(world, radius, Retarget::OnArrival))
+            }
             Baseline::Tspc => Box::new(Tspc::new(world)?),
             Baseline::Partition => Box::new(Partition::new(world)?),
             Baseline::Static => Box::new(StaticCoverage::new(world)),

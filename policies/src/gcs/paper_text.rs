@@ -1,5 +1,6 @@
-//! Greedy centralised search (GCS), the paper's baseline: every free agent heads for the
-//! nearest of a spread-out set of the worst cells.
+//! GCS as the paper's text describes it: every free agent heads for the nearest of a
+//! spread-out set of the worst cells. Kept beside the released rule ([`super::released`]),
+//! which the paper's figures used, as `gcs-paper-text` and `gcs-arrival`.
 //!
 //! Candidates: the free cells with non-zero penalty (the paper's set S), worst first; the worst
 //! is taken and every cell within L2 distance r of it dropped, until none is left. Each agent
@@ -27,11 +28,6 @@ use world::{Action, Cell, Episode, Map, Seed, World};
 use crate::policy::Policy;
 use crate::route::{Impatience, Route};
 
-/// The paper's radius: half the side of the field of view.
-pub fn default_radius(world: &World) -> f64 {
-    world.params().fov() as f64 / 2.0
-}
-
 /// When an agent gives up its target for a new one.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Retarget {
@@ -41,7 +37,7 @@ pub enum Retarget {
     OnArrival,
 }
 
-pub struct Gcs {
+pub struct PaperTextGcs {
     world: Arc<World>,
     retarget: Retarget,
     candidates: Candidates,
@@ -56,7 +52,7 @@ struct Assignment {
     impatience: Impatience,
 }
 
-impl Gcs {
+impl PaperTextGcs {
     /// `radius` is the L2 distance within which a candidate suppresses less bad cells.
     pub fn new(world: &Arc<World>, radius: f64, retarget: Retarget) -> Self {
         Self {
@@ -111,10 +107,10 @@ impl Gcs {
     }
 }
 
-impl Policy for Gcs {
+impl Policy for PaperTextGcs {
     fn name(&self) -> &str {
         match self.retarget {
-            Retarget::WhenSeen => "gcs",
+            Retarget::WhenSeen => "gcs-paper-text",
             Retarget::OnArrival => "gcs-arrival",
         }
     }
@@ -233,6 +229,7 @@ mod tests {
     use world::WorldParams;
 
     use super::*;
+    use crate::gcs::default_radius;
 
     /// Two rooms joined by a door, with a field of view much smaller than the map.
     const ROOMS: &str = "\
@@ -288,7 +285,7 @@ mod tests {
         let world = world();
         for retarget in [Retarget::WhenSeen, Retarget::OnArrival] {
             let mut episode = episode(&world, 6, 5);
-            let mut gcs = Gcs::new(&world, 2.5, retarget);
+            let mut gcs = PaperTextGcs::new(&world, 2.5, retarget);
             gcs.reset(&episode, Seed::new(5));
             let mut actions = vec![Action::Stay; 6];
             for _ in 0..300 {
@@ -308,7 +305,7 @@ mod tests {
         let map = Map::parse_text("small", "...\n...\n", Path::new("small.txt")).unwrap();
         let world = World::new(map, WorldParams::new(5, 1.0, 400.0).unwrap());
         let mut episode = episode(&world, 2, 1);
-        let mut gcs = Gcs::new(&world, default_radius(&world), Retarget::WhenSeen);
+        let mut gcs = PaperTextGcs::new(&world, default_radius(&world), Retarget::WhenSeen);
         gcs.reset(&episode, Seed::new(1));
         let mut actions = vec![Action::Up; 2];
         for _ in 0..5 {
@@ -328,7 +325,7 @@ mod tests {
             episode.step(&[Action::Stay]);
         }
         // One candidate: the worst cell of lowest index, in the room below.
-        let mut gcs = Gcs::new(&world, 100.0, Retarget::OnArrival);
+        let mut gcs = PaperTextGcs::new(&world, 100.0, Retarget::OnArrival);
         gcs.reset(&episode, Seed::new(0));
         let mut actions = [Action::Stay];
         for _ in 0..40 {

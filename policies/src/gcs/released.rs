@@ -1,0 +1,215 @@
+//! GCS as the authors' released code runs it (amrish1222/rl_multi_agent, branch `4_room`,
+//! `source/non_rl_agent.py`): the rule that made the paper's figures, and our `gcs`.
+//!
+//! Each step, in this order:
+//! 1. Hot spots: the cells with a negative penalty, worst first in the order of numpy 1.x's
+//!    `argsort` read backwards (the map indexed [x][y], as the code's arrays are). The first is
+//!    kept; each next one is kept when its L2 distance to every kept cell is at least r
+//!    (LOCAL_SZ / 2 = 12.5 in the code, L / 2 here); the list stops once it holds N cells.
+//!    The code checks the count only after looking at a second cell, so with N = 1 the list
+//!    stops at the first cell too close to the first hot spot, or never; kept as written.
+//! 2. Agents in index order. An agent on its target, or whose target's penalty is no longer
+//!    negative, takes the hot spot nearest in straight line from its cell's centre
+//!    (x + 0.5, y + 0.5) to the hot spot's coordinates (x, y), nearest first in numpy's
+//!    `argsort` order, skipping the hot spots other agents took in this same step; an agent
+//!    keeps a target it holds even if another agent takes the same cell. With every hot spot
+//!    taken it stays and keeps its old target.
+//! 3. It moves along a path searched anew every step ([`CoinWallSearch`]); with no path, it
+//!    takes a random action out of six codes, 0 to 5, of which 0 and 5 both stay.
+//!
+//! Where we had to choose: the code's random draws (Python's `random` for the coins, numpy's
+//! global generator for the random action) come from the agent's own stream under the
+//! episode's policy seed. The code snaps a new target to the nearest non-obstacle cell; hot
+//! spots are free cells (its block size is one cell), so the snap never moves one and is left
+//! out. With no hot spot at all the code would fail on an empty array; here agents stay.
+
+use std::sync::Arc;
+
+use rand::RngExt;
+use rand_pcg::Pcg64Mcg;
+use world::paths::move_between;
+use world::seed::purpose;
+use world::{Action, Cell, Episode, Map, Seed, World};
+
+use super::coin_walls::CoinWallSearch;
+use super::numpy_sort::argsort;
+use crate::policy::Policy;
+
+/// The released code's action codes for a random action: 0 to 5, where 1 to 4 are moves and
+/// both 0 and 5 leave the agent where it is.
+const RANDOM_ACTION_CODES: usize = 6;
+
+pub struct ReleasedGcs {
+    world: Arc<World>,
+    hot_spots: HotSpots,
+    search: CoinWallSearch,
+    /// Whether an agent stands on each cell, by cell index; set during `act` only.
+    occupied: Vec<bool>,
+    agents: Vec<Agent>,
+}
+
+#[derive(Clone, Debug)]
+struct Agent {
+    target: Cell,
+    stream: Pcg64Mcg,
+}
+
+impl ReleasedGcs {
+    /// `radius` is the L2 distance below which a hot spot hides a less bad one.
+    pub fn new(world: &Arc<World>, radius: f64) -> Self {
+        let map = world.map();
+        Self {
+            world: world.clone(),
+            hot_spots: HotSpots::new(map, radius),
+            search: CoinWallSearch::new(map),
+            occupied: vec![false; map.width() * map.height()],
+            agents: Vec::new(),
+        }
+    }
+
+    /// Each agent's current target.
+    pub fn targets(&self) -> impl Iterator<Item = Cell> + '_ {
+        self.agents.iter().map(|agent| agent.target)
+    }
+
+    /// The move toward `target` on this step's path, or a random action without one.
+    fn move_towards(&mut self, agent: usize, at: Cell, target: Cell) -> Action {
+        let map = self.world.map();
+        let Agent { stream, .. } = &mut self.agents[agent];
+        match self.search.first_step(map, &self.occupied, at, target, stream) {
+            Some(next) => move_between(at, next).unwrap_or(Action::Stay),
+            None => Action::from_index(stream.random_range(0..RANDOM_ACTION_CODES))
+                .unwrap_or(Action::Stay),
+        }
+    }
+}
+
+impl Policy for ReleasedGcs {
+    fn name(&self) -> &str {
+        "gcs"
+    }
+
+    /// Every agent starts with its own cell as target, as the code does, so it picks a hot
+    /// spot at the first step.
+    fn reset(&mut self, episode: &Episode, seed: Seed) {
+        let policy = seed.child(purpose::POLICY);
+        self.agents = (0..episode.agents())
+            .zip(episode.positions())
+            .map(|(agent, &target)| Agent {
+                target,
+                stream: policy.child(agent as u64).rng(),
+            })
+            .collect();
+    }
+
+    fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
+        let world = self.world.clone();
+        let (map, penalty) = (world.map(), episode.penalty());
+        self.hot_spots.find(map, episode);
+        for &at in episode.positions() {
+            self.occupied[map.index(at)] = true;
+        }
+        for (agent, (&at, action)) in episode.positions().iter().zip(actions).enumerate() {
+            let target = self.agents[agent].target;
+            let finished = target == at || penalty.at(target) >= 0.0;
+            *action = if !finished {
+                self.move_towards(agent, at, target)
+            } else if let Some(new) = self.hot_spots.take_nearest(at) {
+                self.agents[agent].target = new;
+                self.move_towards(agent, at, new)
+            } else {
+                Action::Stay
+            };
+        }
+        for &at in episode.positions() {
+            self.occupied[map.index(at)] = false;
+        }
+    }
+}
+
+/// This step's hot spots, rebuilt in place.
+struct HotSpots {
+    radius: f64,
+    /// Minus the penalty of each cell where it is negative, else 0, indexed [x][y]: the
+    /// array the code sorts.
+    badness: Vec<f64>,
+    order: Vec<u32>,
+    kept: Vec<Cell>,
+    /// Whether an agent took each kept hot spot in this step.
+    taken: Vec<bool>,
+    distances: Vec<f64>,
+    by_distance: Vec<u32>,
+}
+
+impl HotSpots {
+    fn new(map: &Map, radius: f64) -> Self {
+        let cells = map.width() * map.height();
+        Self {
+            radius,
+            badness: vec![0.0; cells],
+            order: Vec::with_capacity(cells),
+            kept: Vec::new(),
+            taken: Vec::new(),
+            distances: Vec::new(),
+            by_distance: Vec::new(),
+        }
+    }
+
+    fn find(&mut self, map: &Map, episode: &Episode) {
+        let penalty = episode.penalty();
+        let height = map.height();
+        for x in 0..map.width() {
+            for y in 0..height {
+                let value = penalty.at(Cell::new(x as u16, y as u16));
+                self.badness[x * height + y] = if value < 0.0 { -f64::from(value) } else { 0.0 };
+            }
+        }
+        argsort(&self.badness, &mut self.order);
+        let agents = episode.agents();
+        self.kept.clear();
+        for &index in self.order.iter().rev() {
+            if self.badness[index as usize] <= 0.0 {
+                break;
+            }
+            let cell = Cell::new((index as usize / height) as u16, (index as usize % height) as u16);
+            if self.kept.is_empty() {
+                self.kept.push(cell);
+                continue;
+            }
+            if self.kept.iter().all(|&kept| distance(kept, cell) >= self.radius) {
+                self.kept.push(cell);
+            }
+            if self.kept.len() == agents {
+                break;
+            }
+        }
+        self.taken.clear();
+        self.taken.resize(self.kept.len(), false);
+    }
+
+    /// The nearest hot spot nobody took in this step, now taken.
+    fn take_nearest(&mut self, at: Cell) -> Option<Cell> {
+        let (cx, cy) = (at.x as f64 + 0.5, at.y as f64 + 0.5);
+        self.distances.clear();
+        self.distances.extend(self.kept.iter().map(|spot| {
+            let (dx, dy) = (spot.x as f64 - cx, spot.y as f64 - cy);
+            (dx * dx + dy * dy).sqrt()
+        }));
+        argsort(&self.distances, &mut self.by_distance);
+        let free = self
+            .by_distance
+            .iter()
+            .map(|&i| i as usize)
+            .find(|&i| !self.taken[i])?;
+        self.taken[free] = true;
+        Some(self.kept[free])
+    }
+}
+
+/// The code's `cost2Come`: the L2 distance between two cells' coordinates. Squares of
+/// integers and quarter-integers add exactly, and `sqrt` is correctly rounded, so these
+/// distances, and `take_nearest`'s, equal numpy's bit for bit.
+fn distance(a: Cell, b: Cell) -> f64 {
+    let (dx, dy) = (a.x as f64 - b.x as f64, a.y as f64 - b.y as f64);
+    (dx * dx + dy * dy).sqrt()
+}

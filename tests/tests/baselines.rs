@@ -104,6 +104,37 @@ fn gcs_and_tspc_beat_random_widely_on_four_room() {
     assert!(tspc < 0.1 * random, "tspc {tspc} vs random {random}");
 }
 
+/// The released GCS on `open` with 4 agents, T = 2000, episode seeds 1 to 3 (the starts of
+/// `harness run --seed 1..3`), in units of 10^6. The authors' code, ported onto an
+/// independent implementation of our world rules, spread over 59 to 77 on these starts.
+const GCS_OPEN_4: [f64; 3] = [59.085965, 60.629147, 66.132495];
+
+#[test]
+fn gcs_as_released_on_open_with_four_agents_and_the_paper_ordering() {
+    let world = shipped_world("open");
+    let penalties = |baseline: Baseline| -> Vec<f64> {
+        let mut policy = baseline.build(&world).unwrap();
+        (1..=3)
+            .map(|seed| {
+                let seed = Seed::new(seed);
+                run_episode(&world, 4, policy.as_mut(), seed, None, 2000, &mut |_, _| {})
+                    .unwrap()
+                    .cumulative_penalty
+                    / 1e6
+            })
+            .collect()
+    };
+    let mean = |values: &[f64]| values.iter().sum::<f64>() / values.len() as f64;
+    let gcs = penalties(Baseline::Gcs);
+    for (value, pinned) in gcs.iter().zip(GCS_OPEN_4) {
+        assert!((value - pinned).abs() < 1e-6, "gcs {gcs:?}");
+    }
+    assert!((59.0..=77.0).contains(&mean(&gcs)), "gcs {gcs:?}");
+    let (random, tspc) = (penalties(Baseline::Random), penalties(Baseline::Tspc));
+    assert!(mean(&gcs) < 0.3 * mean(&random), "gcs {gcs:?} random {random:?}");
+    assert!(mean(&tspc) < mean(&gcs), "tspc {tspc:?} gcs {gcs:?}");
+}
+
 #[test]
 fn sweeps_do_not_depend_on_the_thread_count() {
     let sweep = Sweep {

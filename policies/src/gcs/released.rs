@@ -213,3 +213,118 @@ fn distance(a: Cell, b: Cell) -> f64 {
     let (dx, dy) = (a.x as f64 - b.x as f64, a.y as f64 - b.y as f64);
     (dx * dx + dy * dy).sqrt()
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use world::WorldParams;
+
+    use super::*;
+    use crate::gcs::paper_text::{PaperTextGcs, Retarget};
+
+    /// Two corridors joined at the right end, and an isolated cell (6, 1) where a second agent
+    /// stays out of the way; top row first.
+    const HAIRPIN: &str = "\
+.....##
+####.#.
+.....##
+";
+
+    /// A field of view of one cell, so a cell's penalty is minus the steps since an agent
+    /// stood on it.
+    fn world(text: &str) -> Arc<World> {
+        let map = Map::parse_text("hairpin", text, Path::new("hairpin.txt")).unwrap();
+        World::new(map, WorldParams::new(1, 1.0, 400.0).unwrap())
+    }
+
+    /// Agent 0 walks the hairpin from (0, 2) to (0, 0), one cell a step, while any second
+    /// agent stays in the pocket: afterwards the penalties along the walk are -10, -9, ...,
+    /// -1, all distinct, the worst at (0, 2) and the least bad at (1, 0).
+    fn after_the_walk(world: &Arc<World>, starts: &[Cell]) -> Episode {
+        let mut episode = Episode::new(world.clone(), starts.len()).unwrap();
+        episode.reset_at(starts).unwrap();
+        let walk = [[Action::Right; 4].as_slice(), &[Action::Down; 2], &[Action::Left; 4]];
+        let mut actions = vec![Action::Stay; starts.len()];
+        for &action in walk.concat().iter() {
+            actions[0] = action;
+            episode.step(&actions);
+        }
+        assert_eq!(episode.positions()[0], Cell::new(0, 0));
+        assert_eq!(episode.penalty().at(Cell::new(0, 2)), -10.0);
+        assert_eq!(episode.penalty().at(Cell::new(3, 2)), -7.0);
+        episode
+    }
+
+    fn two_agents_after_the_walk() -> (Arc<World>, Episode) {
+        let world = world(HAIRPIN);
+        let episode = after_the_walk(&world, &[Cell::new(0, 2), Cell::new(6, 1)]);
+        (world, episode)
+    }
+
+    /// With r = 2.5 both rules keep the same two hot spots, (0, 2) and (3, 2); from (0, 0) the
+    /// first is nearer in straight line (1.58 from the cell's centre against 2.92) and the
+    /// second by path (7 steps against 10, round the wall). The released rule takes the
+    /// first, the text's rule the second.
+    #[test]
+    fn released_rule_takes_the_straight_line_nearest_where_the_text_takes_the_path_nearest() {
+        let (world, episode) = two_agents_after_the_walk();
+        let mut actions = [Action::Stay; 2];
+
+        let mut released = ReleasedGcs::new(&world, 2.5);
+        released.reset(&episode, Seed::new(1));
+        released.act(&episode, &mut actions);
+        assert_eq!(released.hot_spots.kept, [Cell::new(0, 2), Cell::new(3, 2)]);
+        let targets: Vec<Cell> = released.targets().collect();
+        assert_eq!(targets, [Cell::new(0, 2), Cell::new(3, 2)]);
+        assert_eq!(actions[0], Action::Right, "the only way round the wall");
+
+        let mut text = PaperTextGcs::new(&world, 2.5, Retarget::WhenSeen);
+        text.reset(&episode, Seed::new(1));
+        text.act(&episode, &mut actions);
+        assert_eq!(text.targets().next(), Some(Some(Cell::new(3, 2))));
+    }
+
+    /// With r = 1 every cell of the walk is at least r from the others: the text's rule
+    /// keeps five spread-out candidates, the released rule stops at N = 2.
+    #[test]
+    fn hot_spots_stop_at_the_number_of_agents() {
+        let (world, episode) = two_agents_after_the_walk();
+        let mut released = ReleasedGcs::new(&world, 1.0);
+        released.hot_spots.find(world.map(), &episode);
+        assert_eq!(released.hot_spots.kept, [Cell::new(0, 2), Cell::new(1, 2)]);
+    }
+
+    /// The code counts kept cells only from the second cell it looks at on, so with one
+    /// agent the list stops at the first cell too close to the worst, or not at all.
+    #[test]
+    fn with_one_agent_the_list_is_cut_as_the_code_cuts_it() {
+        let world = world(".....\n####.\n.....\n");
+        let episode = after_the_walk(&world, &[Cell::new(0, 2)]);
+        let mut gcs = ReleasedGcs::new(&world, 2.5);
+        gcs.hot_spots.find(world.map(), &episode);
+        assert_eq!(gcs.hot_spots.kept, [Cell::new(0, 2)], "(1, 2) is within 2.5");
+        let mut gcs = ReleasedGcs::new(&world, 1.0);
+        gcs.hot_spots.find(world.map(), &episode);
+        assert_eq!(gcs.hot_spots.kept.len(), 10, "every unseen cell, all 1 apart");
+    }
+
+    /// The agent in the pocket has no path to any target: it draws one of six codes, two of
+    /// which stay.
+    #[test]
+    fn an_agent_without_a_path_acts_at_random() {
+        let (world, episode) = two_agents_after_the_walk();
+        let mut gcs = ReleasedGcs::new(&world, 2.5);
+        gcs.reset(&episode, Seed::new(3));
+        let mut actions = [Action::Stay; 2];
+        let mut counts = [0usize; 5];
+        for _ in 0..1200 {
+            gcs.act(&episode, &mut actions);
+            counts[actions[1].index()] += 1;
+        }
+        assert!((330..470).contains(&counts[0]), "stays: {counts:?}");
+        for moves in &counts[1..] {
+            assert!((140..260).contains(moves), "moves: {counts:?}");
+        }
+    }
+}

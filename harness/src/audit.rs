@@ -44,6 +44,8 @@ fn same_bits(a: &EpisodeRow, b: &EpisodeRow) -> bool {
         && a.test_seed == b.test_seed
         && a.steps == b.steps
         && a.cumulative_penalty.to_bits() == b.cumulative_penalty.to_bits()
+        && a.average_idleness.to_bits() == b.average_idleness.to_bits()
+        && a.worst_idleness == b.worst_idleness
 }
 
 /// Plays `sample` rows of the store's `episodes` table (all of them if there are fewer),
@@ -194,6 +196,8 @@ fn stored_episodes(frame: &DataFrame) -> Result<(Vec<String>, Vec<EpisodeRow>), 
     let episode = frame.column("episode")?.u32()?;
     let test_seed = frame.column("test_seed")?.u64()?;
     let penalty = frame.column("cumulative_penalty")?.f64()?;
+    let average_idleness = frame.column("average_idleness")?.f64()?;
+    let worst_idleness = frame.column("worst_idleness")?.u32()?;
     let steps = frame.column("steps")?.u32()?;
     let missing = || PolarsError::NoData("a null in the episodes table".into());
     let mut out = (Vec::new(), Vec::new());
@@ -204,6 +208,8 @@ fn stored_episodes(frame: &DataFrame) -> Result<(Vec<String>, Vec<EpisodeRow>), 
             episode: episode.get(i).ok_or_else(missing)?,
             test_seed: test_seed.get(i).ok_or_else(missing)?,
             cumulative_penalty: penalty.get(i).ok_or_else(missing)?,
+            average_idleness: average_idleness.get(i).ok_or_else(missing)?,
+            worst_idleness: worst_idleness.get(i).ok_or_else(missing)?,
             steps: steps.get(i).ok_or_else(missing)?,
         });
     }

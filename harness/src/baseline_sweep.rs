@@ -1,4 +1,5 @@
-//! The baselines' cumulative penalties over maps and agent counts, summarised for a report.
+//! The baselines' cumulative penalties and idleness over maps and agent counts, summarised
+//! for a report.
 //!
 //! Every (map, agent count, baseline) cell runs the same test episodes: episode e starts from
 //! `Seed::new(base).child(e)`, so policies are compared on the same random starts (except
@@ -14,7 +15,8 @@ use rayon::prelude::*;
 use thiserror::Error;
 use world::{Seed, StartError, World};
 
-use crate::runner::run_episode;
+use crate::idleness::Idleness;
+use crate::runner::{EpisodeOutcome, run_episode};
 use crate::stats::{StatsError, Summary, summarize};
 
 /// Branch of the base seed the bootstrap streams hang from, far from the episode indices.
@@ -47,12 +49,14 @@ pub struct Sweep {
     pub seed: Seed,
 }
 
-/// One cell: the cumulative penalty of every test episode, and their summary.
+/// One cell: the cumulative penalty and idleness of every test episode, and the penalties'
+/// summary.
 pub struct CellResult {
     pub map: String,
     pub agents: usize,
     pub baseline: Baseline,
     pub penalties: Vec<f64>,
+    pub idleness: Vec<Idleness>,
     pub summary: Summary,
 }
 
@@ -97,7 +101,7 @@ impl Sweep {
                 map: map.clone(),
                 source,
             })?;
-        let penalties = (0..self.episodes as u64)
+        let outcomes = (0..self.episodes as u64)
             .map(|episode| {
                 let seed = self.seed.child(episode);
                 let run = run_episode(
@@ -109,14 +113,14 @@ impl Sweep {
                     self.steps,
                     &mut |_, _| {},
                 );
-                run.map(|outcome| outcome.cumulative_penalty)
-                    .map_err(|source| SweepError::Start {
-                        agents: cell.agents,
-                        map: map.clone(),
-                        source,
-                    })
+                run.map_err(|source| SweepError::Start {
+                    agents: cell.agents,
+                    map: map.clone(),
+                    source,
+                })
             })
-            .collect::<Result<Vec<f64>, SweepError>>()?;
+            .collect::<Result<Vec<EpisodeOutcome>, SweepError>>()?;
+        let penalties: Vec<f64> = outcomes.iter().map(|o| o.cumulative_penalty).collect();
         let bootstrap = self.seed.child(BOOTSTRAP_BRANCH).child(cell.index as u64);
         let summary = summarize(&penalties, bootstrap)?;
         Ok(CellResult {
@@ -124,37 +128,61 @@ impl Sweep {
             agents: cell.agents,
             baseline: cell.baseline,
             penalties,
+            idleness: outcomes.iter().map(|o| o.idleness).collect(),
             summary,
         })
     }
 
-    /// One Markdown table per map: a row per baseline, a column per agent count, entries in
-    /// units of 10^6 as the paper reports them.
+    /// Two Markdown tables per map, a row per baseline and a column per agent count: the
+    /// cumulative penalty in units of 10^6 as the paper reports it, then the idleness.
     pub fn markdown(&self, results: &[CellResult]) -> String {
         let mut out = String::new();
         for world in &self.worlds {
             let map = world.map().name();
             let _ = writeln!(out, "### {map}\n");
-            let header: Vec<String> = self.agents.iter().map(|n| format!("N = {n}")).collect();
-            let _ = writeln!(out, "| policy | {} |", header.join(" | "));
-            let _ = writeln!(out, "|---|{}", "---:|".repeat(self.agents.len()));
-            for &baseline in &self.baselines {
-                let row: Vec<String> = self
-                    .agents
-                    .iter()
-                    .filter_map(|&agents| {
-                        results
-                            .iter()
-                            .find(|r| r.map == map && r.baseline == baseline && r.agents == agents)
-                    })
-                    .map(|r| format_summary(&r.summary))
-                    .collect();
-                let _ = writeln!(out, "| {} | {} |", baseline.name(), row.join(" | "));
-            }
-            out.push('\n');
+            self.table(&mut out, results, map, |r| format_summary(&r.summary));
+            let _ = writeln!(
+                out,
+                "Idleness in steps, means over the episodes: average (over cells and steps) / \
+                 worst (the longest any cell waited).\n"
+            );
+            self.table(&mut out, results, map, format_idleness);
         }
         out
     }
+
+    fn table(
+        &self,
+        out: &mut String,
+        results: &[CellResult],
+        map: &str,
+        entry: fn(&CellResult) -> String,
+    ) {
+        let header: Vec<String> = self.agents.iter().map(|n| format!("N = {n}")).collect();
+        let _ = writeln!(out, "| policy | {} |", header.join(" | "));
+        let _ = writeln!(out, "|---|{}", "---:|".repeat(self.agents.len()));
+        for &baseline in &self.baselines {
+            let row: Vec<String> = self
+                .agents
+                .iter()
+                .filter_map(|&agents| {
+                    results
+                        .iter()
+                        .find(|r| r.map == map && r.baseline == baseline && r.agents == agents)
+                })
+                .map(entry)
+                .collect();
+            let _ = writeln!(out, "| {} | {} |", baseline.name(), row.join(" | "));
+        }
+        out.push('\n');
+    }
+}
+
+fn format_idleness(result: &CellResult) -> String {
+    let episodes = result.idleness.len().max(1) as f64;
+    let average: f64 = result.idleness.iter().map(|i| i.average).sum::<f64>() / episodes;
+    let worst: f64 = result.idleness.iter().map(|i| f64::from(i.worst)).sum::<f64>() / episodes;
+    format!("{average:.1} / {worst:.0}")
 }
 
 fn format_summary(summary: &Summary) -> String {

@@ -217,6 +217,8 @@ pub fn observed_test_episode(
         episode,
         test_seed: seed.value(),
         cumulative_penalty: outcome.cumulative_penalty,
+        average_idleness: outcome.idleness.average,
+        worst_idleness: outcome.idleness.worst,
         steps,
     })
 }

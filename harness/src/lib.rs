@@ -10,6 +10,7 @@ pub mod cli;
 pub mod code_version;
 pub mod cpu_clock;
 pub mod execution;
+pub mod idleness;
 pub mod merge;
 pub mod nn_bench;
 pub mod policy_bench;

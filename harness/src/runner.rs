@@ -2,14 +2,16 @@
 
 use std::sync::Arc;
 
+use crate::idleness::{Idleness, IdlenessTracker};
 use policies::Policy;
 use world::{Action, Cell, Episode, Seed, StartError, World};
 
-/// The paper's metric for one episode.
+/// The paper's metric for one episode, and the patrolling literature's.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EpisodeOutcome {
     /// Sum over steps 1..=T of |reward|; step 0 (the start) is not counted.
     pub cumulative_penalty: f64,
+    pub idleness: Idleness,
     pub steps: usize,
 }
 
@@ -48,13 +50,16 @@ pub fn run_episode(
     on_step(&episode, None);
     let mut actions = vec![Action::Stay; agents];
     let mut cumulative_penalty = 0.0;
+    let mut idleness = IdlenessTracker::new(&episode);
     for _ in 0..steps {
         policy.act(&episode, &mut actions);
         cumulative_penalty -= episode.step(&actions);
+        idleness.observe(&episode);
         on_step(&episode, Some(&actions));
     }
     Ok(EpisodeOutcome {
         cumulative_penalty,
+        idleness: idleness.finish(steps),
         steps,
     })
 }

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 /// Sources, relative to the workspace root, whose change can change a cell's numbers: the two
 /// numeric crates, and the harness modules that run a cell and write its result files.
-pub const NUMERIC_SOURCES: [&str; 13] = [
+pub const NUMERIC_SOURCES: [&str; 14] = [
     "world/src",
     "world/Cargo.toml",
     "policies/src",
@@ -24,6 +24,7 @@ pub const NUMERIC_SOURCES: [&str; 13] = [
     "harness/src/cell.rs",
     "harness/src/execution.rs",
     "harness/src/runner.rs",
+    "harness/src/idleness.rs",
     "harness/src/training_run.rs",
     "harness/src/training_log.rs",
     "harness/src/checkpoint_dir.rs",

@@ -1,6 +1,8 @@
 //! The summary table: per (map, policy, N_train, N_test), the cumulative penalty's mean,
 //! standard deviation, median, interquartile mean and stratified-bootstrap 95% intervals of
-//! the mean and the IQM, as rliable recommends for reporting RL results (Agarwal et al. 2021).
+//! the mean and the IQM, as rliable recommends for reporting RL results (Agarwal et al. 2021);
+//! and for the patrolling literature, the means of the average and the worst idleness with
+//! their intervals. The penalty stays the headline: it is the paper's metric.
 //!
 //! The strata are the cells (one training run, i.e. one seed, each): a bootstrap replicate
 //! resamples episodes within every cell, so the spread between training runs is kept. Each
@@ -17,13 +19,21 @@ use crate::store::StoreError;
 
 const CONFIDENCE: f64 = 0.95;
 
-/// One (map, policy, N_train, N_test) group: its episodes' penalties by cell.
+/// One (map, policy, N_train, N_test) group: its episodes' figures by cell.
 struct Group {
     map: String,
     policy: String,
     n_train: Option<u32>,
     n_test: u32,
-    strata: Vec<(String, Vec<f64>)>,
+    strata: Vec<(String, Stratum)>,
+}
+
+/// One cell's episodes, a value per episode in each list.
+#[derive(Default)]
+struct Stratum {
+    penalty: Vec<f64>,
+    average_idleness: Vec<f64>,
+    worst_idleness: Vec<f64>,
 }
 
 struct GroupSummary {
@@ -35,6 +45,14 @@ struct GroupSummary {
     iqm: f64,
     mean_ci: (f64, f64),
     iqm_ci: (f64, f64),
+    average_idleness: MeanWithInterval,
+    worst_idleness: MeanWithInterval,
+}
+
+struct MeanWithInterval {
+    mean: f64,
+    low: f64,
+    high: f64,
 }
 
 /// The summary of an `episodes` table, groups in order of first appearance.
@@ -71,23 +89,59 @@ pub fn summary_frame(episodes: &DataFrame) -> Result<DataFrame, StoreError> {
         Column::new("mean_ci_high".into(), number(|s| s.mean_ci.1)),
         Column::new("iqm_ci_low".into(), number(|s| s.iqm_ci.0)),
         Column::new("iqm_ci_high".into(), number(|s| s.iqm_ci.1)),
+        Column::new(
+            "average_idleness_mean".into(),
+            number(|s| s.average_idleness.mean),
+        ),
+        Column::new(
+            "average_idleness_ci_low".into(),
+            number(|s| s.average_idleness.low),
+        ),
+        Column::new(
+            "average_idleness_ci_high".into(),
+            number(|s| s.average_idleness.high),
+        ),
+        Column::new(
+            "worst_idleness_mean".into(),
+            number(|s| s.worst_idleness.mean),
+        ),
+        Column::new(
+            "worst_idleness_ci_low".into(),
+            number(|s| s.worst_idleness.low),
+        ),
+        Column::new(
+            "worst_idleness_ci_high".into(),
+            number(|s| s.worst_idleness.high),
+        ),
     ];
     Ok(DataFrame::new(groups.len(), columns)?)
 }
 
 fn summarise(group: &Group) -> Result<GroupSummary, StatsError> {
-    let strata: Vec<&[f64]> = group.strata.iter().map(|(_, v)| v.as_slice()).collect();
-    let all: Vec<f64> = strata.concat();
     let seed = group_seed(group);
-    let interval = |statistic, branch| {
+    let figure = |field: fn(&Stratum) -> &Vec<f64>| -> Vec<&[f64]> {
+        group.strata.iter().map(|(_, s)| field(s).as_slice()).collect()
+    };
+    let interval = |strata: &[&[f64]], statistic, branch| {
         stratified_bootstrap_interval(
-            &strata,
+            strata,
             statistic,
             CONFIDENCE,
             RESAMPLES,
             seed.child(branch),
         )
     };
+    let mean_with_interval = |field, branch| -> Result<MeanWithInterval, StatsError> {
+        let strata = figure(field);
+        let (low, high) = interval(&strata, mean, branch)?;
+        Ok(MeanWithInterval {
+            mean: mean(&strata.concat())?,
+            low,
+            high,
+        })
+    };
+    let strata = figure(|s| &s.penalty);
+    let all: Vec<f64> = strata.concat();
     Ok(GroupSummary {
         cells: strata.len() as u32,
         episodes: all.len() as u32,
@@ -95,8 +149,10 @@ fn summarise(group: &Group) -> Result<GroupSummary, StatsError> {
         std: standard_deviation(&all)?,
         median: median(&all)?,
         iqm: iqm(&all)?,
-        mean_ci: interval(mean, 0)?,
-        iqm_ci: interval(iqm, 1)?,
+        mean_ci: interval(&strata, mean, 0)?,
+        iqm_ci: interval(&strata, iqm, 1)?,
+        average_idleness: mean_with_interval(|s| &s.average_idleness, 2)?,
+        worst_idleness: mean_with_interval(|s| &s.worst_idleness, 3)?,
     })
 }
 
@@ -120,6 +176,8 @@ fn groups(episodes: &DataFrame) -> Result<Vec<Group>, StoreError> {
     let n_test = episodes.column("n_test")?.u32()?;
     let cell = episodes.column("cell_key")?.str()?;
     let penalty = episodes.column("cumulative_penalty")?.f64()?;
+    let average_idleness = episodes.column("average_idleness")?.f64()?;
+    let worst_idleness = episodes.column("worst_idleness")?.u32()?;
     let missing = || PolarsError::NoData("a null in the episodes table".into());
     let mut groups: Vec<Group> = Vec::new();
     for i in 0..episodes.height() {
@@ -128,9 +186,11 @@ fn groups(episodes: &DataFrame) -> Result<Vec<Group>, StoreError> {
             policy.get(i).ok_or_else(missing)?,
         );
         let (n_train, n_test) = (n_train.get(i), n_test.get(i).ok_or_else(missing)?);
-        let (cell, value) = (
-            cell.get(i).ok_or_else(missing)?,
+        let cell = cell.get(i).ok_or_else(missing)?;
+        let (value, average, worst) = (
             penalty.get(i).ok_or_else(missing)?,
+            average_idleness.get(i).ok_or_else(missing)?,
+            worst_idleness.get(i).ok_or_else(missing)?,
         );
         let position = groups.iter().position(|g| {
             g.map == map && g.policy == policy && g.n_train == n_train && g.n_test == n_test
@@ -148,10 +208,16 @@ fn groups(episodes: &DataFrame) -> Result<Vec<Group>, StoreError> {
                 groups.last_mut().expect("just pushed")
             }
         };
-        match group.strata.iter_mut().find(|(key, _)| key == cell) {
-            Some((_, values)) => values.push(value),
-            None => group.strata.push((cell.to_owned(), vec![value])),
-        }
+        let stratum = match group.strata.iter().position(|(key, _)| key == cell) {
+            Some(p) => &mut group.strata[p].1,
+            None => {
+                group.strata.push((cell.to_owned(), Stratum::default()));
+                &mut group.strata.last_mut().expect("just pushed").1
+            }
+        };
+        stratum.penalty.push(value);
+        stratum.average_idleness.push(average);
+        stratum.worst_idleness.push(f64::from(worst));
     }
     Ok(groups)
 }

@@ -111,6 +111,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         name,
         args.seed
     );
+    println!(
+        "idleness: average {:.2} steps, worst {} steps",
+        outcome.idleness.average, outcome.idleness.worst
+    );
     Ok(())
 }
 

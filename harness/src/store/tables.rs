@@ -19,6 +19,10 @@ pub struct EpisodeRow {
     pub episode: u32,
     pub test_seed: u64,
     pub cumulative_penalty: f64,
+    /// Mean steps since a cell was last seen, over free cells and steps 1..=T.
+    pub average_idleness: f64,
+    /// The most steps any cell waited to be seen.
+    pub worst_idleness: u32,
     pub steps: u32,
 }
 
@@ -48,6 +52,11 @@ pub fn episodes_frame(
             "cumulative_penalty".into(),
             column(rows, |r| r.cumulative_penalty),
         ),
+        Column::new(
+            "average_idleness".into(),
+            column(rows, |r| r.average_idleness),
+        ),
+        Column::new("worst_idleness".into(), column(rows, |r| r.worst_idleness)),
         Column::new("steps".into(), column(rows, |r| r.steps)),
     ]);
     Ok(DataFrame::new(rows.len(), columns)?)

@@ -62,7 +62,7 @@ pub fn summary_frame(episodes: &DataFrame) -> Result<DataFrame, StoreError> {
     let text =
         |f: fn(&Group) -> &String| -> Vec<&str> { groups.iter().map(|g| f(g).as_str()).collect() };
     let number = |f: fn(&GroupSummary) -> f64| -> Vec<f64> { stats.iter().map(f).collect() };
-    let columns = vec![
+    let mut columns = vec![
         Column::new("map".into(), text(|g| &g.map)),
         Column::new("policy".into(), text(|g| &g.policy)),
         Column::new(
@@ -89,31 +89,19 @@ pub fn summary_frame(episodes: &DataFrame) -> Result<DataFrame, StoreError> {
         Column::new("mean_ci_high".into(), number(|s| s.mean_ci.1)),
         Column::new("iqm_ci_low".into(), number(|s| s.iqm_ci.0)),
         Column::new("iqm_ci_high".into(), number(|s| s.iqm_ci.1)),
-        Column::new(
-            "average_idleness_mean".into(),
-            number(|s| s.average_idleness.mean),
-        ),
-        Column::new(
-            "average_idleness_ci_low".into(),
-            number(|s| s.average_idleness.low),
-        ),
-        Column::new(
-            "average_idleness_ci_high".into(),
-            number(|s| s.average_idleness.high),
-        ),
-        Column::new(
-            "worst_idleness_mean".into(),
-            number(|s| s.worst_idleness.mean),
-        ),
-        Column::new(
-            "worst_idleness_ci_low".into(),
-            number(|s| s.worst_idleness.low),
-        ),
-        Column::new(
-            "worst_idleness_ci_high".into(),
-            number(|s| s.worst_idleness.high),
-        ),
     ];
+    let idleness: [(&str, fn(&GroupSummary) -> &MeanWithInterval); 2] = [
+        ("average_idleness", |s| &s.average_idleness),
+        ("worst_idleness", |s| &s.worst_idleness),
+    ];
+    for (name, figure) in idleness {
+        let parts: [(&str, fn(&MeanWithInterval) -> f64); 3] =
+            [("mean", |f| f.mean), ("ci_low", |f| f.low), ("ci_high", |f| f.high)];
+        for (part, value) in parts {
+            let values: Vec<f64> = stats.iter().map(|s| value(figure(s))).collect();
+            columns.push(Column::new(format!("{name}_{part}").into(), values));
+        }
+    }
     Ok(DataFrame::new(groups.len(), columns)?)
 }
 

@@ -1,6 +1,7 @@
 //! RQ1: the cumulative penalty of every policy, per map and N_test, as a table and grouped
 //! bars with 95 % intervals, and the answer: the best policy at every (map, N_test) against
-//! the runner-up, with the probability of improvement between them.
+//! the runner-up, with the probability of improvement between them. The table also carries
+//! the mean average and worst idleness (steps), the patrolling literature's figures.
 
 use polars::prelude::*;
 
@@ -10,7 +11,7 @@ use super::comparison::Comparison;
 use super::markdown::number;
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 
-/// The summary's rows of one map, penalties in 10^6.
+/// The summary's rows of one map, penalties in 10^6, idleness in steps.
 struct MapRows {
     map: String,
     groups: Vec<GroupKey>,
@@ -19,6 +20,8 @@ struct MapRows {
     low: Vec<f64>,
     high: Vec<f64>,
     iqm: Vec<f64>,
+    average_idleness: Vec<f64>,
+    worst_idleness: Vec<f64>,
 }
 
 pub fn section(
@@ -61,6 +64,10 @@ fn map_rows(summary: &DataFrame) -> Result<Vec<MapRows>, ReportError> {
         scaled("mean_ci_high")?,
         scaled("iqm")?,
     );
+    let (average_idleness, worst_idleness) = (
+        f64s(summary, "average_idleness_mean")?,
+        f64s(summary, "worst_idleness_mean")?,
+    );
     let maps: Vec<String> = groups.iter().map(|g| g.map.clone()).collect();
     Ok(group_rows(&maps)
         .into_iter()
@@ -74,6 +81,8 @@ fn map_rows(summary: &DataFrame) -> Result<Vec<MapRows>, ReportError> {
                 low: pick(&low),
                 high: pick(&high),
                 iqm: pick(&iqm),
+                average_idleness: pick(&average_idleness),
+                worst_idleness: pick(&worst_idleness),
             }
         })
         .collect())
@@ -90,6 +99,8 @@ impl MapRows {
             "mean_ci_low" => &self.low,
             "mean_ci_high" => &self.high,
             "iqm" => &self.iqm,
+            "average_idleness" => &self.average_idleness,
+            "worst_idleness" => &self.worst_idleness,
         )
     }
 

@@ -31,6 +31,7 @@ pub mod store;
 pub mod summary;
 pub mod sweep;
 pub mod trace;
+pub mod training_bench;
 pub mod training_log;
 pub mod training_run;
 pub mod trajectory;

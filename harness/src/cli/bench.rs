@@ -7,6 +7,8 @@ use anyhow::Context;
 
 use crate::nn_bench::{ModelMeasurement, NetworkBench, Peak, ROLLOUT_STEPS, UPDATE_PASSES};
 use crate::policy_bench;
+use crate::training_bench;
+use policies::ppo::ArchitectureName;
 use crate::world_bench::{PYTHON_STEPS_PER_SECOND, measure};
 use world::World;
 
@@ -33,6 +35,21 @@ pub struct BenchArgs {
 enum BenchTarget {
     /// The networks instead of the world: the paper profile's rollout and update.
     Network(NetworkArgs),
+    /// Whole training rounds of the `fast` profile at several team sizes: episodes per
+    /// CPU-minute and the cost of an agent-step against the smallest team's.
+    Training(TrainingArgs),
+}
+
+#[derive(clap::Args)]
+struct TrainingArgs {
+    #[command(flatten)]
+    world: WorldArgs,
+    /// Team sizes, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [2, 4, 6, 10])]
+    agents: Vec<usize>,
+    /// Timed rounds per team size (8 episodes each), after one uncounted round.
+    #[arg(long, default_value_t = 1)]
+    rounds: u64,
 }
 
 #[derive(clap::Args)]
@@ -49,8 +66,10 @@ struct NetworkArgs {
 }
 
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
-    if let Some(BenchTarget::Network(network)) = args.network {
-        return run_network(&network);
+    match args.network {
+        Some(BenchTarget::Network(network)) => return run_network(&network),
+        Some(BenchTarget::Training(training)) => return run_training(&training),
+        None => {}
     }
     let world_args = args.world.as_ref().context("--map is required")?;
     let world = world_args.load()?;
@@ -100,6 +119,46 @@ fn print_decision_times(world: &Arc<World>, agents: usize, budget: Duration) -> 
             row.seconds_per_step * 1e6,
             row.seconds_per_step / step
         );
+    }
+    Ok(())
+}
+
+fn run_training(args: &TrainingArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.rounds >= 1, "--rounds must be positive");
+    let world = args.world.load()?;
+    for &agents in &args.agents {
+        world
+            .map()
+            .check_agents(agents, std::path::Path::new(&args.world.map))?;
+    }
+    println!(
+        "training throughput, fast profile, map {}: {} timed round(s) of 8 episodes after one \
+         uncounted; process CPU time on {} threads",
+        world.map().name(),
+        args.rounds,
+        rayon::current_num_threads()
+    );
+    for (name, architecture) in [
+        ("MA-G-PPO", ArchitectureName::MaGPpo),
+        ("MA-PPO", ArchitectureName::MaPpo),
+    ] {
+        println!(
+            "{name}\n  {:>6} {:>18} {:>20} {:>16}",
+            "N", "episodes/CPU-min", "CPU us/agent-step", "x smallest N"
+        );
+        let mut smallest = None;
+        for &agents in &args.agents {
+            let t = training_bench::measure(&world, architecture, agents, args.rounds)?;
+            let per_step = t.cpu_seconds_per_agent_step();
+            let first = *smallest.get_or_insert(per_step);
+            println!(
+                "  {:>6} {:>18.2} {:>20.2} {:>16.2}",
+                t.agents,
+                t.episodes_per_cpu_minute(),
+                per_step * 1e6,
+                per_step / first
+            );
+        }
     }
     Ok(())
 }

@@ -1,0 +1,82 @@
+//! Training throughput of the `fast` profile at several team sizes: episodes per CPU-minute,
+//! and the CPU cost of one agent-step, which should stay nearly flat as teams grow (the
+//! network runs once per agent-step; only attention grows with the team).
+//!
+//! Whole rounds (rollout and update) run through the real [`Trainer`], after one round that
+//! is not counted (buffers grow to size in it). Time is the process's CPU time, all threads
+//! included, so a busy machine slows the figures less than it would wall time.
+
+use std::sync::Arc;
+
+use policies::ppo::{AgentCount, ArchitectureName, Profile, TrainError, Trainer, TrainingConfig};
+use world::World;
+
+use crate::cpu_clock::process_cpu_time;
+
+/// One team size's measurement.
+pub struct Throughput {
+    pub agents: usize,
+    pub episodes: u64,
+    pub agent_steps: u64,
+    pub cpu_seconds: f64,
+}
+
+impl Throughput {
+    pub fn episodes_per_cpu_minute(&self) -> f64 {
+        self.episodes as f64 * 60.0 / self.cpu_seconds
+    }
+
+    pub fn cpu_seconds_per_agent_step(&self) -> f64 {
+        self.cpu_seconds / self.agent_steps as f64
+    }
+}
+
+/// Trains `architecture` with the `fast` profile and `agents` agents on `world` for one
+/// uncounted round and then `rounds` timed ones.
+pub fn measure(
+    world: &Arc<World>,
+    architecture: ArchitectureName,
+    agents: usize,
+    rounds: u64,
+) -> Result<Throughput, TrainError> {
+    let mut config = TrainingConfig::profile(Profile::Fast);
+    config.architecture = architecture;
+    config.agents = AgentCount::fixed(agents);
+    let round = config.environments as u64;
+    config.episodes = (rounds + 1) * round;
+    let steps_per_episode = config.steps_per_episode as u64;
+    let mut trainer = Trainer::new(world.clone(), config, 0)?;
+    trainer.train(round, &mut |_| {})?;
+    let started = process_cpu_time();
+    let records = trainer.train((rounds + 1) * round, &mut |_| {})?;
+    let cpu_seconds = (process_cpu_time() - started).as_secs_f64();
+    let episodes = records.len() as u64;
+    Ok(Throughput {
+        agents,
+        episodes,
+        agent_steps: episodes * steps_per_episode * agents as u64,
+        cpu_seconds,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use world::{Map, WorldParams};
+
+    use super::*;
+
+    #[test]
+    fn counts_the_timed_round_only() {
+        let map = Map::parse_text("room", "......\n......\n......\n", Path::new("room.txt"));
+        let world = World::new(map.unwrap(), WorldParams::paper());
+        let t = measure(&world, ArchitectureName::MaPpo, 1, 1).unwrap();
+        assert_eq!(t.episodes, 8, "one round of the fast profile's 8 environments");
+        assert_eq!(t.agent_steps, 8 * 1000);
+        assert!(t.cpu_seconds > 0.0);
+        let per_minute = t.episodes_per_cpu_minute();
+        assert_eq!(per_minute, 8.0 * 60.0 / t.cpu_seconds);
+        assert_eq!(t.cpu_seconds_per_agent_step(), t.cpu_seconds / 8000.0);
+    }
+}

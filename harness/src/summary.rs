@@ -90,19 +90,24 @@ pub fn summary_frame(episodes: &DataFrame) -> Result<DataFrame, StoreError> {
         Column::new("iqm_ci_low".into(), number(|s| s.iqm_ci.0)),
         Column::new("iqm_ci_high".into(), number(|s| s.iqm_ci.1)),
     ];
-    let idleness: [(&str, fn(&GroupSummary) -> &MeanWithInterval); 2] = [
-        ("average_idleness", |s| &s.average_idleness),
-        ("worst_idleness", |s| &s.worst_idleness),
-    ];
-    for (name, figure) in idleness {
-        let parts: [(&str, fn(&MeanWithInterval) -> f64); 3] =
-            [("mean", |f| f.mean), ("ci_low", |f| f.low), ("ci_high", |f| f.high)];
-        for (part, value) in parts {
-            let values: Vec<f64> = stats.iter().map(|s| value(figure(s))).collect();
-            columns.push(Column::new(format!("{name}_{part}").into(), values));
-        }
-    }
+    let average: Vec<&MeanWithInterval> = stats.iter().map(|s| &s.average_idleness).collect();
+    let worst: Vec<&MeanWithInterval> = stats.iter().map(|s| &s.worst_idleness).collect();
+    columns.extend(mean_with_interval_columns("average_idleness", &average));
+    columns.extend(mean_with_interval_columns("worst_idleness", &worst));
     Ok(DataFrame::new(groups.len(), columns)?)
+}
+
+/// The columns `NAME_mean`, `NAME_ci_low` and `NAME_ci_high` of one figure.
+fn mean_with_interval_columns(name: &str, figures: &[&MeanWithInterval]) -> [Column; 3] {
+    let column = |part: &str, value: fn(&MeanWithInterval) -> f64| {
+        let values: Vec<f64> = figures.iter().map(|&f| value(f)).collect();
+        Column::new(format!("{name}_{part}").into(), values)
+    };
+    [
+        column("mean", |f| f.mean),
+        column("ci_low", |f| f.low),
+        column("ci_high", |f| f.high),
+    ]
 }
 
 fn summarise(group: &Group) -> Result<GroupSummary, StatsError> {

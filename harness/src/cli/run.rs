@@ -122,14 +122,14 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
 /// written after the episode.
 enum EpisodePolicy {
     Any(Box<dyn Policy>),
-    Probing(ProbingPolicy),
+    Probing(Box<ProbingPolicy>),
 }
 
 impl EpisodePolicy {
     fn as_policy(&mut self) -> &mut dyn Policy {
         match self {
             EpisodePolicy::Any(policy) => policy.as_mut(),
-            EpisodePolicy::Probing(policy) => policy,
+            EpisodePolicy::Probing(policy) => policy.as_mut(),
         }
     }
 }
@@ -155,7 +155,7 @@ fn episode_policy(
         .collect::<Result<BTreeSet<_>, _>>()
         .map_err(|e| anyhow::anyhow!("--probe-steps `{}`: {e}", args.probe_steps))?;
     let policy = checkpoint_dir::load_policy(&dir, world, action_choice(args))?;
-    Ok(EpisodePolicy::Probing(ProbingPolicy::new(policy, steps)))
+    Ok(EpisodePolicy::Probing(Box::new(ProbingPolicy::new(policy, steps))))
 }
 
 /// How a checkpoint policy picks its actions: `--greedy` or sampled.

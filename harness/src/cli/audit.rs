@@ -31,16 +31,26 @@ pub fn run(args: AuditArgs) -> anyhow::Result<()> {
     for line in &lines {
         let s = &line.stored;
         let row = format!(
-            "cell {} N_test {} episode {}: stored {:?} ({} steps)",
-            line.cell_key, s.n_test, s.episode, s.cumulative_penalty, s.steps
+            "cell {} N_test {} episode {}: stored {:?}, idleness {:?} / {} ({} steps)",
+            line.cell_key,
+            s.n_test,
+            s.episode,
+            s.cumulative_penalty,
+            s.average_idleness,
+            s.worst_idleness,
+            s.steps
         );
         match &line.recomputed {
             Ok(_) if line.matches() => println!("same       {row}"),
             Ok(r) => {
                 differing += 1;
                 println!(
-                    "DIFFERENT  {row}, recomputed {:?} ({} steps, seed {})",
-                    r.cumulative_penalty, r.steps, r.test_seed
+                    "DIFFERENT  {row}, recomputed {:?}, idleness {:?} / {} ({} steps, seed {})",
+                    r.cumulative_penalty,
+                    r.average_idleness,
+                    r.worst_idleness,
+                    r.steps,
+                    r.test_seed
                 );
             }
             Err(why) => {

@@ -181,7 +181,12 @@ impl Sweep {
 fn format_idleness(result: &CellResult) -> String {
     let episodes = result.idleness.len().max(1) as f64;
     let average: f64 = result.idleness.iter().map(|i| i.average).sum::<f64>() / episodes;
-    let worst: f64 = result.idleness.iter().map(|i| f64::from(i.worst)).sum::<f64>() / episodes;
+    let worst: f64 = result
+        .idleness
+        .iter()
+        .map(|i| f64::from(i.worst))
+        .sum::<f64>()
+        / episodes;
     format!("{average:.1} / {worst:.0}")
 }
 

@@ -11,7 +11,7 @@
 //! step: a cell with a negative penalty was not seen and ages by one, any other (seen, or an
 //! obstacle) is at 0: a branch-free pass over rows that the compiler vectorises, and integers
 //! that make both figures exact. It costs about 0.8 us a step on a 50 x 50 map: a third to a
-//! half of the bare world step, 1 % of a GCS or learned-policy step.
+//! half of the bare world step, 1 to 2 % of a GCS or learned-policy step.
 
 use world::Episode;
 
@@ -128,7 +128,10 @@ mod tests {
         }
         let idleness = tracker.finish(steps);
         assert_eq!(idleness.worst, worst);
-        assert_eq!(idleness.worst, 7, "the ends wait 7 steps, beyond Rmax / D = 3");
+        assert_eq!(
+            idleness.worst, 7,
+            "the ends wait 7 steps, beyond Rmax / D = 3"
+        );
         assert_eq!(idleness.average, sum as f64 / (5 * steps) as f64);
     }
 

@@ -113,16 +113,14 @@ fn mean_with_interval_columns(name: &str, figures: &[&MeanWithInterval]) -> [Col
 fn summarise(group: &Group) -> Result<GroupSummary, StatsError> {
     let seed = group_seed(group);
     let figure = |field: fn(&Stratum) -> &Vec<f64>| -> Vec<&[f64]> {
-        group.strata.iter().map(|(_, s)| field(s).as_slice()).collect()
+        group
+            .strata
+            .iter()
+            .map(|(_, s)| field(s).as_slice())
+            .collect()
     };
     let interval = |strata: &[&[f64]], statistic, branch| {
-        stratified_bootstrap_interval(
-            strata,
-            statistic,
-            CONFIDENCE,
-            RESAMPLES,
-            seed.child(branch),
-        )
+        stratified_bootstrap_interval(strata, statistic, CONFIDENCE, RESAMPLES, seed.child(branch))
     };
     let mean_with_interval = |field, branch| -> Result<MeanWithInterval, StatsError> {
         let strata = figure(field);

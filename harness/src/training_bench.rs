@@ -72,7 +72,10 @@ mod tests {
         let map = Map::parse_text("room", "......\n......\n......\n", Path::new("room.txt"));
         let world = World::new(map.unwrap(), WorldParams::paper());
         let t = measure(&world, ArchitectureName::MaPpo, 1, 1).unwrap();
-        assert_eq!(t.episodes, 8, "one round of the fast profile's 8 environments");
+        assert_eq!(
+            t.episodes, 8,
+            "one round of the fast profile's 8 environments"
+        );
         assert_eq!(t.agent_steps, 8 * 1000);
         assert!(t.cpu_seconds > 0.0);
         let per_minute = t.episodes_per_cpu_minute();

@@ -131,7 +131,10 @@ fn gcs_as_released_on_open_with_four_agents_and_the_paper_ordering() {
     }
     assert!((59.0..=77.0).contains(&mean(&gcs)), "gcs {gcs:?}");
     let (random, tspc) = (penalties(Baseline::Random), penalties(Baseline::Tspc));
-    assert!(mean(&gcs) < 0.3 * mean(&random), "gcs {gcs:?} random {random:?}");
+    assert!(
+        mean(&gcs) < 0.3 * mean(&random),
+        "gcs {gcs:?} random {random:?}"
+    );
     assert!(mean(&tspc) < mean(&gcs), "tspc {tspc:?} gcs {gcs:?}");
 }
 

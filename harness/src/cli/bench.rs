@@ -8,8 +8,8 @@ use anyhow::Context;
 use crate::nn_bench::{ModelMeasurement, NetworkBench, Peak, ROLLOUT_STEPS, UPDATE_PASSES};
 use crate::policy_bench;
 use crate::training_bench;
-use policies::ppo::ArchitectureName;
 use crate::world_bench::{PYTHON_STEPS_PER_SECOND, measure};
+use policies::ppo::ArchitectureName;
 use world::World;
 
 use super::WorldArgs;

@@ -155,7 +155,9 @@ fn episode_policy(
         .collect::<Result<BTreeSet<_>, _>>()
         .map_err(|e| anyhow::anyhow!("--probe-steps `{}`: {e}", args.probe_steps))?;
     let policy = checkpoint_dir::load_policy(&dir, world, action_choice(args))?;
-    Ok(EpisodePolicy::Probing(Box::new(ProbingPolicy::new(policy, steps))))
+    Ok(EpisodePolicy::Probing(Box::new(ProbingPolicy::new(
+        policy, steps,
+    ))))
 }
 
 /// How a checkpoint policy picks its actions: `--greedy` or sampled.

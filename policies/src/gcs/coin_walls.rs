@@ -129,7 +129,10 @@ mod tests {
         let step = search(&walled, &[], Cell::new(4, 0), Cell::new(4, 2), 0);
         assert_eq!(step, Some(Cell::new(3, 0)));
         let closed = map("..#..\n");
-        assert_eq!(search(&closed, &[], Cell::new(0, 0), Cell::new(4, 0), 0), None);
+        assert_eq!(
+            search(&closed, &[], Cell::new(0, 0), Cell::new(4, 0), 0),
+            None
+        );
     }
 
     #[test]
@@ -137,8 +140,14 @@ mod tests {
         let corridor = map(".....\n");
         let blocked = (0..400)
             .filter(|&seed| {
-                search(&corridor, &[Cell::new(2, 0)], Cell::new(0, 0), Cell::new(4, 0), seed)
-                    .is_none()
+                search(
+                    &corridor,
+                    &[Cell::new(2, 0)],
+                    Cell::new(0, 0),
+                    Cell::new(4, 0),
+                    seed,
+                )
+                .is_none()
             })
             .count();
         assert!((160..240).contains(&blocked), "{blocked} of 400");
@@ -151,7 +160,10 @@ mod tests {
         let mut coins = Seed::new(1).rng();
         let mut search = CoinWallSearch::new(&open);
         let (a, b) = (Cell::new(0, 0), Cell::new(3, 1));
-        assert_eq!(search.first_step(&open, &flags, a, b, &mut coins), Some(Cell::new(0, 1)));
+        assert_eq!(
+            search.first_step(&open, &flags, a, b, &mut coins),
+            Some(Cell::new(0, 1))
+        );
         flags[open.index(Cell::new(0, 1))] = true;
         let around = search.first_step(&open, &flags, a, b, &mut coins);
         assert!(around == Some(Cell::new(0, 1)) || around == Some(Cell::new(1, 0)));

@@ -185,7 +185,10 @@ mod tests {
             let mut order = Vec::new();
             sort(&keys, &mut order);
             let case = format!("family {family}, multiplier {multiplier}, length {length}");
-            assert!(order.is_sorted_by_key(|&i| keys[i as usize] as u64), "{case}");
+            assert!(
+                order.is_sorted_by_key(|&i| keys[i as usize] as u64),
+                "{case}"
+            );
             assert_eq!(order[..6], first, "{case}");
             let sum: u64 = (1..).zip(&order).map(|(p, &i)| p * u64::from(i)).sum();
             assert_eq!(sum, weighted, "{case}");

@@ -76,7 +76,10 @@ impl ReleasedGcs {
     fn move_towards(&mut self, agent: usize, at: Cell, target: Cell) -> Action {
         let map = self.world.map();
         let Agent { stream, .. } = &mut self.agents[agent];
-        match self.search.first_step(map, &self.occupied, at, target, stream) {
+        match self
+            .search
+            .first_step(map, &self.occupied, at, target, stream)
+        {
             Some(next) => move_between(at, next).unwrap_or(Action::Stay),
             None => Action::from_index(stream.random_range(0..RANDOM_ACTION_CODES))
                 .unwrap_or(Action::Stay),
@@ -105,7 +108,7 @@ impl Policy for ReleasedGcs {
     fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
         let world = self.world.clone();
         let (map, penalty) = (world.map(), episode.penalty());
-        self.hot_spots.find(map, episode);
+        self.hot_spots.found = false;
         for &at in episode.positions() {
             self.occupied[map.index(at)] = true;
         }
@@ -114,7 +117,7 @@ impl Policy for ReleasedGcs {
             let finished = target == at || penalty.at(target) >= 0.0;
             *action = if !finished {
                 self.move_towards(agent, at, target)
-            } else if let Some(new) = self.hot_spots.take_nearest(at) {
+            } else if let Some(new) = self.hot_spots.take_nearest(map, episode, at) {
                 self.agents[agent].target = new;
                 self.move_towards(agent, at, new)
             } else {
@@ -127,8 +130,12 @@ impl Policy for ReleasedGcs {
     }
 }
 
-/// This step's hot spots, rebuilt in place.
+/// This step's hot spots, rebuilt in place. The code finds them every step, but only agents
+/// that re-target read them, and on most steps none does: they are found at the first agent
+/// that needs them, which gives the same hot spots (they depend on the penalties alone).
 struct HotSpots {
+    /// Whether `kept` holds this step's hot spots.
+    found: bool,
     radius: f64,
     /// Minus the penalty of each cell where it is negative, else 0, indexed [x][y]: the
     /// array the code sorts.
@@ -145,6 +152,7 @@ impl HotSpots {
     fn new(map: &Map, radius: f64) -> Self {
         let cells = map.width() * map.height();
         Self {
+            found: false,
             radius,
             badness: vec![0.0; cells],
             order: Vec::with_capacity(cells),
@@ -171,12 +179,19 @@ impl HotSpots {
             if self.badness[index as usize] <= 0.0 {
                 break;
             }
-            let cell = Cell::new((index as usize / height) as u16, (index as usize % height) as u16);
+            let cell = Cell::new(
+                (index as usize / height) as u16,
+                (index as usize % height) as u16,
+            );
             if self.kept.is_empty() {
                 self.kept.push(cell);
                 continue;
             }
-            if self.kept.iter().all(|&kept| distance(kept, cell) >= self.radius) {
+            if self
+                .kept
+                .iter()
+                .all(|&kept| distance(kept, cell) >= self.radius)
+            {
                 self.kept.push(cell);
             }
             if self.kept.len() == agents {
@@ -185,10 +200,14 @@ impl HotSpots {
         }
         self.taken.clear();
         self.taken.resize(self.kept.len(), false);
+        self.found = true;
     }
 
     /// The nearest hot spot nobody took in this step, now taken.
-    fn take_nearest(&mut self, at: Cell) -> Option<Cell> {
+    fn take_nearest(&mut self, map: &Map, episode: &Episode, at: Cell) -> Option<Cell> {
+        if !self.found {
+            self.find(map, episode);
+        }
         let (cx, cy) = (at.x as f64 + 0.5, at.y as f64 + 0.5);
         self.distances.clear();
         self.distances.extend(self.kept.iter().map(|spot| {
@@ -244,7 +263,11 @@ mod tests {
     fn after_the_walk(world: &Arc<World>, starts: &[Cell]) -> Episode {
         let mut episode = Episode::new(world.clone(), starts.len()).unwrap();
         episode.reset_at(starts).unwrap();
-        let walk = [[Action::Right; 4].as_slice(), &[Action::Down; 2], &[Action::Left; 4]];
+        let walk = [
+            [Action::Right; 4].as_slice(),
+            &[Action::Down; 2],
+            &[Action::Left; 4],
+        ];
         let mut actions = vec![Action::Stay; starts.len()];
         for &action in walk.concat().iter() {
             actions[0] = action;
@@ -303,10 +326,18 @@ mod tests {
         let episode = after_the_walk(&world, &[Cell::new(0, 2)]);
         let mut gcs = ReleasedGcs::new(&world, 2.5);
         gcs.hot_spots.find(world.map(), &episode);
-        assert_eq!(gcs.hot_spots.kept, [Cell::new(0, 2)], "(1, 2) is within 2.5");
+        assert_eq!(
+            gcs.hot_spots.kept,
+            [Cell::new(0, 2)],
+            "(1, 2) is within 2.5"
+        );
         let mut gcs = ReleasedGcs::new(&world, 1.0);
         gcs.hot_spots.find(world.map(), &episode);
-        assert_eq!(gcs.hot_spots.kept.len(), 10, "every unseen cell, all 1 apart");
+        assert_eq!(
+            gcs.hot_spots.kept.len(),
+            10,
+            "every unseen cell, all 1 apart"
+        );
     }
 
     /// The agent in the pocket has no path to any target: it draws one of six codes, two of

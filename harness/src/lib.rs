@@ -21,6 +21,7 @@ pub mod recording;
 pub mod replay;
 pub mod report;
 pub mod runner;
+pub mod scale_bench;
 pub mod scenario;
 pub mod shard;
 pub mod slurm;

@@ -31,17 +31,23 @@ impl Throughput {
     }
 }
 
-/// Trains `architecture` with the `fast` profile and `agents` agents on `world` for one
-/// uncounted round and then `rounds` timed ones.
+/// The `fast` profile for `architecture` and a fixed team of `agents`.
+pub fn fast_config(architecture: ArchitectureName, agents: usize) -> TrainingConfig {
+    TrainingConfig {
+        architecture,
+        agents: AgentCount::fixed(agents),
+        ..TrainingConfig::profile(Profile::Fast)
+    }
+}
+
+/// Trains with `config` (a fixed team) on `world` for one uncounted round and then `rounds`
+/// timed ones.
 pub fn measure(
     world: &Arc<World>,
-    architecture: ArchitectureName,
-    agents: usize,
+    mut config: TrainingConfig,
     rounds: u64,
 ) -> Result<Throughput, TrainError> {
-    let mut config = TrainingConfig::profile(Profile::Fast);
-    config.architecture = architecture;
-    config.agents = AgentCount::fixed(agents);
+    let agents = config.agents.max;
     let round = config.environments as u64;
     config.episodes = (rounds + 1) * round;
     let steps_per_episode = config.steps_per_episode as u64;
@@ -71,7 +77,7 @@ mod tests {
     fn counts_the_timed_round_only() {
         let map = Map::parse_text("room", "......\n......\n......\n", Path::new("room.txt"));
         let world = World::new(map.unwrap(), WorldParams::paper());
-        let t = measure(&world, ArchitectureName::MaPpo, 1, 1).unwrap();
+        let t = measure(&world, fast_config(ArchitectureName::MaPpo, 1), 1).unwrap();
         assert_eq!(
             t.episodes, 8,
             "one round of the fast profile's 8 environments"

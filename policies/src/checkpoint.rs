@@ -228,7 +228,7 @@ impl PyTorchLayout {
     }
 
     /// Stored values back in our order.
-    fn from_stored(&self, spec: &ParamSpec, stored: &[f32], values: &mut [f32]) {
+    fn to_ours(&self, spec: &ParamSpec, stored: &[f32], values: &mut [f32]) {
         values.copy_from_slice(stored);
         if self.reordered.contains(&spec.slot) {
             for (row, stored_row) in values
@@ -301,7 +301,7 @@ fn read_tensors(
             .chunks_exact(4)
             .map(|chunk| f32::from_le_bytes(chunk.try_into().expect("chunks of four bytes")))
             .collect();
-        layout.from_stored(spec, &stored, spec.slot.of_mut(flat));
+        layout.to_ours(spec, &stored, spec.slot.of_mut(flat));
     }
     Ok(())
 }

@@ -43,6 +43,7 @@ pub fn observation_config(config: &TrainingConfig) -> ObservationConfig {
     ObservationConfig {
         channels: config.channels,
         mark_others_on_mini: config.mark_others_on_mini,
+        mini_map_block: config.mini_map_block,
     }
 }
 

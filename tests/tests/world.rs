@@ -47,17 +47,19 @@ fn assert_same_as_reference(world: &Arc<World>, agents: usize, steps: usize, see
         ReferenceEpisode::new(world.map().clone(), *world.params(), fast.positions());
     assert_eq!(start_reward, slow_start, "step 0");
     let configs = [
-        ObservationConfig {
-            channels: Channels::Both,
-            mark_others_on_mini: false,
-        },
+        ObservationConfig::default(),
         ObservationConfig {
             channels: Channels::Mini,
             mark_others_on_mini: true,
+            mini_map_block: Some(3),
         },
         ObservationConfig {
             channels: Channels::Local,
-            mark_others_on_mini: false,
+            ..ObservationConfig::default()
+        },
+        ObservationConfig {
+            mini_map_block: Some(1),
+            ..ObservationConfig::default()
         },
     ];
     let mut observers: Vec<Observer> = configs.iter().map(|&c| Observer::new(world, c)).collect();

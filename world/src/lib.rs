@@ -20,7 +20,7 @@ pub mod visibility;
 pub use episode::{Action, Episode, World};
 pub use error::{MapError, MapErrorKind, ParamError, StartError};
 pub use map::{Cell, Map};
-pub use observation::{Channels, ObservationConfig, Observer, image_side};
+pub use observation::{Channels, ImageGeometry, ObservationConfig, Observer};
 pub use params::WorldParams;
 pub use penalty::PenaltyGrid;
 pub use seed::Seed;

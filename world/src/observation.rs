@@ -4,6 +4,12 @@
 //! Images are square, side S = max(L, mini-map sides), row 0 at the bottom (the map's y
 //! direction). A channel smaller than S fills the rest of its image with the obstacle code, so
 //! any map and L give images of one shape; the paper's maps and L = 25 give S = 25 and no fill.
+//!
+//! The mini-map pools the map in square blocks of b cells. By default b is the smallest block
+//! that fits the map into the L x L of the local view, b = ceil(max(W, H) / L): the paper's
+//! 2 x 2 blocks are the 50 x 50, L = 25 case, and a 200 x 200 map gets 8 x 8 blocks, so the
+//! network's input stays L x L whatever the map. A configuration may set b instead; S then
+//! grows when the pooled map is larger than L.
 
 use crate::episode::{Episode, World};
 use crate::map::{Cell, Map};
@@ -47,6 +53,8 @@ pub struct ObservationConfig {
     /// Mark the other agents on the mini-map with `OTHER_AGENT_CODE` (the released code's
     /// variant); the paper marks the observing agent only.
     pub mark_others_on_mini: bool,
+    /// The side b of the mini-map's blocks; `None` fits the map to the local view's side.
+    pub mini_map_block: Option<usize>,
 }
 
 impl Default for ObservationConfig {
@@ -54,30 +62,56 @@ impl Default for ObservationConfig {
         Self {
             channels: Channels::Both,
             mark_others_on_mini: false,
+            mini_map_block: None,
         }
     }
 }
 
-/// Side S of the images of `map` with field of view `fov`: the local image and the mini-map
-/// (the map at half resolution) are padded to one square side, so that both stack as channels.
-pub fn image_side(map: &Map, fov: usize) -> usize {
-    fov.max(map.width().div_ceil(2))
-        .max(map.height().div_ceil(2))
+/// The shapes of the images of one map, field of view and configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ImageGeometry {
+    /// The side b of a mini-map block, in cells.
+    pub block: usize,
+    pub mini_width: usize,
+    pub mini_height: usize,
+    /// The side S of every image: the local image and the mini-map are padded to one square
+    /// side, so that both stack as channels.
+    pub side: usize,
+}
+
+impl ImageGeometry {
+    /// `block` is the configuration's choice, `None` for the default (module doc); a block of
+    /// 0 is read as 1.
+    pub fn new(map: &Map, fov: usize, block: Option<usize>) -> Self {
+        let fit = map.width().max(map.height()).div_ceil(fov.max(1));
+        let block = block.unwrap_or(fit).max(1);
+        let (mini_width, mini_height) = (map.width().div_ceil(block), map.height().div_ceil(block));
+        Self {
+            block,
+            mini_width,
+            mini_height,
+            side: fov.max(mini_width).max(mini_height),
+        }
+    }
+
+    /// The mini-map pixel (row-major in an S x S image) of the block that holds `cell`.
+    pub fn mini_pixel(&self, cell: Cell) -> usize {
+        (cell.y as usize / self.block) * self.side + cell.x as usize / self.block
+    }
 }
 
 /// Writes every agent's observation into one caller-owned buffer; allocates nothing per step.
 #[derive(Clone, Debug)]
 pub struct Observer {
     config: ObservationConfig,
+    geometry: ImageGeometry,
     side: usize,
     fov: usize,
-    mini_width: usize,
-    mini_height: usize,
     scale: f32,
     /// This step's mini-map image (side x side, padding filled once) before agent marks,
     /// scaled; shared by all agents, each of which copies it whole.
     mini: Vec<f32>,
-    /// Per block row: the lower and upper of each column pair, before pairing columns.
+    /// Per block row: each map column's lowest and highest code over the block's rows.
     column_low: Vec<f32>,
     column_high: Vec<f32>,
 }
@@ -86,17 +120,16 @@ impl Observer {
     pub fn new(world: &World, config: ObservationConfig) -> Self {
         let map = world.map();
         let fov = world.params().fov();
-        let (mini_width, mini_height) = (map.width().div_ceil(2), map.height().div_ceil(2));
-        let side = image_side(map, fov);
+        let geometry = ImageGeometry::new(map, fov, config.mini_map_block);
+        let side = geometry.side;
         let scale = 1.0 / world.params().rmax();
         let mini = vec![OBSTACLE_CODE * scale; side * side];
-        let (column_low, column_high) = (vec![0.0; 2 * mini_width], vec![0.0; 2 * mini_width]);
+        let (column_low, column_high) = (vec![0.0; map.width()], vec![0.0; map.width()]);
         Self {
             config,
+            geometry,
             side,
             fov,
-            mini_width,
-            mini_height,
             scale,
             mini,
             column_low,
@@ -111,6 +144,10 @@ impl Observer {
     /// Side S of every image.
     pub fn side(&self) -> usize {
         self.side
+    }
+
+    pub fn geometry(&self) -> ImageGeometry {
+        self.geometry
     }
 
     pub fn channels(&self) -> usize {
@@ -169,44 +206,58 @@ impl Observer {
 
     fn write_mini(&self, positions: &[Cell], agent: usize, out: &mut [f32]) {
         out.copy_from_slice(&self.mini);
-        let block = |cell: Cell| (cell.y as usize / 2) * self.side + cell.x as usize / 2;
         if self.config.mark_others_on_mini {
             for &other in positions {
-                out[block(other)] = OTHER_AGENT_CODE * self.scale;
+                out[self.geometry.mini_pixel(other)] = OTHER_AGENT_CODE * self.scale;
             }
         }
-        out[block(positions[agent])] = AGENT_CODE * self.scale;
+        out[self.geometry.mini_pixel(positions[agent])] = AGENT_CODE * self.scale;
     }
 
-    /// Each 2 x 2 block shows its lowest penalty when it has a negative one, else the obstacle
-    /// code when it holds an obstacle (or a cell beyond the map), else 0. With obstacles coded
-    /// 150 and penalties <= 0 that is: the block's minimum if negative, else its maximum.
+    /// Each block shows its lowest penalty when it has a negative one, else the obstacle code
+    /// when it holds an obstacle (or a cell beyond the map), else 0. With obstacles coded 150
+    /// and penalties <= 0 that is: the block's minimum if negative, else its maximum. Rows are
+    /// folded first (over the block's map rows, each column at once), then columns.
     fn compute_mini(&mut self, episode: &Episode) {
         let grid = episode.penalty();
         let (codes, stride, pad) = (grid.codes(), grid.stride(), grid.pad());
-        let pairs = 2 * self.mini_width;
-        for by in 0..self.mini_height {
-            let bottom = (2 * by + pad) * stride + pad;
-            let (lower, upper) = (
-                &codes[bottom..bottom + pairs],
-                &codes[bottom + stride..][..pairs],
-            );
-            for (((low, high), &a), &b) in self
-                .column_low
-                .iter_mut()
-                .zip(&mut self.column_high)
-                .zip(lower)
-                .zip(upper)
-            {
-                (*low, *high) = (fast_min(a, b), fast_max(a, b));
+        let ImageGeometry {
+            block,
+            mini_width,
+            mini_height,
+            ..
+        } = self.geometry;
+        let width = self.column_low.len();
+        let map_height = episode.world().map().height();
+        let row = |y: usize| &codes[(y + pad) * stride + pad..][..width];
+        for by in 0..mini_height {
+            let rows = by * block..((by + 1) * block).min(map_height);
+            self.column_low.copy_from_slice(row(rows.start));
+            self.column_high.copy_from_slice(row(rows.start));
+            for y in rows.start + 1..rows.end {
+                for ((low, high), &code) in self
+                    .column_low
+                    .iter_mut()
+                    .zip(&mut self.column_high)
+                    .zip(row(y))
+                {
+                    (*low, *high) = (fast_min(*low, code), fast_max(*high, code));
+                }
             }
-            let row = &mut self.mini[by * self.side..by * self.side + self.mini_width];
-            let column_pairs = self
+            let beyond_top = rows.end < (by + 1) * block;
+            let image_row = &mut self.mini[by * self.side..][..mini_width];
+            let blocks = self
                 .column_low
-                .chunks_exact(2)
-                .zip(self.column_high.chunks_exact(2));
-            for (out, (low, high)) in row.iter_mut().zip(column_pairs) {
-                let (low, high) = (fast_min(low[0], low[1]), fast_max(high[0], high[1]));
+                .chunks(block)
+                .zip(self.column_high.chunks(block));
+            for (out, (low, high)) in image_row.iter_mut().zip(blocks) {
+                let low = low.iter().copied().fold(f32::INFINITY, fast_min);
+                let beyond = beyond_top || high.len() < block;
+                let high = if beyond {
+                    OBSTACLE_CODE
+                } else {
+                    high.iter().copied().fold(f32::NEG_INFINITY, fast_max)
+                };
                 *out = if low < 0.0 { low } else { high } * self.scale;
             }
         }
@@ -220,4 +271,65 @@ fn fast_min(a: f32, b: f32) -> f32 {
 
 fn fast_max(a: f32, b: f32) -> f32 {
     if a > b { a } else { b }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    fn open(width: usize, height: usize) -> Map {
+        let row = ".".repeat(width);
+        let text = vec![row; height].join("\n");
+        Map::parse_text("open", &text, Path::new("open.txt")).unwrap()
+    }
+
+    #[test]
+    fn the_mini_map_fits_the_local_view_unless_a_block_is_set() {
+        let geometry = |w, h, fov, block| {
+            let g = ImageGeometry::new(&open(w, h), fov, block);
+            (g.block, g.mini_width, g.mini_height, g.side)
+        };
+        assert_eq!(
+            geometry(50, 50, 25, None),
+            (2, 25, 25, 25),
+            "the paper's case"
+        );
+        assert_eq!(geometry(200, 200, 25, None), (8, 25, 25, 25));
+        assert_eq!(geometry(201, 90, 25, None), (9, 23, 10, 25));
+        assert_eq!(geometry(12, 6, 25, None), (1, 12, 6, 25));
+        assert_eq!(geometry(200, 200, 25, Some(2)), (2, 100, 100, 100));
+        assert_eq!(geometry(16, 16, 7, Some(2)), (2, 8, 8, 8));
+    }
+
+    #[test]
+    fn a_partial_block_at_the_edge_shows_an_obstacle_unless_it_holds_a_negative_penalty() {
+        let world = World::new(open(5, 5), crate::WorldParams::new(1, 1.0, 10.0).unwrap());
+        let mut episode = Episode::new(world.clone(), 1).unwrap();
+        episode.reset_at(&[Cell::new(0, 0)]).unwrap();
+        let config = ObservationConfig {
+            channels: Channels::Mini,
+            mark_others_on_mini: false,
+            mini_map_block: Some(3),
+        };
+        let mut observer = Observer::new(&world, config);
+        assert_eq!(observer.side(), 2);
+        let mut out = vec![0.0; observer.per_agent()];
+        observer.write(&episode, &mut out);
+        // Every cell but the agent's has decayed once: -1 / Rmax in every block.
+        assert_eq!(out, vec![AGENT_CODE / 10.0, -0.1, -0.1, -0.1]);
+        let world = World::new(open(4, 1), crate::WorldParams::new(3, 1.0, 10.0).unwrap());
+        let mut episode = Episode::new(world.clone(), 2).unwrap();
+        episode
+            .reset_at(&[Cell::new(0, 0), Cell::new(3, 0)])
+            .unwrap();
+        let mut observer = Observer::new(&world, config);
+        let mut out = vec![0.0; 2 * observer.per_agent()];
+        observer.write(&episode, &mut out);
+        // Every cell is seen (penalty 0). The second block holds cell 3 and two cells beyond
+        // the map: an obstacle.
+        assert_eq!(observer.side(), 3);
+        assert_eq!(out[..2], [AGENT_CODE / 10.0, OBSTACLE_CODE / 10.0]);
+    }
 }

@@ -91,7 +91,7 @@ impl ReferenceEpisode {
             }
             if config.channels != crate::observation::Channels::Local {
                 let image = images.next().expect("mini image");
-                self.mini_map(agent, config.mark_others_on_mini, side, scale, image);
+                self.mini_map(agent, config, side, scale, image);
             }
         }
         out
@@ -125,14 +125,29 @@ impl ReferenceEpisode {
         }
     }
 
-    fn mini_map(&self, agent: usize, others: bool, side: usize, scale: f32, out: &mut [f32]) {
-        let (w, h) = (self.map.width().div_ceil(2), self.map.height().div_ceil(2));
+    fn mini_map(
+        &self,
+        agent: usize,
+        config: ObservationConfig,
+        side: usize,
+        scale: f32,
+        out: &mut [f32],
+    ) {
+        let fit = self
+            .map
+            .width()
+            .max(self.map.height())
+            .div_ceil(self.params.fov());
+        let b = config.mini_map_block.unwrap_or(fit).max(1);
+        let (w, h) = (self.map.width().div_ceil(b), self.map.height().div_ceil(b));
         for by in 0..h {
             for bx in 0..w {
-                let codes: Vec<f32> = [(0, 0), (1, 0), (0, 1), (1, 1)]
-                    .iter()
-                    .map(|&(i, j)| self.code(2 * bx as i64 + i, 2 * by as i64 + j))
-                    .collect();
+                let mut codes = Vec::new();
+                for j in 0..b {
+                    for i in 0..b {
+                        codes.push(self.code((b * bx + i) as i64, (b * by + j) as i64));
+                    }
+                }
                 let negative = codes.iter().copied().filter(|&c| c < 0.0).reduce(f32::min);
                 let obstacle = codes.contains(&OBSTACLE_CODE);
                 let code = match (negative, obstacle) {
@@ -140,10 +155,10 @@ impl ReferenceEpisode {
                     (None, true) => OBSTACLE_CODE,
                     (None, false) => 0.0,
                 };
-                let in_block = |p: &Cell| p.x as usize / 2 == bx && p.y as usize / 2 == by;
+                let in_block = |p: &Cell| p.x as usize / b == bx && p.y as usize / b == by;
                 let code = if in_block(&self.positions[agent]) {
                     AGENT_CODE
-                } else if others && self.positions.iter().any(in_block) {
+                } else if config.mark_others_on_mini && self.positions.iter().any(in_block) {
                     OTHER_AGENT_CODE
                 } else {
                     code

@@ -46,6 +46,11 @@ impl Visibility {
         }
     }
 
+    /// Memory the windows take: L x ceil(L / 64) words per cell of the map.
+    pub fn heap_bytes(&self) -> usize {
+        std::mem::size_of_val(self.bits.as_slice())
+    }
+
     pub fn fov(&self) -> usize {
         self.fov
     }

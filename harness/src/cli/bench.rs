@@ -7,6 +7,7 @@ use anyhow::Context;
 
 use crate::nn_bench::{ModelMeasurement, NetworkBench, Peak, ROLLOUT_STEPS, UPDATE_PASSES};
 use crate::policy_bench;
+use crate::scale_bench::{self, ScaleSetup};
 use crate::training_bench;
 use crate::world_bench::{PYTHON_STEPS_PER_SECOND, measure};
 use policies::ppo::ArchitectureName;
@@ -38,6 +39,32 @@ enum BenchTarget {
     /// Whole training rounds of the `fast` profile at several team sizes: episodes per
     /// CPU-minute and the cost of an agent-step against the smallest team's.
     Training(TrainingArgs),
+    /// MA-G-PPO training cost per agent-step on a small map and on a large one with growing
+    /// teams (attention within a radius), and the memory of the visibility tables.
+    Scale(ScaleArgs),
+}
+
+#[derive(clap::Args)]
+struct ScaleArgs {
+    /// The small map, measured with `--small-agents` agents.
+    #[arg(long, default_value = "scenarios/maps/open.txt")]
+    small_map: String,
+    #[arg(long, default_value_t = 4)]
+    small_agents: usize,
+    /// The large map, measured with each of `--large-agents`.
+    #[arg(long, default_value = "scenarios/maps/warehouse.txt")]
+    large_map: String,
+    #[arg(long, value_delimiter = ',', default_values_t = [4, 16, 50])]
+    large_agents: Vec<usize>,
+    /// T of a training episode.
+    #[arg(long, default_value_t = 200)]
+    steps: usize,
+    /// Communication radius of the attention, in cells.
+    #[arg(long, default_value_t = 50.0)]
+    radius: f64,
+    /// Timed rounds (8 episodes each) per row, after one uncounted round.
+    #[arg(long, default_value_t = 1)]
+    rounds: u64,
 }
 
 #[derive(clap::Args)]
@@ -69,6 +96,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     match args.network {
         Some(BenchTarget::Network(network)) => return run_network(&network),
         Some(BenchTarget::Training(training)) => return run_training(&training),
+        Some(BenchTarget::Scale(scale)) => return run_scale(&scale),
         None => {}
     }
     let world_args = args.world.as_ref().context("--map is required")?;
@@ -148,7 +176,8 @@ fn run_training(args: &TrainingArgs) -> anyhow::Result<()> {
         );
         let mut smallest = None;
         for &agents in &args.agents {
-            let t = training_bench::measure(&world, architecture, agents, args.rounds)?;
+            let config = training_bench::fast_config(architecture, agents);
+            let t = training_bench::measure(&world, config, args.rounds)?;
             let per_step = t.cpu_seconds_per_agent_step();
             let first = *smallest.get_or_insert(per_step);
             println!(
@@ -157,6 +186,60 @@ fn run_training(args: &TrainingArgs) -> anyhow::Result<()> {
                 t.episodes_per_cpu_minute(),
                 per_step * 1e6,
                 per_step / first
+            );
+        }
+    }
+    Ok(())
+}
+
+fn run_scale(args: &ScaleArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.rounds >= 1, "--rounds must be positive");
+    anyhow::ensure!(args.steps >= 1, "--steps must be positive");
+    anyhow::ensure!(args.radius >= 0.0, "--radius must be >= 0");
+    let setup = ScaleSetup {
+        steps_per_episode: args.steps,
+        radius: args.radius,
+        rounds: args.rounds,
+    };
+    let runs = [
+        (&args.small_map, vec![args.small_agents]),
+        (&args.large_map, args.large_agents.clone()),
+    ];
+    let mut worlds = Vec::new();
+    for (path, agents) in &runs {
+        let world = WorldArgs::paper(path).load()?;
+        for &n in agents {
+            world.map().check_agents(n, std::path::Path::new(path))?;
+        }
+        worlds.push(world);
+    }
+    println!(
+        "training cost at scale, MA-G-PPO, fast profile, T = {}, attention within {} cells: {} \
+         timed round(s) of 8 episodes after one uncounted; process CPU time on {} threads",
+        args.steps,
+        args.radius,
+        args.rounds,
+        rayon::current_num_threads()
+    );
+    println!(
+        "{:<12} {:>9} {:>5} {:>11} {:>14} {:>20} {:>14}",
+        "map", "size", "N", "mini block", "visibility MB", "CPU us/agent-step", "x first row"
+    );
+    let mut first = None;
+    for (world, (_, agents)) in worlds.iter().zip(&runs) {
+        for &n in agents {
+            let row = scale_bench::measure(world, n, setup)?;
+            let per_step = row.throughput.cpu_seconds_per_agent_step();
+            let base = *first.get_or_insert(per_step);
+            println!(
+                "{:<12} {:>9} {:>5} {:>11} {:>14.2} {:>20.1} {:>14.2}",
+                row.map,
+                format!("{}x{}", row.width, row.height),
+                n,
+                format!("{0}x{0} -> {1}", row.geometry.block, row.geometry.side),
+                row.visibility_bytes as f64 / (1 << 20) as f64,
+                per_step * 1e6,
+                per_step / base
             );
         }
     }

@@ -122,6 +122,16 @@ pub struct WorldArgs {
 }
 
 impl WorldArgs {
+    /// `map` with the paper's L, D and Rmax.
+    pub fn paper(map: &str) -> Self {
+        WorldArgs {
+            map: map.to_owned(),
+            fov: world::params::PAPER_FOV,
+            decay: world::params::PAPER_DECAY,
+            rmax: world::params::PAPER_RMAX,
+        }
+    }
+
     pub fn load(&self) -> anyhow::Result<std::sync::Arc<world::World>> {
         let map = world::Map::load(&self.map)?;
         let params = world::WorldParams::new(self.fov, self.decay, self.rmax)?;

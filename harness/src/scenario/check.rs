@@ -188,7 +188,8 @@ fn check_training(
                 .expect("a learned policy")
                 .map_err(|e| fail(e.to_string()))?;
             for map in maps {
-                let side = world::image_side(&map.map, world.fov);
+                let side =
+                    world::ImageGeometry::new(&map.map, world.fov, config.mini_map_block).side;
                 config
                     .model_config(side)
                     .map_err(|e| fail(format!("map {:?}: {e}", map.map.name())))?;

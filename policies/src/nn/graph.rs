@@ -2,6 +2,10 @@
 //! environment at one time step, stored as consecutive rows); edges never cross groups. The
 //! graph is kept in compressed rows: the neighbours of agent `i` are
 //! `neighbours[offsets[i]..offsets[i + 1]]`, in increasing order. Edge `e` is that position.
+//!
+//! Within a communication radius the neighbours come from a bucket grid of side r: an agent
+//! looks in its own bucket and the eight around it only, so building the graph costs the
+//! agents plus the candidate pairs, not N^2, and the attention layer's cost is its edges.
 
 use std::ops::Range;
 
@@ -23,6 +27,8 @@ pub enum Neighbours {
 pub struct AgentGraph {
     offsets: Vec<usize>,
     neighbours: Vec<usize>,
+    /// The group being added, as (bucket column, bucket row, agent), sorted.
+    buckets: Vec<(i64, i64, usize)>,
 }
 
 impl Default for AgentGraph {
@@ -30,6 +36,7 @@ impl Default for AgentGraph {
         AgentGraph {
             offsets: vec![0],
             neighbours: Vec::new(),
+            buckets: Vec::new(),
         }
     }
 }
@@ -73,17 +80,44 @@ impl AgentGraph {
     /// Appends a group of `positions.len()` agents; positions matter only for
     /// [`Neighbours::WithinRadius`].
     pub fn push_group(&mut self, rule: Neighbours, positions: &[[f64; 2]]) {
-        self.push_with(positions.len(), |i, j| match rule {
-            Neighbours::AllOthers => i != j,
-            Neighbours::AllAgents => true,
-            Neighbours::WithinRadius(radius) => {
-                let (dx, dy) = (
-                    positions[i][0] - positions[j][0],
-                    positions[i][1] - positions[j][1],
-                );
-                i != j && dx * dx + dy * dy <= radius * radius
+        match rule {
+            Neighbours::AllOthers => self.push_with(positions.len(), |i, j| i != j),
+            Neighbours::AllAgents => self.push_with(positions.len(), |_, _| true),
+            Neighbours::WithinRadius(radius) => self.push_within(radius, positions),
+        }
+    }
+
+    /// Other agents at distance at most `radius`, from the bucket grid (module doc).
+    fn push_within(&mut self, radius: f64, positions: &[[f64; 2]]) {
+        let first = self.agents();
+        let side = radius.max(1.0);
+        let bucket = |p: [f64; 2]| ((p[0] / side).floor() as i64, (p[1] / side).floor() as i64);
+        self.buckets.clear();
+        self.buckets
+            .extend(positions.iter().enumerate().map(|(i, &p)| {
+                let (bx, by) = bucket(p);
+                (bx, by, i)
+            }));
+        self.buckets.sort_unstable();
+        for (i, &p) in positions.iter().enumerate() {
+            let start = self.neighbours.len();
+            let (bx, by) = bucket(p);
+            for column in bx - 1..=bx + 1 {
+                let lo = self
+                    .buckets
+                    .partition_point(|b| (b.0, b.1) < (column, by - 1));
+                let hi = self
+                    .buckets
+                    .partition_point(|b| (b.0, b.1) <= (column, by + 1));
+                let near = self.buckets[lo..hi].iter().map(|b| b.2).filter(|&j| {
+                    let (dx, dy) = (p[0] - positions[j][0], p[1] - positions[j][1]);
+                    i != j && dx * dx + dy * dy <= radius * radius
+                });
+                self.neighbours.extend(near.map(|j| first + j));
             }
-        });
+            self.neighbours[start..].sort_unstable();
+            self.offsets.push(self.neighbours.len());
+        }
     }
 
     /// Appends a group of `agents` agents with a row-major adjacency: `adjacency[i * agents + j]`
@@ -137,6 +171,37 @@ mod tests {
         assert_eq!(of(8), Vec::<usize>::new());
         graph.clear();
         assert_eq!((graph.agents(), graph.edges()), (0, 0));
+    }
+
+    #[test]
+    fn radius_buckets_find_exactly_the_agents_within_the_radius() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+        for radius in [0.0, 0.5, 1.0, 3.0, 7.5, 40.0, 1e6] {
+            let positions: Vec<[f64; 2]> = (0..60)
+                .map(|_| {
+                    let mut c = || f64::from(rng.next_u32() % 50);
+                    [c(), c()]
+                })
+                .collect();
+            let mut graph = AgentGraph::new();
+            graph.push_group(Neighbours::AllOthers, &positions[..3]);
+            graph.push_group(Neighbours::WithinRadius(radius), &positions);
+            for i in 0..positions.len() {
+                let expected: Vec<usize> = (0..positions.len())
+                    .filter(|&j| {
+                        let (dx, dy) = (
+                            positions[i][0] - positions[j][0],
+                            positions[i][1] - positions[j][1],
+                        );
+                        i != j && (dx * dx + dy * dy).sqrt() <= radius
+                    })
+                    .map(|j| j + 3)
+                    .collect();
+                let got = graph.neighbour_rows()[graph.edge_range(i + 3)].to_vec();
+                assert_eq!(got, expected, "agent {i}, radius {radius}");
+            }
+        }
     }
 
     #[test]

@@ -175,6 +175,10 @@ pub struct TrainingConfig {
     pub neighbours: NeighbourRule,
     pub channels: Channels,
     pub mark_others_on_mini: bool,
+    /// The side of the mini-map's blocks in cells; `null` (the default) fits the map to the
+    /// local view's side, which is the paper's 2 x 2 on its 50 x 50 maps with L = 25.
+    #[serde(default)]
+    pub mini_map_block: Option<usize>,
     pub network: Network,
     pub init: InitName,
     pub agents: AgentCount,
@@ -244,6 +248,7 @@ impl TrainingConfig {
             neighbours: NeighbourRule::AllOthers,
             channels: Channels::Both,
             mark_others_on_mini: false,
+            mini_map_block: None,
             network: Network::Paper,
             init: InitName::Pytorch,
             agents: AgentCount::fixed(4),
@@ -379,6 +384,9 @@ impl TrainingConfig {
             && (norm.is_nan() || norm <= 0.0)
         {
             return Err(invalid("max_grad_norm", format!("{norm} must be > 0")));
+        }
+        if self.mini_map_block == Some(0) {
+            return Err(invalid("mini_map_block", "must be at least 1"));
         }
         if let NeighbourRule::WithinRadius(radius) = self.neighbours
             && (radius.is_nan() || radius < 0.0)

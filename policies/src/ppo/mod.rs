@@ -14,6 +14,8 @@ pub mod rollout;
 pub mod trainer;
 pub mod update;
 
-pub use config::{AgentCount, ArchitectureName, ConfigError, Profile, TrainingConfig};
+pub use config::{
+    AgentCount, ArchitectureName, ConfigError, NeighbourRule, Profile, TrainingConfig,
+};
 pub use trainer::{EpisodeRecord, TrainError, Trainer, TrainingState};
 pub use update::UpdateStats;

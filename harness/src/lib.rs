@@ -6,6 +6,7 @@ pub mod audit;
 pub mod baseline_sweep;
 pub mod cell;
 pub mod checkpoint_dir;
+pub mod claims;
 pub mod cli;
 pub mod code_version;
 pub mod cpu_clock;

@@ -117,6 +117,9 @@ pub fn stratified_bootstrap_interval(
     Ok(percentile_interval(statistics, confidence))
 }
 
+/// A statistic of several sets of values (each a replicate of one sample).
+pub type SamplesStatistic<'a> = &'a dyn Fn(&[Vec<f64>]) -> Result<f64, StatsError>;
+
 /// A statistic comparing two sets of values (a policy's penalties and another's).
 pub type Comparison = fn(&[f64], &[f64]) -> Result<f64, StatsError>;
 
@@ -153,16 +156,31 @@ pub fn comparison_interval(
     resamples: usize,
     seed: Seed,
 ) -> Result<(f64, f64), StatsError> {
-    check(&x.concat())?;
-    check(&y.concat())?;
+    let statistic = |replicates: &[Vec<f64>]| comparison(&replicates[0], &replicates[1]);
+    samples_interval(&[x, y], &statistic, confidence, resamples, seed)
+}
+
+/// The percentile bootstrap interval of a statistic of several samples (a claim's gaps along
+/// N, say): every replicate resamples each sample within its strata, in order.
+pub fn samples_interval(
+    samples: &[&[&[f64]]],
+    statistic: SamplesStatistic,
+    confidence: f64,
+    resamples: usize,
+    seed: Seed,
+) -> Result<(f64, f64), StatsError> {
+    for sample in samples {
+        check(&sample.concat())?;
+    }
     check_bootstrap(confidence, resamples)?;
     let mut rng = seed.rng();
-    let (mut x_replicate, mut y_replicate) = (Vec::new(), Vec::new());
+    let mut replicates = vec![Vec::new(); samples.len()];
     let mut statistics = Vec::with_capacity(resamples);
     for _ in 0..resamples {
-        resample(x, &mut rng, &mut x_replicate);
-        resample(y, &mut rng, &mut y_replicate);
-        statistics.push(comparison(&x_replicate, &y_replicate)?);
+        for (sample, replicate) in samples.iter().zip(&mut replicates) {
+            resample(sample, &mut rng, replicate);
+        }
+        statistics.push(statistic(&replicates)?);
     }
     Ok(percentile_interval(statistics, confidence))
 }

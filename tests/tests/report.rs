@@ -31,6 +31,17 @@ agents:
   test: [2, 3]
 repetitions: 2
 test_episodes: 4
+claims:
+  - id: gcs-beats-random
+    paper: GCS beats Random at every N
+    lower: {a: gcs, b: random, maps: [rooms], n: [2, 3]}
+  - id: random-beats-gcs
+    paper: the opposite
+    lower: {a: random, b: gcs, maps: [rooms], n: [2, 3]}
+  - id: level
+    within: {a: gcs, b: random, maps: [rooms], n: [3], tolerance: 0.001}
+  - id: gap
+    gap_grows: {a: gcs, b: random, maps: [rooms], n: [2, 3]}
 ";
 
 const TEST_STEPS: i64 = 60;
@@ -247,6 +258,30 @@ fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
         "y and sin(theta) per agent"
     );
     assert!(readme.contains("Emergent behaviour"));
+
+    // The claims open the report, and `harness claims` prints the same verdicts.
+    assert!(
+        readme.find("## Claims") < readme.find("## RQ1"),
+        "claims come first"
+    );
+    let claims = read_parquet(&report.join("tables/claims.parquet"));
+    let verdicts: Vec<String> = claims
+        .column("verdict")
+        .unwrap()
+        .str()
+        .unwrap()
+        .iter()
+        .map(|v| v.unwrap().to_owned())
+        .collect();
+    println!("{claims}");
+    assert_eq!(verdicts[..3], ["supported", "contradicted", "contradicted"]);
+    assert!(["supported", "contradicted", "inconclusive"].contains(&verdicts[3].as_str()));
+    let printed = succeed(harness(&["claims", store.to_str().unwrap()]));
+    let rows = markdown_rows(&printed);
+    assert_eq!(rows.len(), 1 + 4);
+    for (row, verdict) in rows[1..].iter().zip(&verdicts) {
+        assert_eq!(row.last().unwrap(), verdict);
+    }
 }
 
 /// The key of the first cell of `policy` in a cells table.

@@ -4,6 +4,7 @@ mod audit;
 mod baselines;
 mod bench;
 mod check;
+mod claims;
 mod curve;
 mod merge;
 mod record;
@@ -54,6 +55,8 @@ enum Command {
     Audit(audit::AuditArgs),
     /// Write a sweep's report: README, tables (Markdown and Parquet) and figures (PNG, SVG).
     Report(report::ReportArgs),
+    /// Print the verdict of every claim of a sweep's scenario, from its store.
+    Claims(claims::ClaimsArgs),
     /// Save a rerun recording (.rrd) of a stored test episode.
     Record(record::RecordArgs),
 }
@@ -99,6 +102,7 @@ impl Command {
             Command::Status(args) => status::run(args),
             Command::Audit(args) => audit::run(args),
             Command::Report(args) => report::run(args),
+            Command::Claims(args) => claims::run(args),
             Command::Record(args) => record::run(args),
         }
     }

@@ -13,10 +13,20 @@ use crate::stats::{
 
 const CONFIDENCE: f64 = 0.95;
 
-/// One policy's penalties on a (map, N_test), by training run (cell).
-struct Sample {
-    group: GroupKey,
-    strata: Vec<Vec<f64>>,
+/// One policy's penalties (10^6) on a (map, N_test), by training run (cell).
+pub struct Sample {
+    pub group: GroupKey,
+    pub strata: Vec<Vec<f64>>,
+}
+
+impl Sample {
+    pub fn strata(&self) -> Vec<&[f64]> {
+        self.strata.iter().map(Vec::as_slice).collect()
+    }
+
+    pub fn values(&self) -> Vec<f64> {
+        self.strata.concat()
+    }
 }
 
 /// A compared pair: `a` better than `b` when `p_improvement` > 0.5.
@@ -45,7 +55,8 @@ pub fn comparisons(episodes: &DataFrame) -> Result<Vec<Comparison>, ReportError>
     pairs.into_par_iter().map(|(a, b)| compare(a, b)).collect()
 }
 
-fn samples(episodes: &DataFrame) -> Result<Vec<Sample>, ReportError> {
+/// Every (map, policy, N_train, N_test) of the episodes table, in table order.
+pub fn samples(episodes: &DataFrame) -> Result<Vec<Sample>, ReportError> {
     let groups = GroupKey::of_rows(episodes)?;
     let cells = strings(episodes, "cell_key")?;
     let penalties = f64s(episodes, "cumulative_penalty")?;

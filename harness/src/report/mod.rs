@@ -15,6 +15,7 @@ mod motion;
 mod penalty;
 mod training;
 mod transfer;
+pub mod verdicts;
 
 use std::path::{Path, PathBuf};
 
@@ -44,6 +45,8 @@ pub enum ReportError {
     },
     #[error("{0} holds no sweep (no sweep.json)")]
     NoSweep(PathBuf),
+    #[error(transparent)]
+    Claims(#[from] crate::scenario::ScenarioError),
 }
 
 /// What a report wrote.
@@ -73,14 +76,20 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
     if let Some(cells) = optional_table(store, "cells")? {
         report.paragraph(&provenance(&cells)?);
     }
-    let summary = store.table("summary")?;
     let episodes = store.table("episodes")?;
+    let training = optional_table(store, "training")?;
+    let claims = store_claims(store)?;
+    if !claims.is_empty() {
+        let results = verdicts::evaluate(&claims, &episodes, training.as_ref())?;
+        verdicts::section(&mut report, &results)?;
+    }
+    let summary = store.table("summary")?;
     let comparisons = comparison::comparisons(&episodes)?;
     penalty::section(&mut report, &summary, &comparisons)?;
     comparison::section(&mut report, &comparisons)?;
     transfer::section(&mut report, &summary)?;
-    if let Some(training) = optional_table(store, "training")? {
-        training::section(&mut report, &training)?;
+    if let Some(training) = &training {
+        training::section(&mut report, training)?;
     }
     if let Some(trajectories) = optional_table(store, "trajectories")? {
         let motion = motion::section(&mut report, &trajectories, store)?;
@@ -124,6 +133,15 @@ fn provenance(cells: &DataFrame) -> PolarsResult<String> {
         counted.join("; "),
         wall_seconds
     ))
+}
+
+/// The claims of the scenario as the sweep ran it (its copy in the store).
+pub fn store_claims(store: &Store) -> Result<Vec<crate::claims::Claim>, ReportError> {
+    let file = store.root().join("scenario.yaml");
+    Ok(crate::claims::claims_of_text(
+        &store.scenario_text()?,
+        &file,
+    )?)
 }
 
 /// A sweep table, or `None` when the sweep did not build it.

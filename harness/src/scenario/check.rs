@@ -11,6 +11,7 @@ use world::{Map, MapError, WorldParams};
 use super::error::ScenarioError;
 use super::format::{LearnedSpec, MapSpec, PolicySpec, ScenarioFile, WorldSpec};
 use super::{Scenario, ScenarioMap, WorldConfig};
+use crate::claims::{ClaimContext, check_claims};
 
 pub fn check(spec: ScenarioFile, file: &Path) -> Result<Scenario, ScenarioError> {
     let name = check_name(&spec.name, file)?;
@@ -28,6 +29,16 @@ pub fn check(spec: ScenarioFile, file: &Path) -> Result<Scenario, ScenarioError>
     let repetitions = positive(&spec.repetitions, "repetitions", file)?;
     let test_episodes = positive(&spec.test_episodes, "test_episodes", file)?;
     let outputs = non_empty(&spec.outputs, "outputs", file)?.clone();
+    let context = ClaimContext {
+        policies: policies
+            .iter()
+            .map(|p| (p.label(), p.learned().is_some()))
+            .collect(),
+        maps: maps.iter().map(|m| m.map.name().to_owned()).collect(),
+        train_agents: train_agents.clone(),
+        test_agents: test_agents.clone(),
+    };
+    let claims = check_claims(&spec.claims, Some(&context), file)?;
     Ok(Scenario {
         name,
         description: spec.description,
@@ -41,6 +52,7 @@ pub fn check(spec: ScenarioFile, file: &Path) -> Result<Scenario, ScenarioError>
         repetitions,
         test_episodes,
         outputs,
+        claims,
     })
 }
 

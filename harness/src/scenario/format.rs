@@ -33,6 +33,9 @@ pub struct ScenarioFile {
     /// The sweep-level tables to build; the per-cell results are always kept.
     #[serde(default = "Output::all")]
     pub outputs: Spanned<Vec<Output>>,
+    /// The paper's statements this experiment tests (`claims::format::ClaimSpec`).
+    #[serde(default)]
+    pub claims: Vec<Spanned<crate::claims::format::ClaimSpec>>,
 }
 
 /// A map by file (relative to the scenario file; `FILE#NAME` picks a polygon map) or inline.

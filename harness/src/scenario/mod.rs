@@ -30,6 +30,8 @@ pub struct Scenario {
     pub repetitions: u32,
     pub test_episodes: u32,
     pub outputs: Vec<Output>,
+    /// Checked against the scenario's maps, policies and agent counts.
+    pub claims: Vec<crate::claims::Claim>,
 }
 
 /// A map of the scenario with where it came from and the hash of its contents.
@@ -269,6 +271,71 @@ mod tests {
         ];
         for (text, expected) in cases {
             let error = parse(&text).unwrap_err().to_string();
+            assert!(error.contains(expected), "{error}\n  expected: {expected}");
+        }
+    }
+
+    #[test]
+    fn claims_name_the_scenarios_own_policies_maps_and_counts() {
+        let learned = "  - ma-ppo: {profile: fast, episodes: 5, set: {network: compact}}\n";
+        let with = |claims: &str| format!("{}claims:\n{claims}", scenario(learned, &inline("a")));
+        let good = "  - id: beats\n    paper: MA-PPO beats Random\n    \
+                    lower: {a: ma-ppo@fast, b: random, maps: [a], n: [2]}\n  \
+                    - id: transfer\n    lower: {a: ma-ppo@fast, b: random, maps: [a], n: [1], n_train: 3}\n";
+        let s = parse(&with(good)).unwrap();
+        let crate::claims::ClaimTest::Lower { pair } = &s.claims[1].test else {
+            panic!("{:?}", s.claims[1]);
+        };
+        assert_eq!((pair.points[0].n_test, pair.points[0].n_train), (1, 3));
+        let cases = [
+            (
+                "  - id: x\n    lower: {a: ma-ppo, b: random, maps: [a], n: [2]}\n",
+                "unit.yaml:19: claims[0].lower.a: no policy \"ma-ppo\" in this scenario (its policies: random, ma-ppo@fast)",
+            ),
+            (
+                "  - id: x\n    lower: {a: ma-ppo@fast, b: random, maps: [b], n: [2]}\n",
+                "unit.yaml:19: claims[0].lower.maps[0]: no map \"b\"",
+            ),
+            (
+                "  - id: x\n    lower: {a: ma-ppo@fast, b: random, maps: [a], n: [1]}\n",
+                "claims[0].lower.n[0]: N = 1 is not in agents.train [2, 3]",
+            ),
+            (
+                "  - id: x\n    lower: {a: ma-ppo@fast, b: random, maps: [a], n: [3]}\n",
+                "claims[0].lower.n[0]: N = 3 is not in agents.test [1, 2]",
+            ),
+            (
+                "  - id: x\n    within: {a: ma-ppo@fast, b: random, maps: [a], n: [2]}\n",
+                "unit.yaml:18: claims[0].within: needs a tolerance",
+            ),
+            (
+                "  - id: x\n    diagonal_best: {policy: random, map: a, n: [2, 3]}\n",
+                "claims[0].diagonal_best.policy: \"random\" is a baseline",
+            ),
+            (
+                "  - id: x\n    gap_grows: {a: ma-ppo@fast, b: random, maps: [a], n: [2]}\n",
+                "claims[0].gap_grows.n: needs at least 2 agent count(s)",
+            ),
+            (
+                "  - id: x\n    gap_grows: {a: ma-ppo@fast, b: random, maps: [a, a], n: [1, 2]}\n",
+                "claims[0].gap_grows.maps: a gap grows along N on one map",
+            ),
+            (
+                "  - id: x\n    curve_below: {a: ma-ppo@fast, b: ma-ppo@fast, map: a, n_train: 2, episodes: [5, 1]}\n",
+                "claims[0].curve_below.episodes: [5, 1] is not a range of episodes",
+            ),
+            (
+                "  - id: x\n",
+                "unit.yaml:18: claims[0]: give exactly one of lower, within",
+            ),
+            ("  - id: x\n    lowr: {}\n", "unknown field `lowr`"),
+            (
+                &good.replace("transfer", "beats"),
+                "claims[1].id: a second claim with id \"beats\"",
+            ),
+        ];
+        for (claims, expected) in cases {
+            let error = parse(&with(claims)).unwrap_err().to_string();
             assert!(error.contains(expected), "{error}\n  expected: {expected}");
         }
     }

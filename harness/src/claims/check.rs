@@ -1,0 +1,271 @@
+//! Claims checked once, at load: exactly one kind each, ids unique, and (with the scenario at
+//! hand) only the scenario's own policies, maps and agent counts, named by file, line and field.
+
+use std::path::Path;
+
+use serde_saphyr::Spanned;
+
+use super::format::{ClaimSpec, CurveSpec, DiagonalSpec, PairSpec};
+use super::{Claim, ClaimTest, Pair, Point};
+use crate::scenario::ScenarioError;
+
+/// What a scenario offers claims to name.
+pub struct ClaimContext {
+    /// Every policy's table label, and whether it is learned.
+    pub policies: Vec<(String, bool)>,
+    pub maps: Vec<String>,
+    pub train_agents: Vec<u32>,
+    pub test_agents: Vec<u32>,
+}
+
+/// A failed check: the value it is about, its field, the problem.
+type Failure = (Option<serde_saphyr::Location>, String, String);
+
+pub fn check_claims(
+    specs: &[Spanned<ClaimSpec>],
+    context: Option<&ClaimContext>,
+    file: &Path,
+) -> Result<Vec<Claim>, ScenarioError> {
+    let mut claims: Vec<Claim> = Vec::new();
+    for (i, spec) in specs.iter().enumerate() {
+        let field = format!("claims[{i}]");
+        let place = |(location, sub, problem): Failure| {
+            let line = location
+                .or(Some(spec.referenced))
+                .and_then(crate::scenario::error::line_of);
+            ScenarioError::new(file, line, &format!("{field}{sub}"), problem)
+        };
+        let claim = check_claim(&spec.value, context).map_err(place)?;
+        if claims.iter().any(|c| c.id == claim.id) {
+            let problem = format!("a second claim with id {:?}", claim.id);
+            return Err(place((None, ".id".into(), problem)));
+        }
+        claims.push(claim);
+    }
+    Ok(claims)
+}
+
+fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim, Failure> {
+    if spec.id.trim().is_empty() {
+        return Err((None, ".id".into(), "a claim needs an id".into()));
+    }
+    let kinds = [
+        spec.lower.is_some(),
+        spec.within.is_some(),
+        spec.gap_grows.is_some(),
+        spec.diagonal_best.is_some(),
+        spec.curve_below.is_some(),
+    ];
+    if kinds.iter().filter(|&&k| k).count() != 1 {
+        let problem = "give exactly one of lower, within, gap_grows, diagonal_best, curve_below";
+        return Err((None, String::new(), problem.into()));
+    }
+    let checker = Checker { context };
+    let test = if let Some(pair) = &spec.lower {
+        ClaimTest::Lower {
+            pair: checker.pair(pair, ".lower", 1)?,
+        }
+    } else if let Some(pair) = &spec.within {
+        let tolerance = checker.tolerance(pair)?;
+        let pair = checker.pair(pair, ".within", 1)?;
+        ClaimTest::Within { pair, tolerance }
+    } else if let Some(pair) = &spec.gap_grows {
+        if pair.maps.value.len() != 1 {
+            let problem = "a gap grows along N on one map: write one claim per map".to_owned();
+            return Err(fail(&pair.maps, ".gap_grows.maps".into(), problem));
+        }
+        ClaimTest::GapGrows {
+            pair: checker.pair(pair, ".gap_grows", 2)?,
+        }
+    } else if let Some(diagonal) = &spec.diagonal_best {
+        checker.diagonal(diagonal)?
+    } else {
+        checker.curve(spec.curve_below.as_ref().expect("one kind is given"))?
+    };
+    Ok(Claim {
+        id: spec.id.clone(),
+        paper: spec.paper.clone(),
+        test,
+    })
+}
+
+struct Checker<'a> {
+    context: Option<&'a ClaimContext>,
+}
+
+fn fail<T>(value: &Spanned<T>, field: String, problem: String) -> Failure {
+    (Some(value.referenced), field, problem)
+}
+
+impl Checker<'_> {
+    fn pair(&self, spec: &PairSpec, field: &str, least: usize) -> Result<Pair, Failure> {
+        self.policy(&spec.a, format!("{field}.a"), false)?;
+        self.policy(&spec.b, format!("{field}.b"), false)?;
+        if spec.a.value == spec.b.value {
+            let problem = "a and b are the same policy".to_owned();
+            return Err(fail(&spec.b, format!("{field}.b"), problem));
+        }
+        let maps = self.names(&spec.maps, &format!("{field}.maps"))?;
+        let n = self.counts(&spec.n, &format!("{field}.n"), least, false)?;
+        if let Some(n_train) = &spec.n_train {
+            self.count(n_train, format!("{field}.n_train"), true)?;
+        } else {
+            for (i, count) in spec.n.value.iter().enumerate() {
+                if self.is_learned(&spec.a.value) || self.is_learned(&spec.b.value) {
+                    self.count(count, format!("{field}.n[{i}]"), true)?;
+                }
+            }
+        }
+        let points = maps
+            .iter()
+            .flat_map(|map| {
+                n.iter().map(|&n_test| Point {
+                    map: map.clone(),
+                    n_test,
+                    n_train: spec.n_train.as_ref().map_or(n_test, |n| n.value),
+                })
+            })
+            .collect();
+        Ok(Pair {
+            a: spec.a.value.clone(),
+            b: spec.b.value.clone(),
+            points,
+        })
+    }
+
+    fn tolerance(&self, spec: &PairSpec) -> Result<f64, Failure> {
+        match &spec.tolerance {
+            Some(t) if t.value > 0.0 && t.value.is_finite() => Ok(t.value),
+            Some(t) => Err(fail(t, ".within.tolerance".into(), "must be > 0".into())),
+            None => Err((None, ".within".into(), "needs a tolerance".into())),
+        }
+    }
+
+    fn diagonal(&self, spec: &DiagonalSpec) -> Result<ClaimTest, Failure> {
+        self.policy(&spec.policy, ".diagonal_best.policy".into(), true)?;
+        self.map(&spec.map, ".diagonal_best.map".into())?;
+        let n = self.counts(&spec.n, ".diagonal_best.n", 2, true)?;
+        Ok(ClaimTest::DiagonalBest {
+            policy: spec.policy.value.clone(),
+            map: spec.map.value.clone(),
+            n,
+        })
+    }
+
+    fn curve(&self, spec: &CurveSpec) -> Result<ClaimTest, Failure> {
+        self.policy(&spec.a, ".curve_below.a".into(), true)?;
+        self.policy(&spec.b, ".curve_below.b".into(), true)?;
+        self.map(&spec.map, ".curve_below.map".into())?;
+        self.count(&spec.n_train, ".curve_below.n_train".into(), true)?;
+        let [first, last] = spec.episodes.value;
+        if first > last {
+            let problem = format!("[{first}, {last}] is not a range of episodes");
+            return Err(fail(
+                &spec.episodes,
+                ".curve_below.episodes".into(),
+                problem,
+            ));
+        }
+        Ok(ClaimTest::CurveBelow {
+            a: spec.a.value.clone(),
+            b: spec.b.value.clone(),
+            map: spec.map.value.clone(),
+            n_train: spec.n_train.value,
+            episodes: (first, last),
+        })
+    }
+
+    fn is_learned(&self, label: &str) -> bool {
+        self.context
+            .is_some_and(|c| c.policies.iter().any(|(l, learned)| l == label && *learned))
+    }
+
+    fn policy(&self, label: &Spanned<String>, field: String, learned: bool) -> Result<(), Failure> {
+        let Some(context) = self.context else {
+            return Ok(());
+        };
+        match context.policies.iter().find(|(l, _)| *l == label.value) {
+            None => {
+                let known: Vec<&str> = context.policies.iter().map(|(l, _)| l.as_str()).collect();
+                let problem = format!(
+                    "no policy {:?} in this scenario (its policies: {})",
+                    label.value,
+                    known.join(", ")
+                );
+                Err(fail(label, field, problem))
+            }
+            Some((_, false)) if learned => {
+                let problem = format!("{:?} is a baseline: it has no training", label.value);
+                Err(fail(label, field, problem))
+            }
+            Some(_) => Ok(()),
+        }
+    }
+
+    fn map(&self, name: &Spanned<String>, field: String) -> Result<(), Failure> {
+        match self.context {
+            Some(context) if !context.maps.contains(&name.value) => {
+                let problem = format!(
+                    "no map {:?} in this scenario (its maps: {})",
+                    name.value,
+                    context.maps.join(", ")
+                );
+                Err(fail(name, field, problem))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    fn names(
+        &self,
+        names: &Spanned<Vec<Spanned<String>>>,
+        field: &str,
+    ) -> Result<Vec<String>, Failure> {
+        if names.value.is_empty() {
+            return Err(fail(names, field.into(), "the list is empty".into()));
+        }
+        for (i, name) in names.value.iter().enumerate() {
+            self.map(name, format!("{field}[{i}]"))?;
+        }
+        Ok(names.value.iter().map(|n| n.value.clone()).collect())
+    }
+
+    /// Agent counts, at least `least` of them; each a test count, and a training count too when
+    /// `trained`.
+    fn counts(
+        &self,
+        counts: &Spanned<Vec<Spanned<u32>>>,
+        field: &str,
+        least: usize,
+        trained: bool,
+    ) -> Result<Vec<u32>, Failure> {
+        if counts.value.len() < least {
+            let problem = format!("needs at least {least} agent count(s)");
+            return Err(fail(counts, field.into(), problem));
+        }
+        for (i, count) in counts.value.iter().enumerate() {
+            self.count(count, format!("{field}[{i}]"), false)?;
+            if trained {
+                self.count(count, format!("{field}[{i}]"), true)?;
+            }
+        }
+        Ok(counts.value.iter().map(|n| n.value).collect())
+    }
+
+    /// `count` among the scenario's test counts, or its training counts when `trained`.
+    fn count(&self, count: &Spanned<u32>, field: String, trained: bool) -> Result<(), Failure> {
+        let Some(context) = self.context else {
+            return Ok(());
+        };
+        let (list, name) = if trained {
+            (&context.train_agents, "agents.train")
+        } else {
+            (&context.test_agents, "agents.test")
+        };
+        if list.contains(&count.value) {
+            return Ok(());
+        }
+        let problem = format!("N = {} is not in {name} {list:?}", count.value);
+        Err(fail(count, field, problem))
+    }
+}

@@ -1,0 +1,69 @@
+//! Claims as written in a scenario's `claims:` list. Each names one kind by its key; the
+//! checks in `claims::check` make sure there is exactly one and that it names the scenario's
+//! own maps, policies and agent counts.
+
+use serde::Deserialize;
+use serde_saphyr::Spanned;
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClaimSpec {
+    /// Names the claim in verdict tables.
+    pub id: String,
+    /// The paper's words (and numbers) that the claim tests, shown beside the verdict.
+    #[serde(default)]
+    pub paper: String,
+    /// `a` has a lower mean penalty than `b` at every point.
+    pub lower: Option<PairSpec>,
+    /// `a`'s mean penalty is within `tolerance` (relative to `b`'s) of `b`'s at every point.
+    pub within: Option<PairSpec>,
+    /// `b`'s penalty minus `a`'s grows along the points in the order `n` lists them (one map).
+    pub gap_grows: Option<PairSpec>,
+    /// In every N_test column of `n`, the policy trained with N_train = N_test is the best.
+    pub diagonal_best: Option<DiagonalSpec>,
+    /// `a`'s training penalty is below `b`'s over a range of episodes.
+    pub curve_below: Option<CurveSpec>,
+}
+
+/// Two policies compared at the points (map, N_test = n): a learned policy is taken at
+/// N_train = `n_train` when given, else at N_train = N_test.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PairSpec {
+    pub a: Spanned<String>,
+    pub b: Spanned<String>,
+    pub maps: Spanned<Vec<Spanned<String>>>,
+    pub n: Spanned<Vec<Spanned<u32>>>,
+    #[serde(default)]
+    pub n_train: Option<Spanned<u32>>,
+    /// For `within`: the largest relative difference |a - b| / b still called equal.
+    #[serde(default)]
+    pub tolerance: Option<Spanned<f64>>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DiagonalSpec {
+    pub policy: Spanned<String>,
+    pub map: Spanned<String>,
+    pub n: Spanned<Vec<Spanned<u32>>>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CurveSpec {
+    pub a: Spanned<String>,
+    pub b: Spanned<String>,
+    pub map: Spanned<String>,
+    pub n_train: Spanned<u32>,
+    /// `[first, last]`: training episodes as the training table numbers them (from 0), both
+    /// included.
+    pub episodes: Spanned<[u64; 2]>,
+}
+
+/// A scenario file read for its claims alone (the store's copy, whose maps may not resolve).
+#[derive(Debug, Deserialize)]
+pub struct ClaimsOnly {
+    #[serde(default)]
+    pub claims: Vec<Spanned<ClaimSpec>>,
+}

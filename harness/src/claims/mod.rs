@@ -1,0 +1,93 @@
+//! Claims: the paper's statements written so that a sweep's store can test them. A scenario
+//! lists them under `claims:`; they are checked at load against its maps, policies and agent
+//! counts, and the report (`report::verdicts`, also behind `harness claims DIR`) gives each a
+//! verdict with the numbers behind it.
+//!
+//! Verdicts rest on 95 % stratified bootstrap intervals, the report's own (test episodes
+//! resampled within training runs): **supported** when the interval excludes the opposite of
+//! the claim, **contradicted** when it excludes the claim, **inconclusive** otherwise. A claim
+//! over several points is supported when every point is, contradicted when any point is.
+
+mod check;
+pub mod format;
+
+use std::path::Path;
+
+pub use check::{ClaimContext, check_claims};
+
+use crate::scenario::ScenarioError;
+
+/// One checked claim.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Claim {
+    pub id: String,
+    /// The paper's words and numbers.
+    pub paper: String,
+    pub test: ClaimTest,
+}
+
+/// What a claim asserts. Policies are table labels; points are (map, N_test) with an N_train
+/// that applies to learned policies only (baselines have none).
+#[derive(Clone, Debug, PartialEq)]
+pub enum ClaimTest {
+    Lower {
+        pair: Pair,
+    },
+    Within {
+        pair: Pair,
+        tolerance: f64,
+    },
+    GapGrows {
+        pair: Pair,
+    },
+    DiagonalBest {
+        policy: String,
+        map: String,
+        n: Vec<u32>,
+    },
+    CurveBelow {
+        a: String,
+        b: String,
+        map: String,
+        n_train: u32,
+        episodes: (u64, u64),
+    },
+}
+
+impl ClaimTest {
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ClaimTest::Lower { .. } => "lower",
+            ClaimTest::Within { .. } => "within",
+            ClaimTest::GapGrows { .. } => "gap_grows",
+            ClaimTest::DiagonalBest { .. } => "diagonal_best",
+            ClaimTest::CurveBelow { .. } => "curve_below",
+        }
+    }
+}
+
+/// Two policies at a list of points, in the order written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pair {
+    pub a: String,
+    pub b: String,
+    pub points: Vec<Point>,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Point {
+    pub map: String,
+    pub n_test: u32,
+    /// N_train of a learned policy at this point: the claim's `n_train`, else N_test.
+    pub n_train: u32,
+}
+
+/// The claims of a scenario's text, checked for their own shape only: the store's copy of a
+/// scenario whose maps and policies were checked when the sweep loaded it.
+pub fn claims_of_text(text: &str, file: &Path) -> Result<Vec<Claim>, ScenarioError> {
+    let spec: format::ClaimsOnly = serde_saphyr::from_str(text).map_err(|e| {
+        let line = e.location().and_then(crate::scenario::error::line_of);
+        ScenarioError::new(file, line, "claims", e.to_string())
+    })?;
+    check_claims(&spec.claims, None, file)
+}

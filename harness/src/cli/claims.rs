@@ -1,0 +1,39 @@
+//! `harness claims DIR`: the verdict of every claim of a sweep's scenario, from its store.
+
+use std::path::PathBuf;
+
+use crate::report::{markdown, store_claims, verdicts};
+use crate::scenario::Scenario;
+use crate::store::Store;
+
+#[derive(clap::Args)]
+pub struct ClaimsArgs {
+    /// A sweep's output folder.
+    dir: PathBuf,
+    /// Test the claims of this scenario file instead of those the sweep ran with (checked
+    /// against the file's maps, policies and agent counts).
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+}
+
+pub fn run(args: ClaimsArgs) -> anyhow::Result<()> {
+    let store = Store::new(&args.dir);
+    anyhow::ensure!(
+        store.manifest()?.is_some(),
+        "{} holds no sweep (no sweep.json)",
+        args.dir.display()
+    );
+    let claims = match &args.scenario {
+        Some(file) => Scenario::load(file)?.claims,
+        None => store_claims(&store)?,
+    };
+    anyhow::ensure!(!claims.is_empty(), "the scenario has no claims");
+    let training_path = args.dir.join("training.parquet");
+    let training = match training_path.exists() {
+        true => Some(store.table("training")?),
+        false => None,
+    };
+    let results = verdicts::evaluate(&claims, &store.table("episodes")?, training.as_ref())?;
+    print!("{}", markdown::table(&verdicts::results_frame(&results)?)?);
+    Ok(())
+}

@@ -42,6 +42,10 @@ claims:
     within: {a: gcs, b: random, maps: [rooms], n: [3], tolerance: 0.001}
   - id: gap
     gap_grows: {a: gcs, b: random, maps: [rooms], n: [2, 3]}
+  - id: rhythm
+    behaviour: {policy: gcs, map: rooms, n_test: 3, periodic: true}
+  - id: no-rhythm
+    behaviour: {policy: gcs, map: rooms, n_test: 3, periodic: false}
 ";
 
 const TEST_STEPS: i64 = 60;
@@ -276,9 +280,13 @@ fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
     println!("{claims}");
     assert_eq!(verdicts[..3], ["supported", "contradicted", "contradicted"]);
     assert!(["supported", "contradicted", "inconclusive"].contains(&verdicts[3].as_str()));
+    // A behaviour is measured on the recorded episode: of two opposite claims, one holds.
+    let mut opposite = [verdicts[4].as_str(), verdicts[5].as_str()];
+    opposite.sort();
+    assert_eq!(opposite, ["contradicted", "supported"]);
     let printed = succeed(harness(&["claims", store.to_str().unwrap()]));
     let rows = markdown_rows(&printed);
-    assert_eq!(rows.len(), 1 + 4);
+    assert_eq!(rows.len(), 1 + 6);
     for (row, verdict) in rows[1..].iter().zip(&verdicts) {
         assert_eq!(row.last().unwrap(), verdict);
     }

@@ -5,8 +5,8 @@ use std::path::Path;
 
 use serde_saphyr::Spanned;
 
-use super::format::{ClaimSpec, CurveSpec, DiagonalSpec, PairSpec};
-use super::{Claim, ClaimTest, Pair, Point};
+use super::format::{BehaviourSpec, ClaimSpec, CurveSpec, DiagonalSpec, PairSpec};
+use super::{Behaviour, Claim, ClaimTest, Pair, Point};
 use crate::scenario::ScenarioError;
 
 /// What a scenario offers claims to name.
@@ -55,9 +55,11 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         spec.gap_grows.is_some(),
         spec.diagonal_best.is_some(),
         spec.curve_below.is_some(),
+        spec.behaviour.is_some(),
     ];
     if kinds.iter().filter(|&&k| k).count() != 1 {
-        let problem = "give exactly one of lower, within, gap_grows, diagonal_best, curve_below";
+        let problem =
+            "give exactly one of lower, within, gap_grows, diagonal_best, curve_below, behaviour";
         return Err((None, String::new(), problem.into()));
     }
     let checker = Checker { context };
@@ -79,6 +81,8 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         }
     } else if let Some(diagonal) = &spec.diagonal_best {
         checker.diagonal(diagonal)?
+    } else if let Some(behaviour) = &spec.behaviour {
+        checker.behaviour(behaviour)?
     } else {
         checker.curve(spec.curve_below.as_ref().expect("one kind is given"))?
     };
@@ -172,6 +176,56 @@ impl Checker<'_> {
             map: spec.map.value.clone(),
             n_train: spec.n_train.value,
             episodes: (first, last),
+        })
+    }
+
+    fn behaviour(&self, spec: &BehaviourSpec) -> Result<ClaimTest, Failure> {
+        self.policy(&spec.policy, ".behaviour.policy".into(), false)?;
+        self.map(&spec.map, ".behaviour.map".into())?;
+        self.count(&spec.n_test, ".behaviour.n_test".into(), false)?;
+        let n_train = match &spec.n_train {
+            Some(n) => {
+                self.count(n, ".behaviour.n_train".into(), true)?;
+                n.value
+            }
+            None if self.is_learned(&spec.policy.value) => {
+                self.count(&spec.n_test, ".behaviour.n_test".into(), true)?;
+                spec.n_test.value
+            }
+            None => spec.n_test.value,
+        };
+        let expected = Behaviour {
+            stationary: spec.stationary,
+            touring: spec.touring,
+            periodic: spec.periodic,
+        };
+        let counted = expected.stationary.unwrap_or(0) + expected.touring.unwrap_or(0);
+        let problem = if expected
+            == (Behaviour {
+                stationary: None,
+                touring: None,
+                periodic: None,
+            }) {
+            Some("give at least one of stationary, touring, periodic".to_owned())
+        } else if counted > spec.n_test.value as usize {
+            Some(format!(
+                "{counted} agents counted, but N_test is {}",
+                spec.n_test.value
+            ))
+        } else {
+            None
+        };
+        if let Some(problem) = problem {
+            return Err(fail(&spec.policy, ".behaviour".into(), problem));
+        }
+        Ok(ClaimTest::Behaviour {
+            policy: spec.policy.value.clone(),
+            point: Point {
+                map: spec.map.value.clone(),
+                n_test: spec.n_test.value,
+                n_train,
+            },
+            expected,
         })
     }
 

@@ -23,6 +23,8 @@ pub struct ClaimSpec {
     pub diagonal_best: Option<DiagonalSpec>,
     /// `a`'s training penalty is below `b`'s over a range of episodes.
     pub curve_below: Option<CurveSpec>,
+    /// What the recorded test episode of one setting shows (RQ3).
+    pub behaviour: Option<BehaviourSpec>,
 }
 
 /// Two policies compared at the points (map, N_test = n): a learned policy is taken at
@@ -59,6 +61,25 @@ pub struct CurveSpec {
     /// `[first, last]`: training episodes as the training table numbers them (from 0), both
     /// included.
     pub episodes: Spanned<[u64; 2]>,
+}
+
+/// The recorded episode (first training run, first test episode) of `policy` on `map` with
+/// `n_test` agents (trained with `n_train`, default N_test): how many agents stay and how many
+/// tour (the report's roles), and whether the touring agents share a period with stable phases.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BehaviourSpec {
+    pub policy: Spanned<String>,
+    pub map: Spanned<String>,
+    pub n_test: Spanned<u32>,
+    #[serde(default)]
+    pub n_train: Option<Spanned<u32>>,
+    #[serde(default)]
+    pub stationary: Option<usize>,
+    #[serde(default)]
+    pub touring: Option<usize>,
+    #[serde(default)]
+    pub periodic: Option<bool>,
 }
 
 /// A scenario file read for its claims alone (the store's copy, whose maps may not resolve).

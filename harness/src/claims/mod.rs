@@ -52,6 +52,19 @@ pub enum ClaimTest {
         n_train: u32,
         episodes: (u64, u64),
     },
+    Behaviour {
+        policy: String,
+        point: Point,
+        expected: Behaviour,
+    },
+}
+
+/// What a behaviour claim expects; `None` leaves a feature untested.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Behaviour {
+    pub stationary: Option<usize>,
+    pub touring: Option<usize>,
+    pub periodic: Option<bool>,
 }
 
 impl ClaimTest {
@@ -62,6 +75,7 @@ impl ClaimTest {
             ClaimTest::GapGrows { .. } => "gap_grows",
             ClaimTest::DiagonalBest { .. } => "diagonal_best",
             ClaimTest::CurveBelow { .. } => "curve_below",
+            ClaimTest::Behaviour { .. } => "behaviour",
         }
     }
 }

@@ -2,7 +2,9 @@
 
 use std::path::PathBuf;
 
-use crate::report::{markdown, store_claims, verdicts};
+use polars::prelude::DataFrame;
+
+use crate::report::{behaviour, markdown, motion, store_claims, verdicts};
 use crate::scenario::Scenario;
 use crate::store::Store;
 
@@ -28,12 +30,26 @@ pub fn run(args: ClaimsArgs) -> anyhow::Result<()> {
         None => store_claims(&store)?,
     };
     anyhow::ensure!(!claims.is_empty(), "the scenario has no claims");
-    let training_path = args.dir.join("training.parquet");
-    let training = match training_path.exists() {
-        true => Some(store.table("training")?),
-        false => None,
+    let table = |name: &str| -> anyhow::Result<Option<DataFrame>> {
+        let exists = args.dir.join(format!("{name}.parquet")).exists();
+        Ok(if exists {
+            Some(store.table(name)?)
+        } else {
+            None
+        })
     };
-    let results = verdicts::evaluate(&claims, &store.table("episodes")?, training.as_ref())?;
+    let training = table("training")?;
+    let motions = match table("trajectories")? {
+        Some(trajectories) => Some(motion::load(&trajectories, &store)?.1),
+        None => None,
+    };
+    let behaviours = motions.as_deref().map(behaviour::summaries);
+    let recorded = verdicts::Recorded {
+        episodes: &store.table("episodes")?,
+        training: training.as_ref(),
+        behaviours: behaviours.as_deref(),
+    };
+    let results = verdicts::evaluate(&claims, &recorded)?;
     print!("{}", markdown::table(&verdicts::results_frame(&results)?)?);
     Ok(())
 }

@@ -249,7 +249,10 @@ pub fn section(report: &mut ReportWriter, motions: &[Motion]) -> Result<(), Repo
     let rhythm_frame = rhythm_frame(motions, &rhythm)?;
     let roles = agent_roles(motions);
     let role_frame = role_frame(motions, &roles)?;
-    report.paragraph(&statements(motions, &rhythm, &roles));
+    let statements: Vec<String> = (0..motions.len())
+        .map(|index| format!("- {}", summary(motions, index, &rhythm, &roles).statement))
+        .collect();
+    report.paragraph(&statements.join("\n"));
     report.heading(3, "Periods and phases");
     report.table("rhythm", &rhythm_frame)?;
     report.heading(3, "Roles");
@@ -379,47 +382,95 @@ fn role_frame(motions: &[Motion], rows: &[AgentRole]) -> PolarsResult<DataFrame>
     DataFrame::new(rows.len(), columns)
 }
 
-/// One sentence per recorded episode: the team's periods, the phases of its agents against
-/// agent 0 and how many agents hold each role, as the tables hold them.
-fn statements(motions: &[Motion], rhythm: &[Rhythm], roles: &[AgentRole]) -> String {
-    let mut lines = Vec::new();
-    for (index, motion) in motions.iter().enumerate() {
-        let of = |signal: &'static str| {
-            rhythm
-                .iter()
-                .filter(move |r| r.motion == index && r.signal == signal)
-        };
-        let describe = |signal: &'static str, name: &str| -> String {
-            let Some(period) = of(signal).next().and_then(|r| r.team_period) else {
-                return format!("{name}: no rhythm");
-            };
-            let phases: Vec<String> = of(signal)
-                .skip(1)
-                .map(|r| r.phase_to_agent_0.map_or("-".into(), number))
-                .collect();
-            let fit: Vec<String> = of(signal)
-                .map(|r| r.harmonic.map_or("-".into(), |h| number(h.r_squared)))
-                .collect();
-            format!(
-                "{name} period {} steps, phases to agent 0 [{}] degrees (R^2 [{}])",
-                number(period),
-                phases.join(", "),
-                fit.join(", ")
-            )
-        };
-        let stationary = roles
+/// What one recorded episode shows, as claims test it.
+pub struct EpisodeBehaviour {
+    pub group: super::columns::GroupKey,
+    pub stationary: usize,
+    pub touring: usize,
+    /// The touring agents share a rhythm in y(t) or in sin(theta(t)): each one's own period
+    /// within `PERIOD_TOLERANCE` of the team's, and a harmonic at the team's period that
+    /// explains at least `STABLE_FIT` of its variance, so its phase holds over the episode.
+    pub periodic: bool,
+    /// The report's sentence about it.
+    pub statement: String,
+}
+
+/// How far (relative) an agent's period may be from the team's and still be the same rhythm.
+const PERIOD_TOLERANCE: f64 = 0.1;
+/// The least share of variance a harmonic must explain for its phase to count as stable.
+const STABLE_FIT: f64 = 0.5;
+
+/// Every recorded episode's behaviour.
+pub fn summaries(motions: &[Motion]) -> Vec<EpisodeBehaviour> {
+    let rhythm = rhythms(motions);
+    let roles = agent_roles(motions);
+    (0..motions.len())
+        .map(|index| summary(motions, index, &rhythm, &roles))
+        .collect()
+}
+
+fn summary(
+    motions: &[Motion],
+    index: usize,
+    rhythm: &[Rhythm],
+    roles: &[AgentRole],
+) -> EpisodeBehaviour {
+    let motion = &motions[index];
+    let of = |signal: &'static str| {
+        rhythm
             .iter()
-            .filter(|r| r.motion == index && r.role == "stationary")
-            .count();
-        lines.push(format!(
-            "- {}: {}; {}; {stationary} stationary and {} touring agents.",
-            motion.group.label(),
-            describe("y", "y(t)"),
-            describe("sin_theta", "sin(theta(t))"),
-            motion.agents - stationary
-        ));
+            .filter(move |r| r.motion == index && r.signal == signal)
+    };
+    let touring: Vec<usize> = roles
+        .iter()
+        .filter(|r| r.motion == index && r.role == "touring")
+        .map(|r| r.agent)
+        .collect();
+    let shares_rhythm = |r: &Rhythm| match (r.period, r.team_period, r.harmonic) {
+        (Some(own), Some(team), Some(fit)) => {
+            (own - team).abs() <= PERIOD_TOLERANCE * team && fit.r_squared >= STABLE_FIT
+        }
+        _ => false,
+    };
+    let periodic = !touring.is_empty()
+        && ["y", "sin_theta"].into_iter().any(|signal| {
+            of(signal)
+                .filter(|r| touring.contains(&r.agent))
+                .all(shares_rhythm)
+        });
+    let describe = |signal: &'static str, name: &str| -> String {
+        let Some(period) = of(signal).next().and_then(|r| r.team_period) else {
+            return format!("{name}: no rhythm");
+        };
+        let phases: Vec<String> = of(signal)
+            .skip(1)
+            .map(|r| r.phase_to_agent_0.map_or("-".into(), number))
+            .collect();
+        let fit: Vec<String> = of(signal)
+            .map(|r| r.harmonic.map_or("-".into(), |h| number(h.r_squared)))
+            .collect();
+        format!(
+            "{name} period {} steps, phases to agent 0 [{}] degrees (R^2 [{}])",
+            number(period),
+            phases.join(", "),
+            fit.join(", ")
+        )
+    };
+    let stationary = motion.agents - touring.len();
+    let statement = format!(
+        "{}: {}; {}; {stationary} stationary and {} touring agents.",
+        motion.group.label(),
+        describe("y", "y(t)"),
+        describe("sin_theta", "sin(theta(t))"),
+        touring.len()
+    );
+    EpisodeBehaviour {
+        group: motion.group.clone(),
+        stationary,
+        touring: touring.len(),
+        periodic,
+        statement,
     }
-    lines.join("\n")
 }
 
 #[cfg(test)]

@@ -5,13 +5,13 @@
 //! figure never shows a number the report's tables do not hold. Penalties are in units of
 //! 10^6, as in the paper.
 
-mod behaviour;
+pub mod behaviour;
 pub mod chart;
 mod columns;
 mod comparison;
 mod illustration;
 pub mod markdown;
-mod motion;
+pub mod motion;
 mod penalty;
 mod training;
 mod transfer;
@@ -78,10 +78,19 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
     }
     let episodes = store.table("episodes")?;
     let training = optional_table(store, "training")?;
+    let motions = match optional_table(store, "trajectories")? {
+        Some(trajectories) => Some(motion::load(&trajectories, store)?),
+        None => None,
+    };
+    let behaviours = motions.as_ref().map(|(_, m)| behaviour::summaries(m));
     let claims = store_claims(store)?;
     if !claims.is_empty() {
-        let results = verdicts::evaluate(&claims, &episodes, training.as_ref())?;
-        verdicts::section(&mut report, &results)?;
+        let recorded = verdicts::Recorded {
+            episodes: &episodes,
+            training: training.as_ref(),
+            behaviours: behaviours.as_deref(),
+        };
+        verdicts::section(&mut report, &verdicts::evaluate(&claims, &recorded)?)?;
     }
     let summary = store.table("summary")?;
     let comparisons = comparison::comparisons(&episodes)?;
@@ -91,9 +100,9 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
     if let Some(training) = &training {
         training::section(&mut report, training)?;
     }
-    if let Some(trajectories) = optional_table(store, "trajectories")? {
-        let motion = motion::section(&mut report, &trajectories, store)?;
-        behaviour::section(&mut report, &motion)?;
+    if let Some((maps, motions)) = &motions {
+        motion::section(&mut report, motions, maps)?;
+        behaviour::section(&mut report, motions)?;
     }
     if let (Some(snapshots), Some(trajectories)) = (
         optional_table(store, "snapshots")?,

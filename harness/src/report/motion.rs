@@ -47,14 +47,22 @@ pub struct Motion {
     pub penalty: Vec<f64>,
 }
 
-pub fn section(
-    report: &mut ReportWriter,
+/// The recorded episodes' motions, and the store's maps they were played on.
+pub fn load(
     trajectories: &DataFrame,
     store: &Store,
-) -> Result<Vec<Motion>, ReportError> {
-    report.heading(2, "Trajectories and motion");
+) -> Result<(HashMap<String, Map>, Vec<Motion>), ReportError> {
     let maps = maps(store)?;
     let motions = motions(trajectories, &maps)?;
+    Ok((maps, motions))
+}
+
+pub fn section(
+    report: &mut ReportWriter,
+    motions: &[Motion],
+    maps: &HashMap<String, Map>,
+) -> Result<(), ReportError> {
+    report.heading(2, "Trajectories and motion");
     report.paragraph(
         "The first test episode of the first training run at every N_test. Trails are the \
          agents' cells over the whole episode (circles: where they end). sin(theta) is the \
@@ -63,10 +71,10 @@ pub fn section(
     );
     report.linked_table(
         "motion",
-        &frame(&motions)?,
+        &frame(motions)?,
         "Every agent's position, y, sin(theta) and the penalty per step",
     )?;
-    for motion in &motions {
+    for motion in motions {
         let Some(map) = maps.get(&motion.group.map) else {
             continue;
         };
@@ -87,7 +95,7 @@ pub fn section(
             ),
         )?;
     }
-    Ok(motions)
+    Ok(())
 }
 
 fn motions(

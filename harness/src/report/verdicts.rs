@@ -3,11 +3,12 @@
 
 use polars::prelude::*;
 
+use super::behaviour::EpisodeBehaviour;
 use super::columns::{f64s, group_rows, named_seed, optional_u32s, strings};
 use super::comparison::{Sample, samples};
 use super::markdown::number;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use crate::claims::{Claim, ClaimTest, Pair, Point};
+use crate::claims::{Behaviour, Claim, ClaimTest, Pair, Point};
 use crate::stats::{
     RESAMPLES, StatsError, comparison_interval, mean, mean_difference, probability_of_improvement,
     samples_interval,
@@ -73,13 +74,17 @@ pub struct ClaimResult {
     pub verdict: Verdict,
 }
 
-/// Every claim's verdict. `training` is needed by `curve_below` claims only.
-pub fn evaluate(
-    claims: &[Claim],
-    episodes: &DataFrame,
-    training: Option<&DataFrame>,
-) -> Result<Vec<ClaimResult>, ReportError> {
-    let samples = samples(episodes)?;
+/// What claims are tested against: the episodes table, and where the sweep kept them the
+/// training table (`curve_below`) and the recorded episodes' behaviour (`behaviour`).
+pub struct Recorded<'a> {
+    pub episodes: &'a DataFrame,
+    pub training: Option<&'a DataFrame>,
+    pub behaviours: Option<&'a [EpisodeBehaviour]>,
+}
+
+/// Every claim's verdict.
+pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult>, ReportError> {
+    let samples = samples(recorded.episodes)?;
     claims
         .iter()
         .map(|claim| {
@@ -98,12 +103,24 @@ pub fn evaluate(
                     n_train,
                     episodes,
                 } => {
-                    let table = training.map(|t| curve_samples(t, map, *n_train, *episodes));
+                    let table = recorded
+                        .training
+                        .map(|t| curve_samples(t, map, *n_train, *episodes));
                     match table.transpose()? {
                         Some(curves) => curve_below(curves.get(a), curves.get(b), *episodes, seed)?,
                         None => (Verdict::NoData, "no training table".to_owned()),
                     }
                 }
+                ClaimTest::Behaviour {
+                    policy,
+                    point,
+                    expected,
+                } => behaviour(
+                    recorded.behaviours.unwrap_or_default(),
+                    policy,
+                    point,
+                    *expected,
+                ),
             };
             Ok(ClaimResult {
                 id: claim.id.clone(),
@@ -114,6 +131,44 @@ pub fn evaluate(
             })
         })
         .collect()
+}
+
+/// A measurement of one recorded episode, not a statistic: supported when every expected
+/// feature is what the episode shows, contradicted otherwise.
+fn behaviour(
+    behaviours: &[EpisodeBehaviour],
+    policy: &str,
+    point: &Point,
+    expected: Behaviour,
+) -> (Verdict, String) {
+    let found = behaviours.iter().find(|b| {
+        let g = &b.group;
+        g.map == point.map
+            && g.n_test == point.n_test
+            && g.policy.policy == policy
+            && g.policy.n_train.is_none_or(|n| n == point.n_train)
+    });
+    let Some(found) = found else {
+        let missing = format!("no recorded episode of {policy} at {}", point_label(point));
+        return (Verdict::NoData, missing);
+    };
+    let holds = expected.stationary.is_none_or(|k| k == found.stationary)
+        && expected.touring.is_none_or(|m| m == found.touring)
+        && expected.periodic.is_none_or(|p| p == found.periodic);
+    let periodic = if found.periodic {
+        "a common period"
+    } else {
+        "no common period"
+    };
+    let verdict = if holds {
+        Verdict::Supported
+    } else {
+        Verdict::Contradicted
+    };
+    (
+        verdict,
+        format!("{} Touring agents: {periodic}.", found.statement),
+    )
 }
 
 /// The sample of `policy` at a point: a learned policy's at the point's N_train, a baseline's

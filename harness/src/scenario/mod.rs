@@ -330,6 +330,18 @@ mod tests {
             ),
             ("  - id: x\n    lowr: {}\n", "unknown field `lowr`"),
             (
+                "  - id: x\n    behaviour: {policy: random, map: a, n_test: 2}\n",
+                "claims[0].behaviour: give at least one of stationary, touring, periodic",
+            ),
+            (
+                "  - id: x\n    behaviour: {policy: random, map: a, n_test: 2, stationary: 1, touring: 2}\n",
+                "claims[0].behaviour: 3 agents counted, but N_test is 2",
+            ),
+            (
+                "  - id: x\n    behaviour: {policy: ma-ppo@fast, map: a, n_test: 1, periodic: true}\n",
+                "claims[0].behaviour.n_test: N = 1 is not in agents.train [2, 3]",
+            ),
+            (
                 &good.replace("transfer", "beats"),
                 "claims[1].id: a second claim with id \"beats\"",
             ),

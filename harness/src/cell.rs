@@ -47,39 +47,6 @@ pub struct Cell {
     pub config: CellConfig,
 }
 
-/// What a cell or a sweep costs, in episodes and environment steps, and as estimated work.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Cost {
-    pub training_episodes: u64,
-    pub test_episodes: u64,
-    pub env_steps: u64,
-    /// Estimated run time in units of one agent's world step (about half a microsecond),
-    /// so that shards can be balanced between cells that train and cells that do not.
-    pub work: u64,
-}
-
-impl Cost {
-    /// The estimated CPU time of this cost's work.
-    pub fn cpu_seconds(&self) -> f64 {
-        work_seconds(self.work)
-    }
-}
-
-/// The estimated CPU time of `work` units.
-pub fn work_seconds(work: u64) -> f64 {
-    work as f64 * work::UNIT_SECONDS
-}
-
-/// Rough relative costs per agent and step, from `harness bench` and `harness bench network`:
-/// a world step is the unit; a learned policy's forward pass adds about 50 units; a training
-/// step (rollout plus its share of the update, paper network) about 350.
-mod work {
-    pub const UNIT_SECONDS: f64 = 0.5e-6;
-    pub const WORLD_STEP: u64 = 1;
-    pub const LEARNED_STEP: u64 = 50;
-    pub const TRAINING_STEP: u64 = 350;
-}
-
 impl CellConfig {
     /// The content address: blake3 of the code version and the config's JSON.
     pub fn key(&self) -> String {
@@ -106,39 +73,6 @@ impl CellConfig {
             return self.policy.learned().map(|_| Err(problem));
         };
         self.policy.training_config(&self.world, n_train)
-    }
-
-    pub fn cost(&self) -> Cost {
-        let learned = self.policy.learned();
-        let training_episodes = learned.map_or(0, |l| l.episodes as u64);
-        let training_steps = training_episodes * self.world.train_steps as u64;
-        let test_episodes = self.n_test.len() as u64 * self.test_episodes as u64;
-        let test_steps = self.test_episodes as u64 * self.world.test_steps as u64;
-        let test_agent_steps: u64 = self.n_test.iter().map(|&n| n as u64 * test_steps).sum();
-        let test_step = match learned {
-            Some(_) => work::LEARNED_STEP,
-            None => work::WORLD_STEP,
-        };
-        Cost {
-            training_episodes,
-            test_episodes,
-            env_steps: training_steps + test_episodes * self.world.test_steps as u64,
-            work: training_steps * self.n_train.unwrap_or(0) as u64 * work::TRAINING_STEP
-                + test_agent_steps * test_step,
-        }
-    }
-}
-
-impl std::ops::Add for Cost {
-    type Output = Cost;
-
-    fn add(self, other: Cost) -> Cost {
-        Cost {
-            training_episodes: self.training_episodes + other.training_episodes,
-            test_episodes: self.test_episodes + other.test_episodes,
-            env_steps: self.env_steps + other.env_steps,
-            work: self.work + other.work,
-        }
     }
 }
 

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use crate::cell::Cost;
+use crate::cost::Cost;
 use crate::scenario::Scenario;
 
 #[derive(clap::Args)]

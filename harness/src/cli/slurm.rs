@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use super::check::duration;
-use crate::cell::work_seconds;
+use crate::cost::work_seconds;
 use crate::scenario::Scenario;
 use crate::shard::{slices, weight};
 use crate::slurm::{ArrayJob, SbatchOptions, submit};

@@ -176,19 +176,18 @@ mod tests {
         assert!(cells[0].config.training_config().is_none());
         let keys: std::collections::HashSet<_> = cells.iter().map(|c| &c.key).collect();
         assert_eq!(keys.len(), cells.len());
-        let cost: crate::cell::Cost = cells
+        let cost: crate::cost::Cost = cells
             .iter()
             .fold(Default::default(), |a, c| a + c.config.cost());
         assert_eq!(cost.training_episodes, 4 * 5);
         assert_eq!(cost.test_episodes, 6 * 2 * 4);
         assert_eq!(cost.env_steps, 4 * 5 * 10 + 6 * 2 * 4 * 20);
-        // Training steps weigh most, then the learned policies' test steps, per agent.
+        // Per agent and step: training weighs most, then learned and baseline test steps.
+        use crate::cost::work::{BASELINE_STEP, LEARNED_STEP, TRAINING_STEP};
         let test_agent_steps = (1 + 2) * 4 * 20;
-        let training = 2 * (5 * 10) * (2 + 3) * 350;
-        assert_eq!(
-            cost.work,
-            2 * test_agent_steps + training + 4 * test_agent_steps * 50
-        );
+        let training = 2 * (5 * 10) * (2 + 3) * TRAINING_STEP;
+        let tests = 2 * test_agent_steps * BASELINE_STEP + 4 * test_agent_steps * LEARNED_STEP;
+        assert_eq!(cost.work, training + tests);
     }
 
     #[test]

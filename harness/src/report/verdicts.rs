@@ -1,10 +1,11 @@
 //! The verdict of every claim of a scenario (see `claims`), from the store's episodes and
-//! training tables, and the report section that opens with them.
+//! training tables and its recorded episodes' behaviour, and the report section that opens
+//! with them.
 
 use polars::prelude::*;
 
 use super::behaviour::EpisodeBehaviour;
-use super::columns::{f64s, group_rows, named_seed, optional_u32s, strings};
+use super::columns::{GroupKey, f64s, group_rows, named_seed, optional_u32s, strings};
 use super::comparison::{Sample, samples};
 use super::markdown::number;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
@@ -141,13 +142,9 @@ fn behaviour(
     point: &Point,
     expected: Behaviour,
 ) -> (Verdict, String) {
-    let found = behaviours.iter().find(|b| {
-        let g = &b.group;
-        g.map == point.map
-            && g.n_test == point.n_test
-            && g.policy.policy == policy
-            && g.policy.n_train.is_none_or(|n| n == point.n_train)
-    });
+    let found = behaviours
+        .iter()
+        .find(|b| at_point(&b.group, policy, point));
     let Some(found) = found else {
         let missing = format!("no recorded episode of {policy} at {}", point_label(point));
         return (Verdict::NoData, missing);
@@ -171,16 +168,17 @@ fn behaviour(
     )
 }
 
-/// The sample of `policy` at a point: a learned policy's at the point's N_train, a baseline's
-/// (which has none) at any.
+/// Whether results of `group` are those of `policy` at `point`: a learned policy's at the
+/// point's N_train, a baseline's (which has none) at any.
+fn at_point(group: &GroupKey, policy: &str, point: &Point) -> bool {
+    group.map == point.map
+        && group.n_test == point.n_test
+        && group.policy.policy == policy
+        && group.policy.n_train.is_none_or(|n| n == point.n_train)
+}
+
 fn find<'a>(samples: &'a [Sample], policy: &str, point: &Point) -> Option<&'a Sample> {
-    samples.iter().find(|s| {
-        let g = &s.group;
-        g.map == point.map
-            && g.n_test == point.n_test
-            && g.policy.policy == policy
-            && g.policy.n_train.is_none_or(|n| n == point.n_train)
-    })
+    samples.iter().find(|s| at_point(&s.group, policy, point))
 }
 
 fn point_label(point: &Point) -> String {

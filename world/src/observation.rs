@@ -105,7 +105,6 @@ impl ImageGeometry {
 pub struct Observer {
     config: ObservationConfig,
     geometry: ImageGeometry,
-    side: usize,
     fov: usize,
     scale: f32,
     /// This step's mini-map image (side x side, padding filled once) before agent marks,
@@ -128,7 +127,6 @@ impl Observer {
         Self {
             config,
             geometry,
-            side,
             fov,
             scale,
             mini,
@@ -143,11 +141,7 @@ impl Observer {
 
     /// Side S of every image.
     pub fn side(&self) -> usize {
-        self.side
-    }
-
-    pub fn geometry(&self) -> ImageGeometry {
-        self.geometry
+        self.geometry.side
     }
 
     pub fn channels(&self) -> usize {
@@ -156,7 +150,7 @@ impl Observer {
 
     /// Floats per agent: channels x S x S.
     pub fn per_agent(&self) -> usize {
-        self.channels() * self.side * self.side
+        self.channels() * self.side() * self.side()
     }
 
     /// Writes agent i's observation to `out[i * per_agent()..]`, channels local then mini.
@@ -166,7 +160,7 @@ impl Observer {
         if channels.mini() {
             self.compute_mini(episode);
         }
-        let image = self.side * self.side;
+        let image = self.side() * self.side();
         let positions = episode.positions();
         for (agent, obs) in out.chunks_exact_mut(self.per_agent()).enumerate() {
             let (local, mini) = obs.split_at_mut(if channels.local() { image } else { 0 });
@@ -180,7 +174,7 @@ impl Observer {
     }
 
     fn write_local(&self, episode: &Episode, agent: usize, out: &mut [f32]) {
-        let (fov, half, side) = (self.fov, self.fov / 2, self.side);
+        let (fov, half, side) = (self.fov, self.fov / 2, self.side());
         if side > fov {
             out.fill(OBSTACLE_CODE * self.scale);
         }
@@ -225,7 +219,7 @@ impl Observer {
             block,
             mini_width,
             mini_height,
-            ..
+            side,
         } = self.geometry;
         let width = self.column_low.len();
         let map_height = episode.world().map().height();
@@ -245,7 +239,7 @@ impl Observer {
                 }
             }
             let beyond_top = rows.end < (by + 1) * block;
-            let image_row = &mut self.mini[by * self.side..][..mini_width];
+            let image_row = &mut self.mini[by * side..][..mini_width];
             let blocks = self
                 .column_low
                 .chunks(block)

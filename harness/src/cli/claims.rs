@@ -2,9 +2,7 @@
 
 use std::path::PathBuf;
 
-use polars::prelude::DataFrame;
-
-use crate::report::{behaviour, markdown, motion, store_claims, verdicts};
+use crate::report::{StoreTables, markdown, store_claims, verdicts};
 use crate::scenario::Scenario;
 use crate::store::Store;
 
@@ -30,26 +28,7 @@ pub fn run(args: ClaimsArgs) -> anyhow::Result<()> {
         None => store_claims(&store)?,
     };
     anyhow::ensure!(!claims.is_empty(), "the scenario has no claims");
-    let table = |name: &str| -> anyhow::Result<Option<DataFrame>> {
-        let exists = args.dir.join(format!("{name}.parquet")).exists();
-        Ok(if exists {
-            Some(store.table(name)?)
-        } else {
-            None
-        })
-    };
-    let training = table("training")?;
-    let motions = match table("trajectories")? {
-        Some(trajectories) => Some(motion::load(&trajectories, &store)?.1),
-        None => None,
-    };
-    let behaviours = motions.as_deref().map(behaviour::summaries);
-    let recorded = verdicts::Recorded {
-        episodes: &store.table("episodes")?,
-        training: training.as_ref(),
-        behaviours: behaviours.as_deref(),
-    };
-    let results = verdicts::evaluate(&claims, &recorded)?;
+    let results = StoreTables::load(&store)?.verdicts(&claims)?;
     print!("{}", markdown::table(&verdicts::results_frame(&results)?)?);
     Ok(())
 }

@@ -17,6 +17,7 @@ mod training;
 mod transfer;
 pub mod verdicts;
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
@@ -24,6 +25,7 @@ use polars::prelude::*;
 use crate::atomic_file::write_atomic;
 use crate::store::{Store, StoreError, tables};
 use chart::{ChartError, Figure, render};
+use world::Map;
 
 /// Penalties are reported in millions, as in the paper.
 pub const PENALTY_UNIT: f64 = 1e6;
@@ -76,22 +78,16 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
     if let Some(cells) = optional_table(store, "cells")? {
         report.paragraph(&provenance(&cells)?);
     }
-    let episodes = store.table("episodes")?;
-    let training = optional_table(store, "training")?;
-    let motions = match optional_table(store, "trajectories")? {
-        Some(trajectories) => Some(motion::load(&trajectories, store)?),
-        None => None,
-    };
-    let behaviours = motions.as_ref().map(|(_, m)| behaviour::summaries(m));
+    let loaded = StoreTables::load(store)?;
     let claims = store_claims(store)?;
     if !claims.is_empty() {
-        let recorded = verdicts::Recorded {
-            episodes: &episodes,
-            training: training.as_ref(),
-            behaviours: behaviours.as_deref(),
-        };
-        verdicts::section(&mut report, &verdicts::evaluate(&claims, &recorded)?)?;
+        verdicts::section(&mut report, &loaded.verdicts(&claims)?)?;
     }
+    let StoreTables {
+        episodes,
+        training,
+        motions,
+    } = loaded;
     let summary = store.table("summary")?;
     let comparisons = comparison::comparisons(&episodes)?;
     penalty::section(&mut report, &summary, &comparisons)?;
@@ -146,11 +142,47 @@ fn provenance(cells: &DataFrame) -> PolarsResult<String> {
 
 /// The claims of the scenario as the sweep ran it (its copy in the store).
 pub fn store_claims(store: &Store) -> Result<Vec<crate::claims::Claim>, ReportError> {
-    let file = store.root().join("scenario.yaml");
+    let text = store.scenario_text()?;
     Ok(crate::claims::claims_of_text(
-        &store.scenario_text()?,
-        &file,
+        &text,
+        &store.scenario_path(),
     )?)
+}
+
+/// The store's tables that claims are tested against and the report's sections draw.
+pub struct StoreTables {
+    pub episodes: DataFrame,
+    pub training: Option<DataFrame>,
+    /// The recorded episodes' motions and their maps, when the sweep kept trajectories.
+    pub motions: Option<(HashMap<String, Map>, Vec<motion::Motion>)>,
+}
+
+impl StoreTables {
+    pub fn load(store: &Store) -> Result<Self, ReportError> {
+        let motions = match optional_table(store, "trajectories")? {
+            Some(trajectories) => Some(motion::load(&trajectories, store)?),
+            None => None,
+        };
+        Ok(Self {
+            episodes: store.table("episodes")?,
+            training: optional_table(store, "training")?,
+            motions,
+        })
+    }
+
+    /// The verdict of every claim.
+    pub fn verdicts(
+        &self,
+        claims: &[crate::claims::Claim],
+    ) -> Result<Vec<verdicts::ClaimResult>, ReportError> {
+        let behaviours = self.motions.as_ref().map(|(_, m)| behaviour::summaries(m));
+        let recorded = verdicts::Recorded {
+            episodes: &self.episodes,
+            training: self.training.as_ref(),
+            behaviours: behaviours.as_deref(),
+        };
+        verdicts::evaluate(claims, &recorded)
+    }
 }
 
 /// A sweep table, or `None` when the sweep did not build it.

@@ -219,8 +219,12 @@ impl Store {
     }
 
     /// The scenario file as run.
+    pub fn scenario_path(&self) -> PathBuf {
+        self.root.join(SCENARIO_FILE)
+    }
+
     pub fn scenario_text(&self) -> Result<String, StoreError> {
-        let path = self.root.join(SCENARIO_FILE);
+        let path = self.scenario_path();
         std::fs::read_to_string(&path).map_err(|e| StoreError::io(&path, e))
     }
 

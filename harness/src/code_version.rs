@@ -1,21 +1,20 @@
-//! The code version that keys every cached result.
+//! The code version that keys every cached result, and the provenance recorded beside it.
 //!
 //! A cell's result depends on the code that computed it, so the version goes into the cell's
-//! key. The package version alone would miss every change made between releases, and the git
-//! commit alone would miss uncommitted edits and would change on commits that touch nothing but
-//! documentation, reports or the command line. So the key uses the package version plus a hash
-//! of exactly the sources that can change a result and the locked versions of the crates they
-//! compute with (`source_hash.rs`, run by `build.rs`). Outside a full checkout the hash is
-//! absent and the package version is all there is. The git commit (`git describe --dirty`) is recorded beside
-//! each result as provenance only.
+//! key: the package version plus the pinned results fingerprint (`results_fingerprint`), which
+//! moves when, and only when, the code gives other bits. Which sources computed a result
+//! (`source_hash`, a hash of the numeric sources and their locked dependencies) and the git
+//! commit (`git describe --dirty`) are recorded beside each result as provenance only.
 
-/// `VERSION+SOURCE_HASH`, or the package version where the sources were not available.
+/// `VERSION+FINGERPRINT`: what a cell's key says about the code.
 pub fn code_version() -> String {
-    let version = env!("CARGO_PKG_VERSION");
-    match env!("VPM_SOURCE_HASH") {
-        "" => version.to_owned(),
-        hash => format!("{version}+{hash}"),
-    }
+    let fingerprint = crate::results_fingerprint::pinned();
+    format!("{}+{}", env!("CARGO_PKG_VERSION"), &fingerprint[..16])
+}
+
+/// The hash of the numeric sources the binary was built from, or empty outside a checkout.
+pub fn sources() -> &'static str {
+    env!("VPM_SOURCE_HASH")
 }
 
 /// The commit the binary was built from, or empty outside git.

@@ -13,7 +13,7 @@ use policies::{ActionChoice, LearnedPolicy, PlanError, Policy};
 use world::{StartError, World};
 
 use crate::cell::{Cell, CellConfig};
-use crate::code_version::{code_version, git_commit};
+use crate::code_version::{code_version, git_commit, sources};
 use crate::provenance::{cpu_description, host_name, utc_timestamp};
 use crate::runner::run_episode;
 use crate::scenario::PolicySpec;
@@ -107,6 +107,7 @@ pub fn run_cell(
         config: config.clone(),
         code_version: code_version(),
         git_commit: git_commit().to_owned(),
+        sources: sources().to_owned(),
         host: host_name(),
         cpu: cpu_description(),
         kernels: policies::nn::matmul::INSTRUCTIONS.to_owned(),

@@ -22,6 +22,7 @@ pub mod provenance;
 pub mod recording;
 pub mod replay;
 pub mod report;
+pub mod results_fingerprint;
 pub mod runner;
 pub mod scale_bench;
 pub mod scenario;

@@ -21,6 +21,10 @@ pub struct SweepOptions {
     /// Cells run at once.
     pub jobs: usize,
     pub shard: Option<Shard>,
+    /// A store shared between sweeps: a cell found there is copied instead of computed, and
+    /// every cell finished here is copied there, so that scenarios sharing cells (the same map,
+    /// policy, agent counts and seeds) compute each once.
+    pub cache: Option<Store>,
 }
 
 /// What a sweep did.
@@ -29,6 +33,8 @@ pub struct SweepReport {
     /// Cells of this run (the shard's, or all).
     pub selected: usize,
     pub already_finished: usize,
+    /// Cells copied from the cache.
+    pub from_cache: usize,
     pub computed: usize,
     /// Cells that failed, by key, with why.
     pub failed: Vec<(String, CellError)>,
@@ -57,18 +63,23 @@ pub fn run_sweep(
         Some(shard) => shard.select(&cells),
         None => cells.iter().collect(),
     };
+    let from_cache = match &options.cache {
+        Some(cache) => exchange_with_cache(store, cache, &selected)?,
+        None => 0,
+    };
     let todo: Vec<&Cell> = selected
         .iter()
         .copied()
         .filter(|c| store.finished(&c.key).is_none())
         .collect();
-    let failed = run_cells(scenario, store, &todo, options.jobs)?;
+    let failed = run_cells(scenario, store, options.cache.as_ref(), &todo, options.jobs)?;
 
     let selected_keys: Vec<String> = selected.iter().map(|c| c.key.clone()).collect();
     let tabled = store.build_tables(&selected_keys, &scenario.outputs)?;
     Ok(SweepReport {
         selected: selected.len(),
-        already_finished: selected.len() - todo.len(),
+        already_finished: selected.len() - todo.len() - from_cache,
+        from_cache,
         computed: todo.len() - failed.len(),
         failed,
         tabled: tabled.len(),
@@ -102,10 +113,27 @@ pub fn prepare(
     store.prepare(&manifest, scenario_text, &maps)
 }
 
-/// Runs `todo` on `jobs` threads; returns the cells that failed.
+/// Copies `cells` found in `cache` into `store`, and those `store` has finished into `cache`
+/// (cells an earlier, interrupted run finished); returns how many came from the cache.
+fn exchange_with_cache(store: &Store, cache: &Store, cells: &[&Cell]) -> Result<usize, StoreError> {
+    cache.prepare_cache()?;
+    let mut copied = 0;
+    for cell in cells {
+        if cache.finished(&cell.key).is_some() {
+            copied += usize::from(store.import_cell(cache, &cell.key)?);
+        } else if store.finished(&cell.key).is_some() {
+            cache.import_cell(store, &cell.key)?;
+        }
+    }
+    Ok(copied)
+}
+
+/// Runs `todo` on `jobs` threads, copying each finished cell into `cache`; returns the cells
+/// that failed.
 fn run_cells(
     scenario: &Scenario,
     store: &Store,
+    cache: Option<&Store>,
     todo: &[&Cell],
     jobs: usize,
 ) -> Result<Vec<(String, CellError)>, SweepError> {
@@ -136,6 +164,10 @@ fn run_cells(
                 lease
                     .and_then(|_lease| {
                         run_cell(store, &origin, world, cell, &|steps| bar.advance(steps))
+                    })
+                    .and_then(|_record| match cache {
+                        Some(cache) => Ok(cache.import_cell(store, &cell.key).map(|_| ())?),
+                        None => Ok(()),
                     })
                     .err()
                     .map(|e| (cell.key.clone(), e))

@@ -295,7 +295,7 @@ fn a_task_killed_mid_run_and_requeued_still_gives_the_same_tables() {
     slurm.wait_for_the_end(&jobs);
     let log = std::fs::read_to_string(jobs.out.join("slurm/task-1.log")).unwrap();
     let resumed = format!(
-        "sweep smoke (shard 1/{TASKS}): {per_task} cells, {done} already finished, {} computed, 0 failed",
+        "sweep smoke (shard 1/{TASKS}): {per_task} cells, {done} already finished, 0 from the cache, {} computed, 0 failed",
         per_task - done
     );
     assert!(log.contains(&resumed), "{log}");

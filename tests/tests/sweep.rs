@@ -41,15 +41,22 @@ fn copy_folder(from: &Path, to: &Path) {
 }
 
 #[test]
-fn a_second_run_recomputes_nothing() {
-    let out = scratch("twice").join("store");
-    let first = sweep(&out, &[]);
-    assert!(first.contains(", 0 already finished,"), "{first}");
+fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
+    let dir = scratch("twice");
+    let out = dir.join("store");
+    let cache = dir.join("cache");
+    let cache_arg = ["--cache", cache.to_str().unwrap()];
+    let first = sweep(&out, &cache_arg);
+    assert!(
+        first.contains(", 0 already finished, 0 from the cache,"),
+        "{first}"
+    );
     let cells = finished_cells(&out);
     assert!(cells >= 2, "{first}");
     let before = snapshot(&out.join("cells"));
     let second = sweep(&out, &[]);
-    let expected = format!("{cells} cells, {cells} already finished, 0 computed, 0 failed");
+    let expected =
+        format!("{cells} cells, {cells} already finished, 0 from the cache, 0 computed, 0 failed");
     assert!(second.contains(&expected), "{second}");
     assert_eq!(
         snapshot(&out.join("cells")),
@@ -57,6 +64,17 @@ fn a_second_run_recomputes_nothing() {
         "no cell file was rewritten"
     );
     assert_same_tables(&out, reference_run());
+
+    assert_eq!(
+        finished_cells(&cache),
+        cells,
+        "every computed cell went to the cache"
+    );
+    let other = dir.join("other store");
+    let served = sweep(&other, &cache_arg);
+    let expected = format!("{cells} cells, 0 already finished, {cells} from the cache, 0 computed");
+    assert!(served.contains(&expected), "{served}");
+    assert_same_tables(&other, reference_run());
 }
 
 #[test]
@@ -107,7 +125,7 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
         "the kill came after the last cell ({done} of {total})"
     );
     let expected = format!(
-        "{total} cells, {done} already finished, {} computed",
+        "{total} cells, {done} already finished, 0 from the cache, {} computed",
         total - done
     );
     assert!(resumed.contains(&expected), "{resumed}");

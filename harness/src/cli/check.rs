@@ -4,11 +4,18 @@ use std::path::PathBuf;
 
 use crate::cost::Cost;
 use crate::scenario::Scenario;
+use crate::store::Store;
 
 #[derive(clap::Args)]
 pub struct CheckArgs {
     /// Scenario file (YAML).
     scenario: PathBuf,
+    /// The cache the sweep will use (`harness sweep --cache`): its cells cost nothing.
+    #[arg(long)]
+    cache: Option<PathBuf>,
+    /// Cells the sweep runs at once, for the wall-time estimate; default one per core.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    jobs: Option<u16>,
 }
 
 pub fn run(args: CheckArgs) -> anyhow::Result<()> {
@@ -37,11 +44,18 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         "env steps",
         "est. CPU"
     );
+    let cache = args.cache.as_deref().map(Store::new);
+    let cached = |key: &str| cache.as_ref().is_some_and(|c| c.finished(key).is_some());
     let mut total = Cost::default();
+    let mut cached_cells = 0;
+    let mut longest = 0.0f64;
     for cell in &cells {
         let c = &cell.config;
-        let cost = c.cost();
+        let in_cache = cached(&cell.key);
+        cached_cells += usize::from(in_cache);
+        let cost = if in_cache { Cost::default() } else { c.cost() };
         total = total + cost;
+        longest = longest.max(cost.cpu_seconds());
         println!(
             "{:>5}  {:<20}  {:<12}  {:<16}  {:>7}  {:>3}  {:>17}  {:>15}  {:>10}",
             cell.index,
@@ -52,7 +66,11 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
             c.repetition,
             cost.training_episodes,
             cost.env_steps,
-            duration(cost.cpu_seconds())
+            if in_cache {
+                "cached".to_owned()
+            } else {
+                duration(cost.cpu_seconds())
+            }
         );
     }
     println!(
@@ -63,6 +81,16 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         total.test_episodes,
         total.env_steps,
         duration(total.cpu_seconds())
+    );
+    let jobs = args.jobs.map_or_else(
+        || std::thread::available_parallelism().map_or(1, usize::from),
+        usize::from,
+    );
+    // Cells run one per core; the longest cell bounds the wall time from below.
+    let wall = (total.cpu_seconds() / jobs as f64).max(longest);
+    println!(
+        "{cached_cells} cells in the cache; the rest take about {} on {jobs} cores (`--jobs {jobs}`)",
+        duration(wall)
     );
     Ok(())
 }

@@ -6,6 +6,7 @@ mod bench;
 mod check;
 mod claims;
 mod curve;
+mod fingerprint;
 mod merge;
 mod record;
 mod report;
@@ -59,6 +60,8 @@ enum Command {
     Claims(claims::ClaimsArgs),
     /// Save a rerun recording (.rrd) of a stored test episode.
     Record(record::RecordArgs),
+    /// Compute the results fingerprint that keys cached cells and compare it with the pinned one.
+    Fingerprint(fingerprint::FingerprintArgs),
 }
 
 /// Parses the process's arguments and runs the command.
@@ -70,7 +73,7 @@ impl Cli {
     pub fn run(self) -> anyhow::Result<()> {
         match self.command {
             // The sweep sizes its own pool (`--jobs`) and runs its cells on it.
-            command @ Command::Sweep(_) => command.run(),
+            command @ (Command::Sweep(_) | Command::Fingerprint(_)) => command.run(),
             command => on_a_pool_worker(|| command.run())?,
         }
     }
@@ -104,6 +107,7 @@ impl Command {
             Command::Report(args) => report::run(args),
             Command::Claims(args) => claims::run(args),
             Command::Record(args) => record::run(args),
+            Command::Fingerprint(args) => fingerprint::run(args),
         }
     }
 }

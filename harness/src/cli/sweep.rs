@@ -24,6 +24,10 @@ pub struct SweepArgs {
     /// Run only the i-th of n slices of the cell list (1 <= i <= n), e.g. 2/8.
     #[arg(long)]
     shard: Option<Shard>,
+    /// A folder of cells shared between sweeps (e.g. of the five research questions): cells
+    /// found there are copied instead of computed, and computed cells are added to it.
+    #[arg(long)]
+    cache: Option<PathBuf>,
     /// Do not write the report at the end (a shard never does: its store is partial).
     #[arg(long)]
     no_report: bool,
@@ -50,16 +54,18 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
     let options = SweepOptions {
         jobs,
         shard: args.shard,
+        cache: args.cache.as_deref().map(Store::new),
     };
     let report = run_sweep(&scenario, &text, &Store::new(&out), &options)?;
     let shard = args
         .shard
         .map_or(String::new(), |s| format!(" (shard {s})"));
     println!(
-        "sweep {}{shard}: {} cells, {} already finished, {} computed, {} failed; tables of {} cells in {}",
+        "sweep {}{shard}: {} cells, {} already finished, {} from the cache, {} computed, {} failed; tables of {} cells in {}",
         scenario.name,
         report.selected,
         report.already_finished,
+        report.from_cache,
         report.computed,
         report.failed.len(),
         report.tabled,

@@ -133,14 +133,21 @@ impl Store {
                 expected: manifest.scenario.clone(),
             });
         }
-        for folder in [self.root.join("cells"), self.root.join("maps")] {
-            std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
-        }
+        self.prepare_cache()?;
         for (hash, text) in maps {
             write(&self.map_path(hash), text.as_bytes())?;
         }
         write(&self.root.join(SCENARIO_FILE), scenario_text.as_bytes())?;
         write(&self.root.join(MANIFEST_FILE), &json_bytes(manifest))
+    }
+
+    /// Makes the folder ready to serve as a cache of cells shared between sweeps: the cells
+    /// and their maps, no manifest.
+    pub fn prepare_cache(&self) -> Result<(), StoreError> {
+        for folder in [self.root.join("cells"), self.root.join("maps")] {
+            std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
+        }
+        Ok(())
     }
 
     /// The record of a finished cell whose files all verify; `None` when the cell is absent,

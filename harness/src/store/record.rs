@@ -16,6 +16,10 @@ pub struct CellRecord {
     pub config: CellConfig,
     pub code_version: String,
     pub git_commit: String,
+    /// The hash of the numeric sources that computed it (`code_version::sources`); empty in
+    /// records written before it was kept.
+    #[serde(default)]
+    pub sources: String,
     pub host: String,
     /// The CPU's model and vector extensions (`provenance::cpu_description`); empty in
     /// records written before it was kept.

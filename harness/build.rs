@@ -1,6 +1,6 @@
-//! Records the code version that keys every cached sweep result (see `code_version.rs`): a
-//! hash of the sources that can change a result (`src/source_hash.rs`), and the git commit
-//! where git is available.
+//! Records the provenance kept beside every result (see `code_version.rs`): a hash of the
+//! sources that can change a result (`src/source_hash.rs`), and the git commit where git is
+//! available.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -1,12 +1,10 @@
-//! The part of the code version that says which code computed a result: a hash of exactly the
-//! sources that can change a cell's numbers, and of the locked versions of the crates they
-//! compute with.
+//! Which code computed a result: a hash of exactly the sources that can change a cell's numbers,
+//! and of the locked versions of the crates they compute with, recorded in each cell's record.
 //!
-//! The cell key includes it, so a finished cell is recomputed when, and only when, its numbers
-//! could differ. A report, a recording, a benchmark, the command line's printing, the
-//! documentation or a test can change without re-keying days of finished cells; the world,
-//! the policies, the engine that runs a cell, or an upgrade of `wide`, `rand` or `linfa`
-//! re-keys them all.
+//! Provenance only: the key holds the results fingerprint instead (`results_fingerprint`), so
+//! that edits which move no bit keep finished cells. The hash still tells two records made by
+//! different sources apart, and ignores what cannot change a number (reports, recordings,
+//! benchmarks, the command line, the docs, tests).
 //!
 //! `build.rs` includes this file as a module, so the binary's hash and this module's tests
 //! come from the same code.
@@ -231,7 +229,7 @@ mod tests {
         });
         for file in &cosmetic {
             append(root, file, "\n// a cosmetic edit\n");
-            assert_eq!(source_hash(root), original, "{file} moved the key");
+            assert_eq!(source_hash(root), original, "{file} moved the source hash");
         }
         replace(
             root,
@@ -242,7 +240,7 @@ mod tests {
         assert_eq!(
             source_hash(root),
             original,
-            "a report-only dependency moved the key"
+            "a report-only dependency moved the source hash"
         );
         let mut previous = original;
         for file in [
@@ -252,7 +250,7 @@ mod tests {
         ] {
             append(root, file, "\n// a numeric edit\n");
             let moved = source_hash(root);
-            assert_ne!(moved, previous, "{file} did not move the key");
+            assert_ne!(moved, previous, "{file} did not move the source hash");
             previous = moved;
         }
         replace(
@@ -264,7 +262,7 @@ mod tests {
         assert_ne!(
             source_hash(root),
             previous,
-            "an upgrade of a numeric dependency did not move the key"
+            "an upgrade of a numeric dependency did not move the source hash"
         );
     }
 

@@ -421,3 +421,45 @@ fn bad_scenarios_give_clear_errors_and_leave_the_output_alone() {
         "a bad scenario created its output folder"
     );
 }
+
+/// The keys of a committed scenario's cells, learned cells only when `learned`.
+fn scenario_keys(file: &str, learned: bool) -> std::collections::BTreeSet<String> {
+    let path = PathBuf::from(common::repo_file(file));
+    let scenario = harness::scenario::Scenario::load(&path)
+        .unwrap_or_else(|e| panic!("{file} does not load: {e}"));
+    scenario
+        .cells()
+        .into_iter()
+        .filter(|c| !learned || c.config.n_train.is_some())
+        .map(|c| c.key)
+        .collect()
+}
+
+#[test]
+fn every_committed_scenario_loads_and_the_rq_scenarios_share_their_common_cells() {
+    for folder in ["scenarios", "scenarios/paper"] {
+        for entry in std::fs::read_dir(common::repo_file(folder))
+            .unwrap()
+            .flatten()
+        {
+            let path = entry.path();
+            if path.extension().is_some_and(|e| e == "yaml") && path.is_file() {
+                let relative = format!("{folder}/{}", entry.file_name().to_string_lossy());
+                assert!(!scenario_keys(&relative, false).is_empty(), "{relative}");
+            }
+        }
+    }
+    let shared = |a: &str, b: &str| {
+        let a = scenario_keys(a, true);
+        a.intersection(&scenario_keys(b, true)).count()
+    };
+    // RQ5's learned cells are RQ4's; RQ1's open MA-G-PPO cells (4 N x 3 seeds) are in both.
+    assert_eq!(
+        scenario_keys("scenarios/rq5.yaml", true),
+        scenario_keys("scenarios/rq4.yaml", true)
+    );
+    assert_eq!(shared("scenarios/rq1.yaml", "scenarios/rq4.yaml"), 12);
+    // RQ2's both-channel cells (N = 4, 3 seeds); RQ3's open cells (N = 2, 4, seed 0).
+    assert_eq!(shared("scenarios/rq2.yaml", "scenarios/rq1.yaml"), 3);
+    assert_eq!(shared("scenarios/rq3.yaml", "scenarios/rq1.yaml"), 2);
+}

@@ -4,9 +4,9 @@
 //! Nothing is shared between cells but read-only worlds, and every cell's seeds come from its
 //! config, so results do not depend on `--jobs`, on sharding or on interruptions.
 
-use std::sync::{Arc, OnceLock};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
 
-use rayon::prelude::*;
 use world::World;
 
 use crate::cell::{Cell, CellConfig};
@@ -128,8 +128,13 @@ fn exchange_with_cache(store: &Store, cache: &Store, cells: &[&Cell]) -> Result<
     Ok(copied)
 }
 
-/// Runs `todo` on `jobs` threads, copying each finished cell into `cache`; returns the cells
-/// that failed.
+/// Runs `todo`, `jobs` cells at a time, copying each finished cell into `cache`; returns the
+/// cells that failed, in `todo`'s order.
+///
+/// Each cell runs on a worker thread of its own with a rayon pool of its own, never as a task
+/// of a shared pool: a rayon thread that waits inside a cell's parallel product steals other
+/// tasks of its pool, so cells on one shared pool would start one inside another, many more
+/// than `jobs` at once (four on two threads were seen), each holding its rollout buffers.
 fn run_cells(
     scenario: &Scenario,
     store: &Store,
@@ -137,45 +142,63 @@ fn run_cells(
     todo: &[&Cell],
     jobs: usize,
 ) -> Result<Vec<(String, CellError)>, SweepError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs)
-        .build()
-        .map_err(|e| SweepError::Threads(jobs, e))?;
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let threads_per_cell = (cores / jobs).max(1);
     let worlds: Vec<OnceLock<Arc<World>>> = scenario.maps.iter().map(|_| OnceLock::new()).collect();
     let params = scenario
         .world
         .params()
         .expect("checked when the scenario was loaded");
     let progress = Progress::new(todo.iter().map(|c| c.config.cost().env_steps).sum());
-    let failed = pool.install(|| {
-        todo.par_iter()
-            .with_max_len(1)
-            .filter_map(|cell| {
-                let map = &scenario.maps[cell.map_index];
-                let world =
-                    worlds[cell.map_index].get_or_init(|| World::new(map.map.clone(), params));
-                let bar = progress.start_cell(cell_label(cell), cell.config.cost().env_steps);
-                let origin = CellOrigin {
-                    scenario: &scenario.name,
-                    map_source: &map.source,
-                };
-                // The lease marks the cell as running until it is saved (or fails).
-                let lease = store.take_lease(&cell.key).map_err(CellError::from);
-                lease
-                    .and_then(|_lease| {
-                        run_cell(store, &origin, world, cell, &|steps| bar.advance(steps))
-                    })
-                    .and_then(|_record| match cache {
-                        Some(cache) => Ok(cache.import_cell(store, &cell.key).map(|_| ())?),
-                        None => Ok(()),
-                    })
-                    .err()
-                    .map(|e| (cell.key.clone(), e))
+    let run_one = |cell: &Cell| -> Result<(), CellError> {
+        let map = &scenario.maps[cell.map_index];
+        let world = worlds[cell.map_index].get_or_init(|| World::new(map.map.clone(), params));
+        let bar = progress.start_cell(cell_label(cell), cell.config.cost().env_steps);
+        let origin = CellOrigin {
+            scenario: &scenario.name,
+            map_source: &map.source,
+        };
+        // The lease marks the cell as running until it is saved (or fails).
+        let _lease = store.take_lease(&cell.key)?;
+        run_cell(store, &origin, world, cell, &|steps| bar.advance(steps))?;
+        if let Some(cache) = cache {
+            cache.import_cell(store, &cell.key)?;
+        }
+        Ok(())
+    };
+    let next = AtomicUsize::new(0);
+    let failed = Mutex::new(Vec::new());
+    let started: Result<(), SweepError> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..jobs.min(todo.len()))
+            .map(|_| {
+                scope.spawn(|| {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads_per_cell)
+                        .build()
+                        .map_err(|e| SweepError::Threads(threads_per_cell, e))?;
+                    while let Some(&cell) = todo.get(next.fetch_add(1, Ordering::Relaxed)) {
+                        if let Err(error) = pool.install(|| run_one(cell)) {
+                            let mut failed = failed.lock().unwrap_or_else(|e| e.into_inner());
+                            failed.push((cell.index, cell.key.clone(), error));
+                        }
+                    }
+                    Ok(())
+                })
             })
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| w.join().expect("a sweep worker never panics"))
             .collect()
     });
+    started?;
     progress.finish();
-    Ok(failed)
+    let mut failed = failed.into_inner().unwrap_or_else(|e| e.into_inner());
+    failed.sort_by_key(|(index, _, _)| *index);
+    Ok(failed
+        .into_iter()
+        .map(|(_, key, error)| (key, error))
+        .collect())
 }
 
 /// How a cell is named on screen and in messages.

@@ -1,6 +1,6 @@
 //! Training curves: a learned policy's training penalty per episode (mean over training runs),
-//! as the rolling mean over 500 episodes with a +-0.5 standard deviation band (the paper's
-//! figures). Policies trained with the same N_train on one map share a plot, so RQ2's three
+//! as the rolling mean over a sixtieth of the run with a +-0.5 standard deviation band (the
+//! paper's figures: 500 of its 30,000 episodes). Policies trained with the same N_train on one map share a plot, so RQ2's three
 //! input choices appear together; with several maps, one more plot per N_train holds them
 //! all (RQ1's open against eight_room).
 
@@ -10,8 +10,14 @@ use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{PolicyKey, distinct, f64s, group_rows, optional_u32s, strings};
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 
-/// The paper's rolling window, in episodes.
-const WINDOW: usize = 500;
+/// The paper's rolling window, 500 episodes of 30,000, as a fraction of the run, so that an
+/// 800-episode run is smoothed as much as the paper's (over 13 episodes), not flattened.
+const WINDOW_PER_EPISODE: f64 = 500.0 / 30_000.0;
+
+/// The rolling window of a run of `episodes` episodes.
+fn window(episodes: usize) -> usize {
+    ((episodes as f64 * WINDOW_PER_EPISODE).round() as usize).max(1)
+}
 /// Points kept per curve; longer curves are sampled evenly (their last episode always kept).
 const POINTS: usize = 2000;
 
@@ -19,6 +25,8 @@ struct Curve {
     map: String,
     policy: PolicyKey,
     episode: Vec<u64>,
+    /// The rolling window, in episodes.
+    window: usize,
     mean: Vec<f64>,
     std: Vec<f64>,
 }
@@ -27,41 +35,54 @@ pub fn section(report: &mut ReportWriter, training: &DataFrame) -> Result<(), Re
     report.heading(2, "Training curves");
     let curves = curves(training)?;
     let frame = frame(&curves)?;
-    report.paragraph(&format!(
-        "Training penalty per episode (10^6, the mean over training runs), rolling mean over \
-         {WINDOW} episodes with a +-0.5 standard deviation band."
-    ));
+    report.paragraph(
+        "Training penalty per episode (10^6, the mean over training runs), rolling mean over a \
+         sixtieth of the run (the paper's 500 of 30,000 episodes) with a +-0.5 standard \
+         deviation band.",
+    );
     report.linked_table("training_curves", &frame, "The curves")?;
     let settings = distinct(curves.iter().map(|c| (c.map.clone(), c.policy.n_train)));
     for (map, n_train) in settings {
         let n = n_train_label(n_train);
-        let lines = curves
+        let shown: Vec<&Curve> = curves
             .iter()
             .filter(|c| c.map == map && c.policy.n_train == n_train)
+            .collect();
+        let lines = shown
+            .iter()
             .map(|c| line(c, c.policy.policy.clone()))
             .collect();
         let stem = file_stem(&["training", &map, &format!("train{n}")]);
-        figure(report, &stem, &format!("on `{map}`, N_train = {n}"), lines)?;
+        let setting = format!("on `{map}`, N_train = {n}");
+        figure(report, &stem, &setting, &windows(&shown), lines)?;
     }
     // The paper also plots the maps against each other (RQ1: open against eight_room).
     if distinct(curves.iter().map(|c| c.map.clone())).len() > 1 {
         for n_train in distinct(curves.iter().map(|c| c.policy.n_train)) {
             let n = n_train_label(n_train);
-            let lines = curves
+            let shown: Vec<&Curve> = curves
                 .iter()
                 .filter(|c| c.policy.n_train == n_train)
+                .collect();
+            let lines = shown
+                .iter()
                 .map(|c| line(c, format!("{}: {}", c.map, c.policy.policy)))
                 .collect();
             let stem = file_stem(&["training", "all-maps", &format!("train{n}")]);
-            figure(
-                report,
-                &stem,
-                &format!("on every map, N_train = {n}"),
-                lines,
-            )?;
+            let setting = format!("on every map, N_train = {n}");
+            figure(report, &stem, &setting, &windows(&shown), lines)?;
         }
     }
     Ok(())
+}
+
+/// The rolling windows of `curves`, for a caption: "13 episodes".
+fn windows(curves: &[&Curve]) -> String {
+    let windows: Vec<String> = distinct(curves.iter().map(|c| c.window))
+        .into_iter()
+        .map(|w| w.to_string())
+        .collect();
+    format!("{} episodes", windows.join(" or "))
 }
 
 fn n_train_label(n_train: Option<u32>) -> String {
@@ -73,6 +94,7 @@ fn figure(
     report: &mut ReportWriter,
     stem: &str,
     setting: &str,
+    window: &str,
     lines: Vec<Line>,
 ) -> Result<(), ReportError> {
     let chart = LineChart {
@@ -86,7 +108,7 @@ fn figure(
     report.figure(
         stem,
         &chart,
-        &format!("Rolling mean ({WINDOW} episodes) +-0.5 std of the training penalty {setting}"),
+        &format!("Rolling mean ({window}) +-0.5 std of the training penalty {setting}"),
     )
 }
 
@@ -131,12 +153,14 @@ fn curves(training: &DataFrame) -> Result<Vec<Curve>, ReportError> {
                 rows.iter()
                     .map(|&r| (episodes[r], penalties[r] / PENALTY_UNIT)),
             );
-            let (mean, std) = rolling(&per_episode.iter().map(|p| p.1).collect::<Vec<_>>(), WINDOW);
+            let window = window(per_episode.len());
+            let (mean, std) = rolling(&per_episode.iter().map(|p| p.1).collect::<Vec<_>>(), window);
             let keep = sample(per_episode.len(), POINTS);
             Curve {
                 map,
                 policy,
                 episode: keep.iter().map(|&i| per_episode[i].0).collect(),
+                window,
                 mean: keep.iter().map(|&i| mean[i]).collect(),
                 std: keep.iter().map(|&i| std[i]).collect(),
             }
@@ -203,6 +227,13 @@ fn frame(curves: &[Curve]) -> PolarsResult<DataFrame> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_window_is_the_papers_share_of_the_run() {
+        assert_eq!(window(30_000), 500);
+        assert_eq!(window(800), 13);
+        assert_eq!(window(8), 1);
+    }
 
     #[test]
     fn rolling_windows_grow_then_slide() {

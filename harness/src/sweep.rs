@@ -188,8 +188,7 @@ fn run_cells(
             .collect();
         workers
             .into_iter()
-            .map(|w| w.join().expect("a sweep worker never panics"))
-            .collect()
+            .try_for_each(|w| w.join().expect("a sweep worker never panics"))
     });
     started?;
     progress.finish();

@@ -176,12 +176,15 @@ fn run_cells(
                         .num_threads(threads_per_cell)
                         .build()
                         .map_err(|e| SweepError::Threads(threads_per_cell, e))?;
-                    while let Some(&cell) = todo.get(next.fetch_add(1, Ordering::Relaxed)) {
-                        if let Err(error) = pool.install(|| run_one(cell)) {
-                            let mut failed = failed.lock().unwrap_or_else(|e| e.into_inner());
-                            failed.push((cell.index, cell.key.clone(), error));
+                    // The loop itself runs on the pool, so a cell starts with no hand-over.
+                    pool.install(|| {
+                        while let Some(&cell) = todo.get(next.fetch_add(1, Ordering::Relaxed)) {
+                            if let Err(error) = run_one(cell) {
+                                let mut failed = failed.lock().unwrap_or_else(|e| e.into_inner());
+                                failed.push((cell.index, cell.key.clone(), error));
+                            }
                         }
-                    }
+                    });
                     Ok(())
                 })
             })

@@ -159,7 +159,7 @@ fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
     let svgs = files_in(&report.join("figures"), "svg");
     // Penalty bars, a trail and a motion figure per (policy, N_test), the illustration.
     assert_eq!(pngs.len(), 1 + 2 * 2 * 2 + 1);
-    assert_eq!(pngs.len(), svgs.len());
+    assert!(!svgs.is_empty() && svgs.len() <= pngs.len());
     for png in &pngs {
         let stem = png.file_stem().unwrap().to_str().unwrap();
         let image = image::open(png).unwrap_or_else(|e| panic!("{}: {e}", png.display()));
@@ -168,7 +168,26 @@ fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
             expected_size(stem),
             "{stem}"
         );
-        assert_well_formed_svg(&png.with_extension("svg"));
+        // A large SVG is left out, and the README says so; a kept one is small and parses.
+        let svg = png.with_extension("svg");
+        match std::fs::metadata(&svg) {
+            Ok(file) => {
+                assert!(
+                    file.len() <= 100_000,
+                    "{}: {} bytes",
+                    svg.display(),
+                    file.len()
+                );
+                assert_well_formed_svg(&svg);
+            }
+            Err(_) => {
+                let shown = readme.split(&format!("figures/{stem}.png)")).nth(1);
+                let note = shown
+                    .and_then(|rest| rest.lines().nth(2))
+                    .unwrap_or_default();
+                assert!(note.contains("KB left out)"), "{stem}: {note}");
+            }
+        }
     }
     println!("{} PNG and {} SVG figures decode", pngs.len(), svgs.len());
 

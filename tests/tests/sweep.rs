@@ -94,7 +94,17 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    while finished_cells(&out) == 0 {
+    // Killed once a cell is finished and another one is in flight (leased, not finished).
+    let in_flight = |out: &Path| {
+        std::fs::read_dir(out.join("cells")).map_or(0, |entries| {
+            entries
+                .flatten()
+                .filter(|e| e.path().join("running.json").exists())
+                .filter(|e| !e.path().join("cell.json").exists())
+                .count()
+        })
+    };
+    while finished_cells(&out) == 0 || in_flight(&out) == 0 {
         assert!(
             child.try_wait().unwrap().is_none(),
             "the sweep ended before the kill"

@@ -89,7 +89,8 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
     // Cells run one per core; the longest cell bounds the wall time from below.
     let wall = (total.cpu_seconds() / jobs as f64).max(longest);
     println!(
-        "{cached_cells} cells in the cache; the rest take about {} on {jobs} cores (`--jobs {jobs}`)",
+        "cached: {cached_cells} of {} cells; the rest take about {} on {jobs} cores (`--jobs {jobs}`)",
+        cells.len(),
         duration(wall)
     );
     Ok(())

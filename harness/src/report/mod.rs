@@ -257,7 +257,8 @@ impl ReportWriter {
         Ok(())
     }
 
-    /// Writes `figures/NAME.png` and `figures/NAME.svg` and shows the PNG in the README.
+    /// Writes `figures/NAME.png`, and `figures/NAME.svg` unless it is large, and shows the PNG
+    /// in the README.
     fn figure(
         &mut self,
         name: &str,
@@ -266,11 +267,14 @@ impl ReportWriter {
     ) -> Result<(), ReportError> {
         let rendered = render(figure)?;
         self.write(&format!("figures/{name}.png"), &rendered.png)?;
-        self.write(&format!("figures/{name}.svg"), rendered.svg.as_bytes())?;
+        let svg = if rendered.svg.len() <= MAX_SVG_BYTES {
+            self.write(&format!("figures/{name}.svg"), rendered.svg.as_bytes())?;
+            format!("[SVG](figures/{name}.svg)")
+        } else {
+            format!("SVG of {} KB left out", rendered.svg.len() / 1000)
+        };
         self.figures += 1;
-        self.readme += &format!(
-            "![{caption}](figures/{name}.png)\n\n*{caption}* ([SVG](figures/{name}.svg))\n\n"
-        );
+        self.readme += &format!("![{caption}](figures/{name}.png)\n\n*{caption}* ({svg})\n\n");
         Ok(())
     }
 
@@ -288,6 +292,11 @@ impl ReportWriter {
         })
     }
 }
+
+/// The largest SVG a report keeps. Maps and trajectories draw a shape per cell or step, and
+/// their SVGs run to hundreds of KB; their PNGs stand, so that a report stays small enough to
+/// commit.
+const MAX_SVG_BYTES: usize = 100_000;
 
 /// A name safe in file names: letters, digits and `-`, everything else `_`.
 fn file_stem(parts: &[&str]) -> String {

@@ -28,15 +28,17 @@ pub fn work_seconds(work: u64) -> f64 {
 }
 
 /// CPU time per agent and step, measured on an AVX2 machine (2 cores, all threads counted):
-/// a training step of the paper network (rollout plus its share of the update) about 480 us
-/// (`harness bench training`: 400 to 580 us at N = 2 to 10, both models); a test step of a
+/// a training step of the paper network (rollout plus its share of the update) about 625 us
+/// as a sweep runs it, one single-thread cell per core (the `rq3` sweep: 5,984 s of CPU for
+/// 9.6 M training agent-steps, `fast` profile, N = 2 and 4; `harness bench training` alone
+/// gives 400 to 580 us at N = 2 to 10, the two cells sharing caches cost more); a test step of a
 /// learned policy about 25 us (`harness bench network`'s rollout step over its agents); a
 /// baseline's step 1 to 9 us (Random to TSPC, a world step included).
 pub(crate) mod work {
     pub const UNIT_SECONDS: f64 = 0.5e-6;
     pub const BASELINE_STEP: u64 = 10;
     pub const LEARNED_STEP: u64 = 50;
-    pub const TRAINING_STEP: u64 = 960;
+    pub const TRAINING_STEP: u64 = 1250;
 }
 
 impl CellConfig {

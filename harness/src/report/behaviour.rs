@@ -388,8 +388,8 @@ pub struct EpisodeBehaviour {
     pub stationary: usize,
     pub touring: usize,
     /// The touring agents share a rhythm in y(t) or in sin(theta(t)): each one's own period
-    /// within `PERIOD_TOLERANCE` of the team's, and a harmonic at the team's period that
-    /// explains at least `STABLE_FIT` of its variance, so its phase holds over the episode.
+    /// within `PERIOD_TOLERANCE` of the team's, and their phase differences at the team's
+    /// period steady over the episode (`phase_wander` at most `PHASE_WANDER` degrees).
     pub periodic: bool,
     /// The report's sentence about it.
     pub statement: String,
@@ -397,8 +397,45 @@ pub struct EpisodeBehaviour {
 
 /// How far (relative) an agent's period may be from the team's and still be the same rhythm.
 const PERIOD_TOLERANCE: f64 = 0.1;
-/// The least share of variance a harmonic must explain for its phase to count as stable.
-const STABLE_FIT: f64 = 0.5;
+/// Windows an episode is cut into to see whether the phase differences hold.
+const PHASE_WINDOWS: usize = 4;
+/// The most a touring agent's phase difference to the others may wander between windows
+/// (degrees from its circular mean) for the rhythm to count as one.
+///
+/// Not the share of variance one harmonic explains over the whole episode: a pair of agents
+/// whose common period drifts by a step, or whose path is a sawtooth, fits one fixed sine
+/// poorly (R^2 0.49, rejected by the first rule we used, 0.5) while keeping its phase
+/// difference to within a few degrees; and a phase difference is what the paper describes.
+const PHASE_WANDER: f64 = 30.0;
+
+/// How far the phase differences of `agents` to the first of them wander over the episode's
+/// windows, fitted at `period`: the largest distance (degrees) of a window's difference from
+/// that agent's circular mean; `None` when a window cannot be fitted.
+fn phase_wander(signals: &[Vec<f64>], agents: &[usize], period: f64) -> Option<f64> {
+    let (&first, others) = agents.split_first()?;
+    let length = signals[first].len() / PHASE_WINDOWS;
+    if (length as f64) < FEWEST_CYCLES as f64 * period {
+        return None;
+    }
+    let mut wander: f64 = 0.0;
+    for &agent in others {
+        let differences = (0..PHASE_WINDOWS)
+            .map(|w| {
+                let window = |a: usize| &signals[a][w * length..(w + 1) * length];
+                let reference = fit_harmonic(window(first), period)?;
+                Some(fit_harmonic(window(agent), period)?.phase - reference.phase)
+            })
+            .collect::<Option<Vec<f64>>>()?;
+        let (sin, cos) = differences
+            .iter()
+            .fold((0.0, 0.0), |(s, c), d| (s + d.sin(), c + d.cos()));
+        let mean = sin.atan2(cos);
+        for d in differences {
+            wander = wander.max(wrapped_degrees(d - mean).abs());
+        }
+    }
+    Some(wander)
+}
 
 /// Every recorded episode's behaviour.
 pub fn summaries(motions: &[Motion]) -> Vec<EpisodeBehaviour> {
@@ -426,17 +463,24 @@ fn summary(
         .filter(|r| r.motion == index && r.role == "touring")
         .map(|r| r.agent)
         .collect();
-    let shares_rhythm = |r: &Rhythm| match (r.period, r.team_period, r.harmonic) {
-        (Some(own), Some(team), Some(fit)) => {
-            (own - team).abs() <= PERIOD_TOLERANCE * team && fit.r_squared >= STABLE_FIT
-        }
+    let on_the_team_period = |r: &Rhythm| match (r.period, r.team_period) {
+        (Some(own), Some(team)) => (own - team).abs() <= PERIOD_TOLERANCE * team,
         _ => false,
+    };
+    let signals = |signal: &str| match signal {
+        "y" => &motion.y,
+        _ => &motion.sin_theta,
+    };
+    let wander = |signal: &'static str| {
+        let period = of(signal).next().and_then(|r| r.team_period)?;
+        phase_wander(signals(signal), &touring, period)
     };
     let periodic = !touring.is_empty()
         && ["y", "sin_theta"].into_iter().any(|signal| {
             of(signal)
                 .filter(|r| touring.contains(&r.agent))
-                .all(shares_rhythm)
+                .all(on_the_team_period)
+                && wander(signal).is_some_and(|w| w <= PHASE_WANDER)
         });
     let describe = |signal: &'static str, name: &str| -> String {
         let Some(period) = of(signal).next().and_then(|r| r.team_period) else {
@@ -449,8 +493,10 @@ fn summary(
         let fit: Vec<String> = of(signal)
             .map(|r| r.harmonic.map_or("-".into(), |h| number(h.r_squared)))
             .collect();
+        let wander = wander(signal).map_or("-".into(), number);
         format!(
-            "{name} period {} steps, phases to agent 0 [{}] degrees (R^2 [{}])",
+            "{name} period {} steps, phases to agent 0 [{}] degrees (R^2 [{}]), touring \
+             agents' phase differences wander {wander} degrees over {PHASE_WINDOWS} windows",
             number(period),
             phases.join(", "),
             fit.join(", ")
@@ -497,6 +543,34 @@ mod tests {
             None,
             "too short for two cycles"
         );
+    }
+
+    /// A sawtooth of `period` steps shifted by `shift` steps, its period drifting by `drift`
+    /// steps over the episode.
+    fn sawtooth(period: f64, shift: f64, drift: f64, steps: usize) -> Vec<f64> {
+        (0..steps)
+            .map(|t| {
+                let local = period + drift * t as f64 / steps as f64;
+                ((t as f64 + shift) / local).fract()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_drifting_sawtooth_keeps_its_phase_difference_and_another_period_does_not() {
+        let pair = vec![
+            sawtooth(43.5, 0.0, 0.5, 2000),
+            sawtooth(43.5, 11.0, 0.5, 2000),
+        ];
+        let period = dominant_period(&pair[0]).unwrap();
+        let steady = phase_wander(&pair, &[0, 1], period).unwrap();
+        assert!(steady < 10.0, "{steady}");
+        let apart = vec![
+            sawtooth(43.5, 0.0, 0.0, 2000),
+            sawtooth(47.0, 0.0, 0.0, 2000),
+        ];
+        let wander = phase_wander(&apart, &[0, 1], period).unwrap();
+        assert!(wander > PHASE_WANDER, "{wander}");
     }
 
     #[test]

@@ -153,9 +153,9 @@ fn behaviour(
         && expected.touring.is_none_or(|m| m == found.touring)
         && expected.periodic.is_none_or(|p| p == found.periodic);
     let periodic = if found.periodic {
-        "a common period"
+        "a common period with steady phase differences"
     } else {
-        "no common period"
+        "no common period with steady phase differences"
     };
     let verdict = if holds {
         Verdict::Supported

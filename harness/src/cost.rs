@@ -1,6 +1,6 @@
 //! What a cell or a sweep is expected to cost, for `harness check`, progress bars, shard
-//! balancing and Slurm time limits. An estimate, never part of a result: kept apart from
-//! `cell.rs`, whose source is part of every cell's key, so that recalibrating it moves no key.
+//! balancing and Slurm time limits. An estimate, never part of a result: recalibrating it moves
+//! no bit, so no key (`results_fingerprint`).
 
 use crate::cell::CellConfig;
 

@@ -17,6 +17,7 @@ use polars::prelude::DataFrame;
 use crate::scenario::Scenario;
 use crate::store::{CellRecord, Store, StoreError, tables};
 use crate::sweep::{SweepError, SweepOptions, run_sweep};
+use crate::training_log::TIMING_COLUMNS;
 
 /// The scenario whose results are fingerprinted.
 pub const SCENARIO: &str = include_str!("../fingerprint/scenario.yaml");
@@ -25,15 +26,6 @@ pub const SCENARIO: &str = include_str!("../fingerprint/scenario.yaml");
 pub fn pinned() -> &'static str {
     include_str!("../fingerprint/pinned.txt").trim()
 }
-
-/// Columns whose values are not results: the key (it contains the fingerprint) and times.
-const NOT_RESULTS: [&str; 5] = [
-    "cell_key",
-    "steps_per_second",
-    "rollout_seconds",
-    "update_seconds",
-    "wall_seconds",
-];
 
 #[derive(Debug, thiserror::Error)]
 pub enum FingerprintError {
@@ -91,7 +83,9 @@ pub fn store_fingerprint(store: &Store, records: &[CellRecord]) -> Result<String
 fn result_content(name: &str, bytes: Vec<u8>) -> Result<Vec<u8>, StoreError> {
     if name.ends_with(".parquet") {
         let frame: DataFrame = tables::read_parquet(bytes)?;
-        return tables::csv_bytes(&frame.drop_many(NOT_RESULTS));
+        // The key contains the fingerprint; the training log's times differ run to run.
+        let not_results = std::iter::once("cell_key").chain(TIMING_COLUMNS);
+        return tables::csv_bytes(&frame.drop_many(not_results));
     }
     if name == policies::checkpoint::METADATA_FILE {
         let mut metadata: serde_json::Value = serde_json::from_slice(&bytes).unwrap_or_default();

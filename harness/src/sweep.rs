@@ -63,15 +63,15 @@ pub fn run_sweep(
         Some(shard) => shard.select(&cells),
         None => cells.iter().collect(),
     };
-    let from_cache = match &options.cache {
-        Some(cache) => exchange_with_cache(store, cache, &selected)?,
-        None => 0,
-    };
-    let todo: Vec<&Cell> = selected
+    let mut todo: Vec<&Cell> = selected
         .iter()
         .copied()
         .filter(|c| store.finished(&c.key).is_none())
         .collect();
+    let from_cache = match &options.cache {
+        Some(cache) => exchange_with_cache(store, cache, &selected, &mut todo)?,
+        None => 0,
+    };
     let failed = run_cells(scenario, store, options.cache.as_ref(), &todo, options.jobs)?;
 
     let selected_keys: Vec<String> = selected.iter().map(|c| c.key.clone()).collect();
@@ -113,19 +113,33 @@ pub fn prepare(
     store.prepare(&manifest, scenario_text, &maps)
 }
 
-/// Copies `cells` found in `cache` into `store`, and those `store` has finished into `cache`
-/// (cells an earlier, interrupted run finished); returns how many came from the cache.
-fn exchange_with_cache(store: &Store, cache: &Store, cells: &[&Cell]) -> Result<usize, StoreError> {
+/// Copies into `cache` the `selected` cells `store` has finished (an earlier, interrupted run's
+/// too), and into `store` the cells of `todo` that `cache` holds, taking them off `todo`;
+/// returns how many came from the cache.
+fn exchange_with_cache(
+    store: &Store,
+    cache: &Store,
+    selected: &[&Cell],
+    todo: &mut Vec<&Cell>,
+) -> Result<usize, StoreError> {
     cache.prepare_cache()?;
-    let mut copied = 0;
-    for cell in cells {
-        if cache.finished(&cell.key).is_some() {
-            copied += usize::from(store.import_cell(cache, &cell.key)?);
-        } else if store.finished(&cell.key).is_some() {
+    for cell in selected {
+        if !todo.iter().any(|t| t.index == cell.index) {
             cache.import_cell(store, &cell.key)?;
         }
     }
-    Ok(copied)
+    let mut from_cache = 0;
+    let mut still_todo = Vec::with_capacity(todo.len());
+    for &cell in todo.iter() {
+        if cache.finished(&cell.key).is_some() {
+            store.import_cell(cache, &cell.key)?;
+            from_cache += 1;
+        } else {
+            still_todo.push(cell);
+        }
+    }
+    *todo = still_todo;
+    Ok(from_cache)
 }
 
 /// Runs `todo`, `jobs` cells at a time, copying each finished cell into `cache`; returns the

@@ -42,7 +42,7 @@ pub fn to_frame(records: &[EpisodeRecord]) -> PolarsResult<DataFrame> {
 }
 
 /// Columns that measure time, which differ between two runs of the same training.
-const TIMING_COLUMNS: [&str; 4] = [
+pub const TIMING_COLUMNS: [&str; 4] = [
     "steps_per_second",
     "rollout_seconds",
     "update_seconds",

@@ -113,7 +113,7 @@ struct Rhythm {
 fn rhythms(motions: &[Motion]) -> Vec<Rhythm> {
     let mut rows = Vec::new();
     for (index, motion) in motions.iter().enumerate() {
-        for (signal, values) in [("y", &motion.y), ("sin_theta", &motion.sin_theta)] {
+        for (signal, values) in motion.signals() {
             let periods: Vec<Option<f64>> = values.iter().map(|v| dominant_period(v)).collect();
             let team_period = median(periods.iter().flatten().copied().collect());
             let harmonics: Vec<Option<Harmonic>> = values
@@ -467,20 +467,19 @@ fn summary(
         (Some(own), Some(team)) => (own - team).abs() <= PERIOD_TOLERANCE * team,
         _ => false,
     };
-    let signals = |signal: &str| match signal {
-        "y" => &motion.y,
-        _ => &motion.sin_theta,
-    };
-    let wander = |signal: &'static str| {
-        let period = of(signal).next().and_then(|r| r.team_period)?;
-        phase_wander(signals(signal), &touring, period)
-    };
+    // Each signal's phase wander, fitted once for the verdict and the sentence alike.
+    let wanders = motion.signals().map(|(signal, values)| {
+        let period = of(signal).next().and_then(|r| r.team_period);
+        let wander = period.and_then(|p| phase_wander(values, &touring, p));
+        (signal, wander)
+    });
+    let wander = |signal: &str| wanders.iter().find(|(s, _)| *s == signal).and_then(|w| w.1);
     let periodic = !touring.is_empty()
-        && ["y", "sin_theta"].into_iter().any(|signal| {
+        && wanders.iter().any(|&(signal, wander)| {
             of(signal)
                 .filter(|r| touring.contains(&r.agent))
                 .all(on_the_team_period)
-                && wander(signal).is_some_and(|w| w <= PHASE_WANDER)
+                && wander.is_some_and(|w| w <= PHASE_WANDER)
         });
     let describe = |signal: &'static str, name: &str| -> String {
         let Some(period) = of(signal).next().and_then(|r| r.team_period) else {

@@ -47,6 +47,13 @@ pub struct Motion {
     pub penalty: Vec<f64>,
 }
 
+impl Motion {
+    /// The signals whose rhythm the paper reads, by name: y(t) and sin(theta(t)).
+    pub fn signals(&self) -> [(&'static str, &Vec<Vec<f64>>); 2] {
+        [("y", &self.y), ("sin_theta", &self.sin_theta)]
+    }
+}
+
 /// The recorded episodes' motions, and the store's maps they were played on.
 pub fn load(
     trajectories: &DataFrame,

@@ -40,7 +40,7 @@ pub fn section(
         let rmax = store_rmax(store, &keys[row])?;
         let stem = file_stem(&["illustration", &names[row]]);
         let caption = format!(
-            "`{}` with {} agents at the end of a test episode: mini-map, penalty map (blue 0 to red -Rmax, obstacles dark, agents circled) and agent 0's local map",
+            "`{}` with {} agents at the end of a test episode: mini-map, penalty map (colour scale on the right: blue 0 to red -Rmax; obstacles dark, agents circled) and agent 0's local map",
             names[row], n_tests[row]
         );
         report.figure(
@@ -137,6 +137,7 @@ fn figure(frame: &DataFrame, width: usize, height: usize, rmax: f64) -> PolarsRe
             full,
             panel(layer::LOCAL, "local map (agent 0)"),
         ],
+        penalty_scale: Some(rmax),
     })
 }
 

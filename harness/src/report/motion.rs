@@ -217,6 +217,7 @@ fn trails(motion: &Motion, map: &Map) -> GridFigure {
                 .filter_map(|a| Some((centre(*motion.x[a].last()?), centre(*motion.y[a].last()?))))
                 .collect(),
         }],
+        penalty_scale: None,
     }
 }
 

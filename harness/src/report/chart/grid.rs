@@ -31,15 +31,33 @@ pub struct GridPanel {
 
 pub struct GridFigure {
     pub panels: Vec<GridPanel>,
+    /// Rmax, where the panels shade penalties: a colour bar from 0 to -Rmax is drawn beside
+    /// them, so a reader can tell a cell's penalty from its colour.
+    pub penalty_scale: Option<f64>,
 }
+
+/// Width of the colour bar's column in pixels.
+const SCALE_WIDTH: u32 = 110;
 
 impl Figure for GridFigure {
     fn size(&self) -> (u32, u32) {
-        (520 * self.panels.len().max(1) as u32, 560)
+        let scale = self.penalty_scale.map_or(0, |_| SCALE_WIDTH);
+        (520 * self.panels.len().max(1) as u32 + scale, 560)
     }
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), ChartError> {
-        let areas = root.split_evenly((1, self.panels.len().max(1)));
+        let (width, _) = root.dim_in_pixel();
+        let (maps, scale) = match self.penalty_scale {
+            Some(rmax) => {
+                let (maps, bar) = root.split_horizontally(width.saturating_sub(SCALE_WIDTH));
+                (maps, Some((bar, rmax)))
+            }
+            None => (root.clone(), None),
+        };
+        if let Some((bar, rmax)) = scale {
+            draw_scale(&bar, rmax)?;
+        }
+        let areas = maps.split_evenly((1, self.panels.len().max(1)));
         for (panel, area) in self.panels.iter().zip(&areas) {
             draw_panel(panel, area)?;
         }
@@ -99,6 +117,37 @@ fn draw_panel<DB: DrawingBackend>(
     if !panel.trails.is_empty() {
         draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 12)?;
     }
+    Ok(())
+}
+
+/// A vertical bar of penalty colours, 0 at the top and -Rmax at the bottom, ticked in
+/// penalty units.
+fn draw_scale<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    rmax: f64,
+) -> Result<(), ChartError> {
+    const STRIPS: usize = 100;
+    let mut chart = ChartBuilder::on(area)
+        .caption("penalty", (FONT, 16))
+        .margin_top(40)
+        .margin_bottom(42)
+        .margin_left(20)
+        .margin_right(10)
+        .right_y_label_area_size(50)
+        .build_cartesian_2d(0.0..1.0, -rmax..0.0)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_label_formatter(&tick_label)
+        .label_style((FONT, 13))
+        .draw()?;
+    let strip = rmax / STRIPS as f64;
+    chart.draw_series((0..STRIPS).map(|i| {
+        let top = -(i as f64) * strip;
+        let colour = penalty_colour((i as f64 + 0.5) / STRIPS as f64);
+        Rectangle::new([(0.0, top - strip), (1.0, top)], colour.filled())
+    }))?;
     Ok(())
 }
 

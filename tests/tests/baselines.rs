@@ -4,8 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use harness::baseline_sweep::Sweep;
-use harness::runner::run_episode;
+use engine::runner::run_episode;
 use policies::tspc::Tspc;
 use policies::{Baseline, Policy};
 use world::paths::move_between;
@@ -136,31 +135,6 @@ fn gcs_as_released_on_open_with_four_agents_and_the_paper_ordering() {
         "gcs {gcs:?} random {random:?}"
     );
     assert!(mean(&tspc) < mean(&gcs), "tspc {tspc:?} gcs {gcs:?}");
-}
-
-#[test]
-fn sweeps_do_not_depend_on_the_thread_count() {
-    let sweep = Sweep {
-        worlds: vec![shipped_world("two_room")],
-        agents: vec![2, 5],
-        baselines: Baseline::ALL.to_vec(),
-        episodes: 2,
-        steps: 150,
-        seed: Seed::new(11),
-    };
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        let results = pool.install(|| sweep.run()).unwrap();
-        let penalties: Vec<Vec<u64>> = results
-            .iter()
-            .map(|r| r.penalties.iter().map(|p| p.to_bits()).collect())
-            .collect();
-        (penalties, sweep.markdown(&results))
-    };
-    assert_eq!(run(1), run(3));
 }
 
 #[test]

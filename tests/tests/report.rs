@@ -377,7 +377,7 @@ fn a_recording_of_a_stored_episode_reads_back() {
     let out = dir.join("episode.rrd");
     let printed = record(&store, &key, &out);
     assert!(printed.contains("episode.rrd"), "{printed}");
-    let contents = harness::recording::read_recording(&out).unwrap();
+    let contents = record::read_recording(&out).unwrap();
     for entity in [
         "/map/penalty",
         "/map/agents",
@@ -401,7 +401,7 @@ fn a_recording_of_a_stored_episode_reads_back() {
     let learned = first_cell_of(&cells, "ma-g-ppo@fast");
     let attended = dir.join("attention.rrd");
     record(&store, &learned, &attended);
-    let contents = harness::recording::read_recording(&attended).unwrap();
+    let contents = record::read_recording(&attended).unwrap();
     // Three agents, each attending to the two others.
     let mut expected: Vec<String> = vec!["/map/attention".to_owned()];
     for (agent, neighbour) in [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)] {

@@ -435,7 +435,7 @@ fn bad_scenarios_give_clear_errors_and_leave_the_output_alone() {
 /// The keys of a committed scenario's cells, learned cells only when `learned`.
 fn scenario_keys(file: &str, learned: bool) -> std::collections::BTreeSet<String> {
     let path = PathBuf::from(common::repo_file(file));
-    let scenario = harness::scenario::Scenario::load(&path)
+    let scenario = engine::scenario::Scenario::load(&path)
         .unwrap_or_else(|e| panic!("{file} does not load: {e}"));
     scenario
         .cells()
@@ -472,4 +472,64 @@ fn every_committed_scenario_loads_and_the_rq_scenarios_share_their_common_cells(
     // RQ2's both-channel cells (N = 4, 3 seeds); RQ3's open cells (N = 2, 4, seed 0).
     assert_eq!(shared("scenarios/rq2.yaml", "scenarios/rq1.yaml"), 3);
     assert_eq!(shared("scenarios/rq3.yaml", "scenarios/rq1.yaml"), 2);
+}
+
+/// The number before `word` in a sweep's summary line (`3 computed`).
+fn count_before(summary: &str, word: &str) -> usize {
+    let at = summary
+        .find(&format!(" {word}"))
+        .unwrap_or_else(|| panic!("no {word:?} in {summary}"));
+    let digits = summary[..at]
+        .rsplit(|c: char| !c.is_ascii_digit())
+        .next()
+        .unwrap();
+    digits.parse().unwrap()
+}
+
+#[test]
+fn two_sweeps_into_one_folder_never_compute_a_cell_twice() {
+    let dir = scratch("two-at-once");
+    let out = dir.join("store");
+    let tiny = common::repo_file("tests/tests/tiny.yaml");
+    let start = || {
+        Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
+            .args(["sweep", &tiny, "--out", out.to_str().unwrap()])
+            .args(["--jobs", "1", "--no-report"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let (first, second) = (start(), start());
+    let summaries: Vec<String> = [first, second]
+        .into_iter()
+        .map(|child| succeed(child.wait_with_output().unwrap()))
+        .collect();
+    let cells = finished_cells(&out);
+    assert_eq!(cells, 8, "{summaries:?}");
+    let computed: usize = summaries.iter().map(|s| count_before(s, "computed")).sum();
+    assert_eq!(computed, cells, "a cell was computed twice: {summaries:?}");
+    let leftover = std::fs::read_dir(out.join("cells"))
+        .unwrap()
+        .flatten()
+        .filter(|cell| cell.path().join("running.json").exists())
+        .count();
+    assert_eq!(leftover, 0, "a lease outlived its sweep");
+    let audit = succeed(harness(&["audit", out.to_str().unwrap()]));
+    assert!(audit.contains("audit passed:"), "{audit}");
+}
+
+/// The smoke sweep's result tables are the bytes pinned in `smoke/tables.blake3`: a change
+/// that should move no number (a refactor, a crate split) moves none here. Results that change
+/// on purpose re-pin this file with the results fingerprint.
+#[test]
+fn the_smoke_tables_are_the_pinned_bytes() {
+    let pinned = std::fs::read_to_string(common::repo_file("tests/tests/smoke/tables.blake3"))
+        .unwrap_or_default();
+    let computed = smoke::table_hashes(reference_run());
+    assert!(
+        computed == pinned,
+        "the smoke sweep's tables changed; if on purpose, write into \
+         tests/tests/smoke/tables.blake3:\n{computed}"
+    );
 }

@@ -3,9 +3,9 @@
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 
-use crate::audit::{AuditLine, TrainingAuditLine, audit, audit_training};
-use crate::provenance;
-use crate::store::Store;
+use engine::audit::{AuditLine, TrainingAuditLine, audit, audit_training};
+use engine::provenance;
+use engine::store::Store;
 
 #[derive(clap::Args)]
 pub struct AuditArgs {

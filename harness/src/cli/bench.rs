@@ -5,11 +5,11 @@ use std::time::Duration;
 
 use anyhow::Context;
 
-use crate::nn_bench::{ModelMeasurement, NetworkBench, Peak, ROLLOUT_STEPS, UPDATE_PASSES};
-use crate::policy_bench;
-use crate::scale_bench::{self, ScaleSetup};
-use crate::training_bench;
-use crate::world_bench::{PYTHON_STEPS_PER_SECOND, measure};
+use bench::network::{ModelMeasurement, NetworkBench, Peak, ROLLOUT_STEPS, UPDATE_PASSES};
+use bench::policy;
+use bench::scale::{self, ScaleSetup};
+use bench::training;
+use bench::world_steps::{PYTHON_STEPS_PER_SECOND, measure};
 use policies::ppo::ArchitectureName;
 use world::World;
 
@@ -133,7 +133,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
 }
 
 fn print_decision_times(world: &Arc<World>, agents: usize, budget: Duration) -> anyhow::Result<()> {
-    let (step, decisions) = policy_bench::measure(world, agents, budget)?;
+    let (step, decisions) = policy::measure(world, agents, budget)?;
     println!(
         "decision time per step, map {}, {agents} agents; one world step takes {:.2} us",
         world.map().name(),
@@ -176,8 +176,8 @@ fn run_training(args: &TrainingArgs) -> anyhow::Result<()> {
         );
         let mut smallest = None;
         for &agents in &args.agents {
-            let config = training_bench::fast_config(architecture, agents);
-            let t = training_bench::measure(&world, config, args.rounds)?;
+            let config = training::fast_config(architecture, agents);
+            let t = training::measure(&world, config, args.rounds)?;
             let per_step = t.cpu_seconds_per_agent_step();
             let first = *smallest.get_or_insert(per_step);
             println!(
@@ -228,7 +228,7 @@ fn run_scale(args: &ScaleArgs) -> anyhow::Result<()> {
     let mut first = None;
     for (world, (_, agents)) in worlds.iter().zip(&runs) {
         for &n in agents {
-            let row = scale_bench::measure(world, n, setup)?;
+            let row = scale::measure(world, n, setup)?;
             let per_step = row.throughput.cpu_seconds_per_agent_step();
             let base = *first.get_or_insert(per_step);
             println!(

@@ -2,9 +2,9 @@
 
 use std::path::PathBuf;
 
-use crate::cost::Cost;
-use crate::scenario::Scenario;
-use crate::store::Store;
+use engine::cost::Cost;
+use engine::scenario::Scenario;
+use engine::store::Store;
 
 #[derive(clap::Args)]
 pub struct CheckArgs {

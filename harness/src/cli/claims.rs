@@ -2,9 +2,9 @@
 
 use std::path::PathBuf;
 
-use crate::report::{StoreTables, markdown, store_claims, verdicts};
-use crate::scenario::Scenario;
-use crate::store::Store;
+use engine::scenario::Scenario;
+use engine::store::Store;
+use report::{StoreTables, markdown, store_claims, verdicts};
 
 #[derive(clap::Args)]
 pub struct ClaimsArgs {

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use polars::prelude::*;
 
-use crate::training_log;
+use engine::training_log;
 
 #[derive(clap::Args)]
 pub struct CurveArgs {

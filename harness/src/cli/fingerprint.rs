@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use crate::results_fingerprint::{compute, pinned};
+use engine::results_fingerprint::{compute, pinned};
 
 #[derive(clap::Args)]
 pub struct FingerprintArgs {
@@ -27,7 +27,7 @@ pub fn run(args: FingerprintArgs) -> anyhow::Result<()> {
     anyhow::ensure!(
         computed == pinned(),
         "this code gives other results than the pinned fingerprint. If that is intended, write \
-         {computed} into harness/fingerprint/pinned.txt: every cached cell is then keyed anew \
+         {computed} into engine/fingerprint/pinned.txt: every cached cell is then keyed anew \
          (and recomputed)"
     );
     println!("the code gives the pinned results: cached cells keep their keys");

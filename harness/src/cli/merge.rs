@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use crate::merge::merge;
-use crate::store::Store;
+use engine::merge::merge;
+use engine::store::Store;
 
 #[derive(clap::Args)]
 pub struct MergeArgs {

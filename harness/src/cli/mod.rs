@@ -1,7 +1,6 @@
 //! Command-line parsing; each subcommand lives in its own module.
 
 mod audit;
-mod baselines;
 mod bench;
 mod check;
 mod claims;
@@ -40,8 +39,6 @@ enum Command {
     Curve(curve::CurveArgs),
     /// Measure speed against in-process baselines and print the ratios.
     Bench(bench::BenchArgs),
-    /// Summarise every baseline's cumulative penalty over maps and agent counts (Markdown).
-    Baselines(baselines::BaselinesArgs),
     /// Run a scenario's sweep into a results store (finished cells are never recomputed).
     Sweep(sweep::SweepArgs),
     /// Validate a scenario and print its cells and their cost.
@@ -97,7 +94,6 @@ impl Command {
             Command::Train(args) => train::run(args),
             Command::Curve(args) => curve::run(args),
             Command::Bench(args) => bench::run(args),
-            Command::Baselines(args) => baselines::run(args),
             Command::Sweep(args) => sweep::run(args),
             Command::Check(args) => check::run(args),
             Command::Merge(args) => merge::run(args),

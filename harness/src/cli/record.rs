@@ -1,11 +1,11 @@
 //! `harness record DIR --cell KEY`: a rerun recording (`.rrd`) of a stored test episode.
+//!
+//! Recordings need the `record` feature. Without it the commands stay (so `--help` shows
+//! them) and fail before any work, saying how to build them.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::Context;
-
-use crate::recording::{EpisodeChoice, record_episode};
-use crate::store::Store;
+use engine::store::Store;
 
 #[derive(clap::Args)]
 pub struct RecordArgs {
@@ -25,7 +25,38 @@ pub struct RecordArgs {
     out: Option<PathBuf>,
 }
 
+/// Fails in a build without recordings, before a sweep spends hours to fail at the end.
+pub fn ensure_built() -> anyhow::Result<()> {
+    anyhow::ensure!(
+        cfg!(feature = "record"),
+        "this harness was built without rerun recordings; build it with \
+         `cargo build --release -p harness --features record` (rerun is off by default: it is \
+         the largest build of the workspace)"
+    );
+    Ok(())
+}
+
+/// Recordings of the first test episode of each cell in `keys`; how many were written.
+#[cfg(feature = "record")]
+pub fn cells(store: &Store, keys: &[String], folder: &Path) -> anyhow::Result<usize> {
+    Ok(record::record_cells(store, keys, folder)?)
+}
+
+#[cfg(not(feature = "record"))]
+pub fn cells(_store: &Store, _keys: &[String], _folder: &Path) -> anyhow::Result<usize> {
+    ensure_built().map(|()| 0)
+}
+
+#[cfg(not(feature = "record"))]
+pub fn run(_args: RecordArgs) -> anyhow::Result<()> {
+    ensure_built()
+}
+
+#[cfg(feature = "record")]
 pub fn run(args: RecordArgs) -> anyhow::Result<()> {
+    use anyhow::Context;
+    use record::{EpisodeChoice, record_episode};
+
     let store = Store::new(&args.store);
     let n_test = match args.n_test {
         Some(n) => n,

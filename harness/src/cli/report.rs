@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use crate::report::write_report;
-use crate::store::Store;
+use engine::store::Store;
+use report::write_report;
 
 #[derive(clap::Args)]
 pub struct ReportArgs {

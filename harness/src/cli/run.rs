@@ -3,13 +3,13 @@
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 
-use crate::atomic_file::write_atomic;
-use crate::checkpoint_dir;
-use crate::probe::ProbingPolicy;
-use crate::replay::{ReplayPolicy, parse_actions, parse_starts};
-use crate::runner::run_episode;
-use crate::trace::Trace;
 use anyhow::Context;
+use engine::atomic_file::write_atomic;
+use engine::checkpoint_dir;
+use engine::probe::ProbingPolicy;
+use engine::replay::{ReplayPolicy, parse_actions, parse_starts};
+use engine::runner::run_episode;
+use engine::trace::Trace;
 use policies::{ActionChoice, Baseline, Policy};
 use world::Seed;
 

@@ -6,12 +6,12 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use super::check::duration;
-use crate::cost::work_seconds;
-use crate::scenario::Scenario;
-use crate::shard::{slices, weight};
-use crate::slurm::{ArrayJob, SbatchOptions, submit};
-use crate::store::Store;
-use crate::sweep::prepare;
+use engine::cost::work_seconds;
+use engine::scenario::Scenario;
+use engine::shard::{slices, weight};
+use engine::slurm::{ArrayJob, SbatchOptions, submit};
+use engine::store::Store;
+use engine::sweep::prepare;
 
 #[derive(clap::Args)]
 pub struct SlurmArgs {

@@ -3,8 +3,8 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use crate::status::{CellState, SweepStatus, sweep_status};
-use crate::store::LeaseHolder;
+use engine::status::{CellState, SweepStatus, sweep_status};
+use engine::store::LeaseHolder;
 
 #[derive(clap::Args)]
 pub struct StatusArgs {

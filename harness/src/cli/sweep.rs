@@ -4,12 +4,11 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::recording::record_cells;
-use crate::report::write_report;
-use crate::scenario::Scenario;
-use crate::shard::Shard;
-use crate::store::Store;
-use crate::sweep::{SweepOptions, run_sweep};
+use engine::scenario::Scenario;
+use engine::shard::Shard;
+use engine::store::Store;
+use engine::sweep::{SweepOptions, run_sweep};
+use report::write_report;
 
 #[derive(clap::Args)]
 pub struct SweepArgs {
@@ -44,6 +43,9 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(&args.scenario)
         .with_context(|| format!("{}: cannot read", args.scenario.display()))?;
     let scenario = Scenario::parse(&text, &args.scenario)?;
+    if args.record {
+        super::record::ensure_built()?;
+    }
     let out = args
         .out
         .unwrap_or_else(|| PathBuf::from("results").join(&scenario.name));
@@ -71,6 +73,13 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         report.tabled,
         out.display()
     );
+    if report.elsewhere > 0 {
+        println!(
+            "{} cells were left to another sweep into {} (it held them or had finished them)",
+            report.elsewhere,
+            out.display()
+        );
+    }
     for (key, error) in &report.failed {
         eprintln!("cell {key} failed: {error}");
     }
@@ -82,7 +91,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
     if args.record {
         let folder = out.join("recordings");
         let keys: Vec<String> = scenario.cells().into_iter().map(|c| c.key).collect();
-        let written = record_cells(&Store::new(&out), &keys, &folder)?;
+        let written = super::record::cells(&Store::new(&out), &keys, &folder)?;
         println!("recordings: {written} written in {}", folder.display());
     }
     if !args.no_report && args.shard.is_none() {

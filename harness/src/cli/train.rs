@@ -10,8 +10,8 @@ use policies::{ActionChoice, LearnedPolicy, RandomPolicy};
 use world::Seed;
 
 use super::WorldArgs;
-use crate::runner::mean_penalty;
-use crate::training_run::TrainingRun;
+use engine::runner::mean_penalty;
+use engine::training_run::TrainingRun;
 
 #[derive(clap::Args)]
 pub struct TrainArgs {

@@ -2,6 +2,9 @@
 //! reference that sharded, interrupted or cluster runs must equal, and the comparison of two
 //! stores' tables.
 
+// Each test crate includes this module and uses a part of it.
+#![allow(dead_code)]
+
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -52,7 +55,7 @@ pub fn assert_same_tables(a: &Path, b: &Path) {
         assert!(x.as_ref().unwrap() == y.as_ref().unwrap(), "{file} differs");
     }
     let training = |store| {
-        let columns = harness::training_log::reproducible_columns();
+        let columns = engine::training_log::reproducible_columns();
         read_table(store, "training").select(columns).unwrap()
     };
     let (x, y) = (training(a), training(b));
@@ -67,6 +70,28 @@ pub fn assert_same_tables(a: &Path, b: &Path) {
     ];
     let cells = |store| read_table(store, "cells").drop_many(provenance);
     assert_eq!(cells(a), cells(b));
+}
+
+/// blake3 of each result table of a store, one `HASH  NAME` line per table: the tables
+/// whole, the training log in its reproducible columns (as CSV).
+pub fn table_hashes(store: &Path) -> String {
+    let mut lines = String::new();
+    for name in ["episodes", "summary", "snapshots", "trajectories"] {
+        for extension in ["parquet", "csv"] {
+            let file = format!("{name}.{extension}");
+            let bytes = std::fs::read(store.join(&file)).unwrap();
+            lines += &format!("{}  {file}\n", blake3::hash(&bytes).to_hex());
+        }
+    }
+    let columns = engine::training_log::reproducible_columns();
+    let mut training = read_table(store, "training").select(columns).unwrap();
+    let mut csv = Vec::new();
+    CsvWriter::new(&mut csv).finish(&mut training).unwrap();
+    lines += &format!(
+        "{}  training (reproducible columns)\n",
+        blake3::hash(&csv).to_hex()
+    );
+    lines
 }
 
 /// One uninterrupted, unsharded smoke sweep, shared by the tests that compare against it.

@@ -22,9 +22,9 @@ use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
 
-use crate::atomic_file::write_atomic;
-use crate::store::{Store, StoreError, tables};
 use chart::{ChartError, Figure, render};
+use engine::atomic_file::write_atomic;
+use engine::store::{Store, StoreError, tables};
 use world::Map;
 
 /// Penalties are reported in millions, as in the paper.
@@ -39,7 +39,7 @@ pub enum ReportError {
     #[error(transparent)]
     Chart(#[from] ChartError),
     #[error(transparent)]
-    Stats(#[from] crate::stats::StatsError),
+    Stats(#[from] engine::stats::StatsError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -48,7 +48,7 @@ pub enum ReportError {
     #[error("{0} holds no sweep (no sweep.json)")]
     NoSweep(PathBuf),
     #[error(transparent)]
-    Claims(#[from] crate::scenario::ScenarioError),
+    Claims(#[from] engine::scenario::ScenarioError),
 }
 
 /// What a report wrote.
@@ -141,9 +141,9 @@ fn provenance(cells: &DataFrame) -> PolarsResult<String> {
 }
 
 /// The claims of the scenario as the sweep ran it (its copy in the store).
-pub fn store_claims(store: &Store) -> Result<Vec<crate::claims::Claim>, ReportError> {
+pub fn store_claims(store: &Store) -> Result<Vec<engine::claims::Claim>, ReportError> {
     let text = store.scenario_text()?;
-    Ok(crate::claims::claims_of_text(
+    Ok(engine::claims::claims_of_text(
         &text,
         &store.scenario_path(),
     )?)
@@ -173,7 +173,7 @@ impl StoreTables {
     /// The verdict of every claim.
     pub fn verdicts(
         &self,
-        claims: &[crate::claims::Claim],
+        claims: &[engine::claims::Claim],
     ) -> Result<Vec<verdicts::ClaimResult>, ReportError> {
         let behaviours = self.motions.as_ref().map(|(_, m)| behaviour::summaries(m));
         let recorded = verdicts::Recorded {

@@ -12,7 +12,7 @@ use super::chart::grid::{GridFigure, GridPanel, Shade};
 use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{GroupKey, f64s, group_rows, strings, u32s};
 use super::{ReportError, ReportWriter, file_stem};
-use crate::store::{Store, StoreError};
+use engine::store::{Store, StoreError};
 
 /// The maps of a store by name, from its `cells` table and map files.
 pub fn maps(store: &Store) -> Result<HashMap<String, Map>, ReportError> {

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use policies::ppo::{ArchitectureName, NeighbourRule, TrainError};
 use world::{ImageGeometry, World};
 
-use crate::training_bench::{self, Throughput};
+use crate::training::{self, Throughput};
 
 /// What every measured configuration shares.
 #[derive(Debug, Clone, Copy)]
@@ -38,12 +38,12 @@ pub fn measure(
     agents: usize,
     setup: ScaleSetup,
 ) -> Result<ScaleRow, TrainError> {
-    let mut config = training_bench::fast_config(ArchitectureName::MaGPpo, agents);
+    let mut config = training::fast_config(ArchitectureName::MaGPpo, agents);
     config.steps_per_episode = setup.steps_per_episode;
     config.neighbours = NeighbourRule::WithinRadius(setup.radius);
     let map = world.map();
     let geometry = ImageGeometry::new(map, world.params().fov(), config.mini_map_block);
-    let throughput = training_bench::measure(world, config, setup.rounds)?;
+    let throughput = training::measure(world, config, setup.rounds)?;
     Ok(ScaleRow {
         map: map.name().to_owned(),
         width: map.width(),

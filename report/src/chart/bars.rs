@@ -84,7 +84,8 @@ impl Figure for GroupedBars {
                 )
             }))?;
         }
-        draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 14)?;
+        // Penalties fall as teams grow, so the bars are lowest at the right.
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
         Ok(())
     }
 }

@@ -51,7 +51,7 @@ pub fn merge(out: &Store, shards: &[Store]) -> Result<MergeReport, MergeError> {
     out.prepare(&merged, &shards[0].scenario_text()?, &[])?;
     let mut copied = 0;
     for key in &merged.cells {
-        if let Some(shard) = shards.iter().find(|s| s.finished(key).is_some()) {
+        if let Some(shard) = shards.iter().find(|s| s.verified_record(key).is_ok()) {
             copied += usize::from(out.import_cell(shard, key)?);
         }
     }

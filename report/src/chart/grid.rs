@@ -5,7 +5,9 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{ChartError, FONT, Figure, draw_legend, series_colour, tick_label};
+use engine::palette;
+
+use super::{ChartError, FONT, Figure, draw_legend, rgb, series_colour, tick_label};
 
 /// What a cell shows.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -86,9 +88,9 @@ fn draw_panel<DB: DrawingBackend>(
     let shaded = panel.cells.iter().enumerate().filter_map(|(i, shade)| {
         let colour = match *shade {
             Shade::Free => return None,
-            Shade::Obstacle => RGBColor(60, 60, 60),
+            Shade::Obstacle => rgb(palette::OBSTACLE),
             Shade::Agent => BLACK,
-            Shade::Penalty(fraction) => penalty_colour(fraction),
+            Shade::Penalty(fraction) => rgb(palette::penalty(fraction)),
         };
         let (x, y) = ((i % panel.width) as f64, (i / panel.width) as f64);
         Some(Rectangle::new(
@@ -145,20 +147,8 @@ fn draw_scale<DB: DrawingBackend>(
     let strip = rmax / STRIPS as f64;
     chart.draw_series((0..STRIPS).map(|i| {
         let top = -(i as f64) * strip;
-        let colour = penalty_colour((i as f64 + 0.5) / STRIPS as f64);
+        let colour = rgb(palette::penalty((i as f64 + 0.5) / STRIPS as f64));
         Rectangle::new([(0.0, top - strip), (1.0, top)], colour.filled())
     }))?;
     Ok(())
-}
-
-/// Blue for a cell just seen, red for one at -Rmax, straight between (no white, which would
-/// read as free space).
-pub fn penalty_colour(fraction: f64) -> RGBColor {
-    let t = fraction.clamp(0.0, 1.0);
-    let channel = |from: f64, to: f64| (from + (to - from) * t) as u8;
-    RGBColor(
-        channel(40.0, 215.0),
-        channel(90.0, 40.0),
-        channel(215.0, 40.0),
-    )
 }

@@ -150,22 +150,39 @@ impl Store {
         Ok(())
     }
 
-    /// The record of a finished cell whose files all verify; `None` when the cell is absent,
-    /// half-written or damaged (it is then recomputed).
+    /// The record of a finished cell: it names the cell and each of its files is there with
+    /// its recorded size. `None` when the cell is absent or half-written (it is then
+    /// recomputed). Cheap, as sweeps, status and tables ask it of every cell; a file damaged
+    /// in place is found by `verified_record`, which `audit`, `merge` and the cache use.
     pub fn finished(&self, key: &str) -> Option<CellRecord> {
-        self.verified_record(key).ok()
+        let record = self.record(key).ok()?;
+        let folder = self.cell_folder(key);
+        let intact = |name: &String| {
+            let size = std::fs::metadata(folder.join(name)).map(|m| m.len());
+            match record.sizes.get(name) {
+                Some(&recorded) => size.is_ok_and(|s| s == recorded),
+                None => size.is_ok(),
+            }
+        };
+        record.files.keys().all(intact).then_some(record)
     }
 
-    /// The record of cell `key`, with a reason when it is missing or does not verify.
+    /// The record of cell `key`, with a reason when it is missing or a file does not match
+    /// its recorded hash.
     pub fn verified_record(&self, key: &str) -> Result<CellRecord, StoreError> {
-        let folder = self.cell_folder(key);
-        let path = folder.join(RECORD_FILE);
+        let record = self.record(key)?;
+        for name in record.files.keys() {
+            self.cell_file(&record, name)?;
+        }
+        Ok(record)
+    }
+
+    /// Cell `key`'s record as written, unchecked against its files.
+    fn record(&self, key: &str) -> Result<CellRecord, StoreError> {
+        let path = self.cell_folder(key).join(RECORD_FILE);
         let record: CellRecord = read_json(&path)?;
         if record.key != key {
             return Err(StoreError::corrupt(&path, "the record names another cell"));
-        }
-        for name in record.files.keys() {
-            self.cell_file(&record, name)?;
         }
         Ok(record)
     }
@@ -182,6 +199,7 @@ impl Store {
             write(&folder.join(name), bytes)?;
             let hash = blake3::hash(bytes).to_hex().to_string();
             record.files.insert((*name).to_owned(), hash);
+            record.sizes.insert((*name).to_owned(), bytes.len() as u64);
         }
         write(&folder.join(RECORD_FILE), &json_bytes(&record))?;
         Ok(record)
@@ -262,6 +280,7 @@ impl Store {
         self.save_cell(
             CellRecord {
                 files: Default::default(),
+                sizes: Default::default(),
                 ..record.clone()
             },
             &files,

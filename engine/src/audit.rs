@@ -100,7 +100,7 @@ pub fn audit_training(
     let trained: Vec<CellRecord> = manifest
         .cells
         .iter()
-        .filter_map(|key| store.finished(key))
+        .filter_map(|key| store.verified_record(key).ok())
         .filter(|record| record.files.contains_key(TRAINING_FILE))
         .collect();
     let chosen = choose(trained.len(), sample, Seed::new(seed).child(1));

@@ -36,6 +36,9 @@ pub struct SweepReport {
     /// Cells copied from the cache.
     pub from_cache: usize,
     pub computed: usize,
+    /// Cells another sweep into the same folder held the lease of, or finished meanwhile:
+    /// not computed here.
+    pub elsewhere: usize,
     /// Cells that failed, by key, with why.
     pub failed: Vec<(String, CellError)>,
     /// Cells in the tables.
@@ -72,7 +75,8 @@ pub fn run_sweep(
         Some(cache) => exchange_with_cache(store, cache, &selected, &mut todo)?,
         None => 0,
     };
-    let failed = run_cells(scenario, store, options.cache.as_ref(), &todo, options.jobs)?;
+    let CellsRun { failed, elsewhere } =
+        run_cells(scenario, store, options.cache.as_ref(), &todo, options.jobs)?;
 
     let selected_keys: Vec<String> = selected.iter().map(|c| c.key.clone()).collect();
     let tabled = store.build_tables(&selected_keys, &scenario.outputs)?;
@@ -80,7 +84,8 @@ pub fn run_sweep(
         selected: selected.len(),
         already_finished: selected.len() - todo.len() - from_cache,
         from_cache,
-        computed: todo.len() - failed.len(),
+        computed: todo.len() - failed.len() - elsewhere,
+        elsewhere,
         failed,
         tabled: tabled.len(),
     })
@@ -142,8 +147,15 @@ fn exchange_with_cache(
     Ok(from_cache)
 }
 
-/// Runs `todo`, `jobs` cells at a time, copying each finished cell into `cache`; returns the
-/// cells that failed, in `todo`'s order.
+/// What happened to the cells a sweep set out to compute, beside those it computed.
+struct CellsRun {
+    /// By key, with why, in the sweep's order.
+    failed: Vec<(String, CellError)>,
+    /// Left to another process that held their lease or had finished them.
+    elsewhere: usize,
+}
+
+/// Runs `todo`, `jobs` cells at a time, copying each finished cell into `cache`.
 ///
 /// Each cell runs on a worker thread of its own with a rayon pool of its own, never as a task
 /// of a shared pool: a rayon thread that waits inside a cell's parallel product steals other
@@ -155,7 +167,7 @@ fn run_cells(
     cache: Option<&Store>,
     todo: &[&Cell],
     jobs: usize,
-) -> Result<Vec<(String, CellError)>, SweepError> {
+) -> Result<CellsRun, SweepError> {
     let cores = std::thread::available_parallelism().map_or(1, usize::from);
     let threads_per_cell = (cores / jobs).max(1);
     let worlds: Vec<OnceLock<Arc<World>>> = scenario.maps.iter().map(|_| OnceLock::new()).collect();
@@ -164,16 +176,26 @@ fn run_cells(
         .params()
         .expect("checked when the scenario was loaded");
     let progress = Progress::new(todo.iter().map(|c| c.config.cost().env_steps).sum());
+    let elsewhere = AtomicUsize::new(0);
     let run_one = |cell: &Cell| -> Result<(), CellError> {
         let map = &scenario.maps[cell.map_index];
         let world = worlds[cell.map_index].get_or_init(|| World::new(map.map.clone(), params));
-        let bar = progress.start_cell(cell_label(cell), cell.config.cost().env_steps);
         let origin = CellOrigin {
             scenario: &scenario.name,
             map_source: &map.source,
         };
-        // The lease marks the cell as running until it is saved (or fails).
-        let _lease = store.take_lease(&cell.key)?;
+        // The lease marks the cell as running until it is saved (or fails), and keeps
+        // another sweep into this folder off it; that sweep may also have finished it since
+        // this one listed its work.
+        let Some(_lease) = store.take_lease(&cell.key)? else {
+            elsewhere.fetch_add(1, Ordering::Relaxed);
+            return Ok(());
+        };
+        if store.finished(&cell.key).is_some() {
+            elsewhere.fetch_add(1, Ordering::Relaxed);
+            return Ok(());
+        }
+        let bar = progress.start_cell(cell_label(cell), cell.config.cost().env_steps);
         run_cell(store, &origin, world, cell, &|steps| bar.advance(steps))?;
         if let Some(cache) = cache {
             cache.import_cell(store, &cell.key)?;
@@ -211,10 +233,13 @@ fn run_cells(
     progress.finish();
     let mut failed = failed.into_inner().unwrap_or_else(|e| e.into_inner());
     failed.sort_by_key(|(index, _, _)| *index);
-    Ok(failed
-        .into_iter()
-        .map(|(_, key, error)| (key, error))
-        .collect())
+    Ok(CellsRun {
+        failed: failed
+            .into_iter()
+            .map(|(_, key, error)| (key, error))
+            .collect(),
+        elsewhere: elsewhere.into_inner(),
+    })
 }
 
 /// How a cell is named on screen and in messages.

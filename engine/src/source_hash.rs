@@ -13,22 +13,22 @@ use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 
 /// Sources, relative to the workspace root, whose change can change a cell's numbers: the two
-/// numeric crates, and the harness modules that run a cell and write its result files.
+/// numeric crates, and the engine modules that run a cell and write its result files.
 pub const NUMERIC_SOURCES: [&str; 14] = [
     "world/src",
     "world/Cargo.toml",
     "policies/src",
     "policies/Cargo.toml",
-    "harness/src/cell.rs",
-    "harness/src/execution.rs",
-    "harness/src/runner.rs",
-    "harness/src/idleness.rs",
-    "harness/src/training_run.rs",
-    "harness/src/training_log.rs",
-    "harness/src/checkpoint_dir.rs",
-    "harness/src/trajectory.rs",
-    "harness/src/store/tables.rs",
-    "harness/src/source_hash.rs",
+    "engine/src/cell.rs",
+    "engine/src/execution.rs",
+    "engine/src/runner.rs",
+    "engine/src/idleness.rs",
+    "engine/src/training_run.rs",
+    "engine/src/training_log.rs",
+    "engine/src/checkpoint_dir.rs",
+    "engine/src/trajectory.rs",
+    "engine/src/store/tables.rs",
+    "engine/src/source_hash.rs",
 ];
 
 /// The lock file, of which only the crates the numeric crates depend on count.
@@ -168,10 +168,10 @@ mod tests {
 
     /// Sources that do not count, copied beside those that do.
     const OTHER_SOURCES: [&str; 5] = [
-        "harness/src/report",
-        "harness/src/recording.rs",
+        "report/src/lib.rs",
+        "record/src/lib.rs",
         "harness/src/cli",
-        "harness/src/nn_bench.rs",
+        "bench/src/network.rs",
         "README.md",
     ];
 
@@ -246,7 +246,7 @@ mod tests {
         for file in [
             "policies/src/nn/matmul/kernel.rs",
             "world/src/lib.rs",
-            "harness/src/execution.rs",
+            "engine/src/execution.rs",
         ] {
             append(root, file, "\n// a numeric edit\n");
             let moved = source_hash(root);

@@ -115,6 +115,7 @@ pub fn run_cell(
         finished: utc_timestamp(SystemTime::now()),
         wall_seconds: clock.elapsed().as_secs_f64(),
         files: Default::default(),
+        sizes: Default::default(),
     };
     files.extend(recording.files(&cell.key, config)?);
     let record = store.save_cell(record, &files)?;

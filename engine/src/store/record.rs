@@ -34,6 +34,10 @@ pub struct CellRecord {
     pub wall_seconds: f64,
     /// blake3 of each result file beside this record, by file name.
     pub files: BTreeMap<String, String>,
+    /// The size in bytes of each result file, by file name: what the cheap check of a
+    /// finished cell compares. Empty in records written before it was kept.
+    #[serde(default)]
+    pub sizes: BTreeMap<String, u64>,
 }
 
 /// The sweep's manifest, `sweep.json`: which scenario the folder holds and its full cell list,

@@ -8,6 +8,7 @@ pub mod lines;
 
 use std::sync::OnceLock;
 
+use engine::palette;
 use image::ImageEncoder;
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
@@ -105,19 +106,12 @@ pub fn draw_legend<'a, DB: DrawingBackend + 'a>(
 
 /// The colour of series `index`: distinct, and the same series keeps its colour everywhere.
 pub fn series_colour(index: usize) -> RGBColor {
-    const COLOURS: [RGBColor; 10] = [
-        RGBColor(31, 119, 180),
-        RGBColor(255, 127, 14),
-        RGBColor(44, 160, 44),
-        RGBColor(214, 39, 40),
-        RGBColor(148, 103, 189),
-        RGBColor(140, 86, 75),
-        RGBColor(227, 119, 194),
-        RGBColor(127, 127, 127),
-        RGBColor(188, 189, 34),
-        RGBColor(23, 190, 207),
-    ];
-    COLOURS[index % COLOURS.len()]
+    rgb(palette::series(index))
+}
+
+/// A palette colour as plotters takes it.
+pub fn rgb([red, green, blue]: palette::Rgb) -> RGBColor {
+    RGBColor(red, green, blue)
 }
 
 /// Blue at 0 through white to red at 1: a penalty's share of Rmax, or a heat map's place

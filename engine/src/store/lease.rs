@@ -2,14 +2,21 @@
 //! start time of the process running it, removed when the cell ends. They let a status report
 //! tell running cells from missing ones by the files alone, with or without a scheduler.
 //!
-//! A process that is killed leaves its lease behind. On the host that wrote it, a lease whose
-//! process is gone is stale; from another host it cannot be told from a live one.
+//! The file is held under an exclusive lock (`flock`), and the lock is what excludes: two
+//! sweeps into one folder never run a cell at once, and as the kernel drops the lock of a
+//! process that dies, a killed sweep's leftover file never blocks the cell. The file's content
+//! only informs status: a process that is killed leaves it behind, and on the host that wrote
+//! it, a lease whose process is gone is stale; from another host it cannot be told from a
+//! live one.
 
-use std::path::PathBuf;
+use std::fs::{File, OpenOptions, TryLockError};
+use std::io::Write;
+use std::os::unix::fs::MetadataExt;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::{Store, StoreError, json_bytes, read_json, write};
+use super::{Store, StoreError, json_bytes, read_json};
 use crate::provenance::{host_name, utc_timestamp};
 
 const LEASE_FILE: &str = "running.json";
@@ -52,6 +59,14 @@ impl LeaseHolder {
     }
 }
 
+/// Whether `path` names the open `file` (and not a file created there since).
+fn is_at(file: &File, path: &Path) -> bool {
+    match (file.metadata(), std::fs::metadata(path)) {
+        (Ok(open), Ok(named)) => open.dev() == named.dev() && open.ino() == named.ino(),
+        _ => false,
+    }
+}
+
 /// Signal 0 checks that a process exists without touching it; `EPERM` means it exists under
 /// another user.
 fn process_exists(pid: u32) -> bool {
@@ -66,10 +81,12 @@ fn process_exists(pid: u32) -> bool {
     sent || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
 }
 
-/// A held lease; dropping it removes the file.
+/// A held lease: the locked lease file. Dropping it removes the file, then closing the file
+/// releases the lock.
 #[derive(Debug)]
 pub struct Lease {
     path: PathBuf,
+    _locked: File,
 }
 
 impl Drop for Lease {
@@ -79,13 +96,39 @@ impl Drop for Lease {
 }
 
 impl Store {
-    /// Marks cell `key` as run by this process until the returned lease is dropped.
-    pub fn take_lease(&self, key: &str) -> Result<Lease, StoreError> {
+    /// Marks cell `key` as run by this process until the returned lease is dropped; `None`
+    /// while another live process holds it.
+    pub fn take_lease(&self, key: &str) -> Result<Option<Lease>, StoreError> {
         let folder = self.cell_folder(key);
         std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
         let path = folder.join(LEASE_FILE);
-        write(&path, &json_bytes(&LeaseHolder::this_process()))?;
-        Ok(Lease { path })
+        let io = |e| StoreError::io(&path, e);
+        loop {
+            let mut file = OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(false)
+                .open(&path)
+                .map_err(io)?;
+            match file.try_lock() {
+                Ok(()) => {}
+                Err(TryLockError::WouldBlock) => return Ok(None),
+                Err(TryLockError::Error(e)) => return Err(io(e)),
+            }
+            // The last holder removes the file before it unlocks: a lock taken on a file
+            // that is no longer at `path` excludes nobody, so start again on the new one.
+            if !is_at(&file, &path) {
+                continue;
+            }
+            file.set_len(0).map_err(io)?;
+            file.write_all(&json_bytes(&LeaseHolder::this_process()))
+                .map_err(io)?;
+            return Ok(Some(Lease {
+                path,
+                _locked: file,
+            }));
+        }
     }
 
     /// Who holds (or last held, if it was killed) cell `key`'s lease; `None` when no lease is
@@ -103,12 +146,33 @@ mod tests {
     fn a_lease_lives_until_dropped_and_names_this_process() {
         let dir = std::env::temp_dir().join(format!("lease-{}", std::process::id()));
         let store = Store::new(&dir);
-        let lease = store.take_lease("k").unwrap();
+        let lease = store.take_lease("k").unwrap().unwrap();
         let holder = store.lease_holder("k").unwrap();
         assert_eq!(holder.pid, std::process::id());
         assert_eq!(holder.liveness(), Liveness::Alive);
+        assert!(
+            store.take_lease("k").unwrap().is_none(),
+            "a held lease was taken again"
+        );
         drop(lease);
         assert_eq!(store.lease_holder("k"), None);
+        let again = store.take_lease("k").unwrap();
+        assert!(again.is_some(), "a released lease could not be taken");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_leftover_lease_file_without_its_lock_blocks_nobody() {
+        let dir = std::env::temp_dir().join(format!("lease-left-{}", std::process::id()));
+        let store = Store::new(&dir);
+        let folder = store.cell_folder("k");
+        std::fs::create_dir_all(&folder).unwrap();
+        // What a killed process leaves: the file, with no lock on it.
+        std::fs::write(folder.join(LEASE_FILE), b"{\"pid\": 1}").unwrap();
+        let lease = store.take_lease("k").unwrap();
+        assert!(lease.is_some(), "a dead holder's file blocked the cell");
+        assert_eq!(store.lease_holder("k").unwrap().pid, std::process::id());
+        drop(lease);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -9,8 +9,8 @@ use super::columns::{GroupKey, f64s, group_rows, named_seed, optional_u32s, stri
 use super::comparison::{Sample, samples};
 use super::markdown::number;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use crate::claims::{Behaviour, Claim, ClaimTest, Pair, Point};
-use crate::stats::{
+use engine::claims::{Behaviour, Claim, ClaimTest, Pair, Point};
+use engine::stats::{
     RESAMPLES, StatsError, comparison_interval, mean, mean_difference, probability_of_improvement,
     samples_interval,
 };

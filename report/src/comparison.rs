@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use super::columns::{GroupKey, PolicyKey, f64s, group_rows, named_seed, strings};
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use crate::stats::{
+use engine::stats::{
     RESAMPLES, comparison_interval, mean, mean_difference, probability_of_improvement,
 };
 

@@ -16,8 +16,9 @@ use world::{Episode, Map, World};
 
 use policies::{AttentionEdges, Policy};
 
-use crate::execution::{CellError, observed_test_episode, stored_policy};
-use crate::store::{Store, StoreError};
+use engine::execution::{CellError, observed_test_episode, stored_policy};
+use engine::palette;
+use engine::store::{Store, StoreError};
 
 /// The timeline every entity is logged on: the episode's step (0 is the start).
 pub const TIMELINE: &str = "step";
@@ -279,8 +280,8 @@ impl StepLogger {
         let colours: Vec<rerun::Color> = edges
             .iter()
             .map(|&(agent, _, weight)| {
-                let c = crate::report::chart::series_colour(agent);
-                rerun::Color::from_unmultiplied_rgba(c.0, c.1, c.2, (weight * 255.0) as u8)
+                let [red, green, blue] = palette::series(agent);
+                rerun::Color::from_unmultiplied_rgba(red, green, blue, (weight * 255.0) as u8)
             })
             .collect();
         let radii = edges.iter().map(|&(_, _, weight)| 0.1 + 0.5 * weight);
@@ -309,10 +310,9 @@ impl StepLogger {
             for x in 0..map.width() {
                 let code = grid.codes()[(y + grid.pad()) * grid.stride() + x + grid.pad()] as f64;
                 let rgb = if code > 0.0 {
-                    [60, 60, 60]
+                    palette::OBSTACLE
                 } else {
-                    let colour = crate::report::chart::grid::penalty_colour(-code / rmax);
-                    [colour.0, colour.1, colour.2]
+                    palette::penalty(-code / rmax)
                 };
                 self.pixels.extend(rgb);
             }
@@ -321,8 +321,8 @@ impl StepLogger {
 }
 
 fn agent_colour(agent: usize) -> rerun::Color {
-    let c = crate::report::chart::series_colour(agent);
-    rerun::Color::from_rgb(c.0, c.1, c.2)
+    let [red, green, blue] = palette::series(agent);
+    rerun::Color::from_rgb(red, green, blue)
 }
 
 /// What a recording holds, as rerun's own loader (the viewer's entity database) reads it.

@@ -1,0 +1,33 @@
+//! The engine: a scenario becomes a checked plan of cells, each cell runs reproducibly into a
+//! results store; sweeps, shards, merges, audits, statistics and Slurm work on that store.
+
+pub mod atomic_file;
+pub mod audit;
+pub mod cell;
+pub mod checkpoint_dir;
+pub mod claims;
+pub mod code_version;
+pub mod cost;
+pub mod execution;
+pub mod idleness;
+pub mod merge;
+pub mod palette;
+pub mod probe;
+pub mod progress;
+pub mod provenance;
+pub mod replay;
+pub mod results_fingerprint;
+pub mod runner;
+pub mod scenario;
+pub mod shard;
+pub mod slurm;
+pub mod source_hash;
+pub mod stats;
+pub mod status;
+pub mod store;
+pub mod summary;
+pub mod sweep;
+pub mod trace;
+pub mod training_log;
+pub mod training_run;
+pub mod trajectory;

@@ -9,17 +9,48 @@ use std::sync::{Arc, Mutex};
 use polars::prelude::*;
 use rand::RngExt;
 use rayon::prelude::*;
-use world::{Map, Seed, World};
+use world::{Map, MapError, ParamError, Seed, StartError, World};
 
 use policies::checkpoint::{self, WEIGHTS_FILE};
-use policies::ppo::Trainer;
+use policies::ppo::{ConfigError, TrainError, Trainer};
 
 use crate::cell::CellConfig;
-use crate::execution::{stored_policy, test_episode};
+use crate::execution::{CellError, stored_policy, test_episode};
 use crate::scenario::map_hash;
 use crate::store::tables::EpisodeRow;
 use crate::store::{CellRecord, Store, StoreError, TRAINING_FILE};
 use crate::training_log;
+
+/// Why a stored episode or training run could not be repeated, or came back different.
+#[derive(Debug, thiserror::Error)]
+pub enum AuditError {
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    #[error(transparent)]
+    Policy(#[from] CellError),
+    #[error(transparent)]
+    Start(#[from] StartError),
+    #[error(transparent)]
+    Map(#[from] MapError),
+    #[error("stored map {0} does not match its hash")]
+    MapHash(String),
+    #[error(transparent)]
+    World(#[from] ParamError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Train(#[from] TrainError),
+    #[error("training log: {0}")]
+    Log(#[from] PolarsError),
+    #[error("the cell has no training run")]
+    NotTrained,
+    #[error("no stored training log")]
+    NoStoredLog,
+    #[error("the weights differ")]
+    WeightsDiffer,
+    #[error("the training log differs")]
+    LogDiffers,
+}
 
 /// A stored test episode and what playing it again gave.
 #[derive(Debug)]
@@ -27,7 +58,7 @@ pub struct AuditLine {
     pub cell_key: String,
     pub stored: EpisodeRow,
     /// The episode played again, or why it could not be.
-    pub recomputed: Result<EpisodeRow, String>,
+    pub recomputed: Result<EpisodeRow, AuditError>,
 }
 
 impl AuditLine {
@@ -70,13 +101,18 @@ fn replay(
     worlds: &Mutex<HashMap<String, Arc<World>>>,
     key: &str,
     row: &EpisodeRow,
-) -> Result<EpisodeRow, String> {
-    let record = store.verified_record(key).map_err(|e| e.to_string())?;
+) -> Result<EpisodeRow, AuditError> {
+    let record = store.verified_record(key)?;
     let config = &record.config;
     let world = world_of(store, worlds, config)?;
-    let mut policy = stored_policy(store, &record, &world).map_err(|e| e.to_string())?;
-    test_episode(&world, policy.as_mut(), config, row.n_test, row.episode)
-        .map_err(|e| e.to_string())
+    let mut policy = stored_policy(store, &record, &world)?;
+    Ok(test_episode(
+        &world,
+        policy.as_mut(),
+        config,
+        row.n_test,
+        row.episode,
+    )?)
 }
 
 /// A stored training run and what training it again gave.
@@ -84,7 +120,7 @@ fn replay(
 pub struct TrainingAuditLine {
     pub cell_key: String,
     /// The episodes trained again, or why the run differs or could not be repeated.
-    pub outcome: Result<u64, String>,
+    pub outcome: Result<u64, AuditError>,
 }
 
 /// Trains `sample` of the store's learned cells again (all of them if there are fewer),
@@ -119,36 +155,26 @@ fn train_again(
     store: &Store,
     worlds: &Mutex<HashMap<String, Arc<World>>>,
     record: &CellRecord,
-) -> Result<u64, String> {
+) -> Result<u64, AuditError> {
     let config = &record.config;
-    let training = config
-        .training_config()
-        .ok_or("the cell has no training run")?
-        .map_err(|e| e.to_string())?;
+    let training = config.training_config().ok_or(AuditError::NotTrained)??;
     let world = world_of(store, worlds, config)?;
-    let mut trainer =
-        Trainer::new(world, training, config.training_seed).map_err(|e| e.to_string())?;
-    let records = trainer
-        .train(u64::MAX, &mut |_| ())
-        .map_err(|e| e.to_string())?;
-    let stored = store
-        .cell_file(record, WEIGHTS_FILE)
-        .map_err(|e| e.to_string())?;
+    let mut trainer = Trainer::new(world, training, config.training_seed)?;
+    let records = trainer.train(u64::MAX, &mut |_| ())?;
+    let stored = store.cell_file(record, WEIGHTS_FILE)?;
     if checkpoint::save(trainer.state()).weights != stored {
-        return Err("the weights differ".to_owned());
+        return Err(AuditError::WeightsDiffer);
     }
-    let log = training_log::to_frame(&records).map_err(|e| e.to_string())?;
+    let log = training_log::to_frame(&records)?;
     let stored = store
-        .cell_table(record, TRAINING_FILE)
-        .map_err(|e| e.to_string())?
-        .ok_or("no stored training log")?;
+        .cell_table(record, TRAINING_FILE)?
+        .ok_or(AuditError::NoStoredLog)?;
     let columns = training_log::reproducible_columns();
-    let (log, stored) = (log.select(columns.clone()), stored.select(columns));
-    match (log, stored) {
-        (Ok(log), Ok(stored)) if log.equals_missing(&stored) => Ok(records.len() as u64),
-        (Ok(_), Ok(_)) => Err("the training log differs".to_owned()),
-        (Err(e), _) | (_, Err(e)) => Err(e.to_string()),
+    let (log, stored) = (log.select(columns.clone())?, stored.select(columns)?);
+    if !log.equals_missing(&stored) {
+        return Err(AuditError::LogDiffers);
     }
+    Ok(records.len() as u64)
 }
 
 /// The world of a stored map, built once per map and checked against the map's hash.
@@ -156,17 +182,17 @@ fn world_of(
     store: &Store,
     worlds: &Mutex<HashMap<String, Arc<World>>>,
     config: &CellConfig,
-) -> Result<Arc<World>, String> {
+) -> Result<Arc<World>, AuditError> {
     let (name, hash) = (&config.map.name, &config.map.hash);
     if let Some(world) = worlds.lock().expect("no panics hold the lock").get(hash) {
         return Ok(world.clone());
     }
-    let text = store.map_text(hash).map_err(|e| e.to_string())?;
-    let map = Map::parse_text(name, &text, Path::new(hash)).map_err(|e| e.to_string())?;
+    let text = store.map_text(hash)?;
+    let map = Map::parse_text(name, &text, Path::new(hash))?;
     if map_hash(&map) != *hash {
-        return Err(format!("stored map {hash} does not match its hash"));
+        return Err(AuditError::MapHash(hash.clone()));
     }
-    let params = config.world.params().map_err(|e| e.to_string())?;
+    let params = config.world.params()?;
     let world = World::new(map, params);
     worlds
         .lock()

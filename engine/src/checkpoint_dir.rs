@@ -4,9 +4,10 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use anyhow::Context;
-use policies::checkpoint::{self, CheckpointMetadata, METADATA_FILE, OPTIMIZER_FILE, WEIGHTS_FILE};
-use policies::ppo::TrainingState;
+use policies::checkpoint::{
+    self, CheckpointError, CheckpointMetadata, METADATA_FILE, OPTIMIZER_FILE, WEIGHTS_FILE,
+};
+use policies::ppo::{ConfigError, TrainingState};
 use policies::{ActionChoice, LearnedPolicy};
 use world::World;
 
@@ -15,15 +16,44 @@ use crate::atomic_file::write_atomic;
 /// The prefix that names a checkpoint folder where a policy name is expected.
 pub const POLICY_PREFIX: &str = "checkpoint:";
 
-fn read(dir: &Path, name: &str) -> anyhow::Result<Vec<u8>> {
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointDirError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: not UTF-8")]
+    NotUtf8 { path: PathBuf },
+    #[error("checkpoint {dir}: {source}")]
+    Checkpoint {
+        dir: PathBuf,
+        source: CheckpointError,
+    },
+    /// The checkpoint's model does not fit the world it is to act in.
+    #[error("checkpoint {dir}: {source}")]
+    Config { dir: PathBuf, source: ConfigError },
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> CheckpointDirError {
+    let path = path.to_owned();
+    move |source| CheckpointDirError::Io { path, source }
+}
+
+fn in_checkpoint(dir: &Path) -> impl FnOnce(CheckpointError) -> CheckpointDirError {
+    let dir = dir.to_owned();
+    move |source| CheckpointDirError::Checkpoint { dir, source }
+}
+
+fn read(dir: &Path, name: &str) -> Result<Vec<u8>, CheckpointDirError> {
     let path = dir.join(name);
-    std::fs::read(&path).with_context(|| format!("reading {}", path.display()))
+    std::fs::read(&path).map_err(io(&path))
 }
 
 /// Writes the weights, the optimiser state and the metadata (metadata last, so a folder whose
 /// metadata is readable has the matching tensors).
-pub fn write(dir: &Path, state: &TrainingState) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+pub fn write(dir: &Path, state: &TrainingState) -> Result<(), CheckpointDirError> {
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
     let files = checkpoint::save(state);
     let entries: [(&str, &[u8]); 3] = [
         (WEIGHTS_FILE, &files.weights),
@@ -32,23 +62,24 @@ pub fn write(dir: &Path, state: &TrainingState) -> anyhow::Result<()> {
     ];
     for (name, bytes) in entries {
         let path = dir.join(name);
-        write_atomic(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        write_atomic(&path, bytes).map_err(io(&path))?;
     }
     Ok(())
 }
 
-pub fn read_metadata(dir: &Path) -> anyhow::Result<CheckpointMetadata> {
-    let text = String::from_utf8(read(dir, METADATA_FILE)?)
-        .with_context(|| format!("{}: not UTF-8", dir.join(METADATA_FILE).display()))?;
-    checkpoint::read_metadata(&text).with_context(|| format!("checkpoint {}", dir.display()))
+pub fn read_metadata(dir: &Path) -> Result<CheckpointMetadata, CheckpointDirError> {
+    let text =
+        String::from_utf8(read(dir, METADATA_FILE)?).map_err(|_| CheckpointDirError::NotUtf8 {
+            path: dir.join(METADATA_FILE),
+        })?;
+    checkpoint::read_metadata(&text).map_err(in_checkpoint(dir))
 }
 
 /// The state to resume training from.
-pub fn read_state(dir: &Path) -> anyhow::Result<TrainingState> {
+pub fn read_state(dir: &Path) -> Result<TrainingState, CheckpointDirError> {
     let metadata = read_metadata(dir)?;
     let (weights, optimizer) = (read(dir, WEIGHTS_FILE)?, read(dir, OPTIMIZER_FILE)?);
-    checkpoint::load_state(&metadata, &weights, &optimizer)
-        .with_context(|| format!("checkpoint {}", dir.display()))
+    checkpoint::load_state(&metadata, &weights, &optimizer).map_err(in_checkpoint(dir))
 }
 
 /// The folder of a `checkpoint:DIR` policy name, if it is one.
@@ -61,11 +92,14 @@ pub fn load_policy(
     dir: &Path,
     world: &Arc<World>,
     choice: ActionChoice,
-) -> anyhow::Result<LearnedPolicy> {
+) -> Result<LearnedPolicy, CheckpointDirError> {
     let metadata = read_metadata(dir)?;
     let weights = read(dir, WEIGHTS_FILE)?;
-    let model = checkpoint::load_model(&metadata, &weights)
-        .with_context(|| format!("checkpoint {}", dir.display()))?;
-    LearnedPolicy::new(world, model, &metadata.config, choice)
-        .with_context(|| format!("checkpoint {}", dir.display()))
+    let model = checkpoint::load_model(&metadata, &weights).map_err(in_checkpoint(dir))?;
+    LearnedPolicy::new(world, model, &metadata.config, choice).map_err(|source| {
+        CheckpointDirError::Config {
+            dir: dir.to_owned(),
+            source,
+        }
+    })
 }

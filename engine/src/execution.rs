@@ -20,7 +20,7 @@ use crate::scenario::PolicySpec;
 use crate::scenario::format::BaselineSpec;
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{CellRecord, EPISODES_FILE, Store, StoreError, TRAINING_FILE};
-use crate::training_run::TrainingRun;
+use crate::training_run::{TrainingRun, TrainingRunError};
 use crate::trajectory::CellRecording;
 
 #[derive(Debug, thiserror::Error)]
@@ -37,8 +37,8 @@ pub enum CellError {
     Config(#[from] ConfigError),
     #[error(transparent)]
     Checkpoint(#[from] CheckpointError),
-    #[error("training: {0:#}")]
-    Training(anyhow::Error),
+    #[error("training: {0}")]
+    Training(#[from] TrainingRunError),
     #[error("{0}")]
     Table(#[from] polars::prelude::PolarsError),
 }
@@ -134,13 +134,11 @@ fn train_cell(
 ) -> Result<(TrainingState, DataFrame), CellError> {
     let folder = store.partial_training_folder(&cell.key);
     let seed = cell.config.training_seed;
-    let mut run = TrainingRun::resume_or_start(&folder, world.clone(), training, seed)
-        .map_err(CellError::Training)?;
+    let mut run = TrainingRun::resume_or_start(&folder, world.clone(), training, seed)?;
     let steps = cell.config.world.train_steps as u64;
     advance(run.state().episodes_done * steps);
     let total = run.state().config.episodes;
-    run.train(total, SAVE_EVERY, &mut |_| advance(steps))
-        .map_err(CellError::Training)?;
+    run.train(total, SAVE_EVERY, &mut |_| advance(steps))?;
     Ok(run.into_parts())
 }
 

@@ -5,15 +5,36 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use anyhow::Context;
-use polars::prelude::DataFrame;
-use policies::ppo::{EpisodeRecord, Trainer, TrainingConfig, TrainingState};
+use polars::prelude::{DataFrame, PolarsError};
+use policies::ppo::{
+    ConfigError, EpisodeRecord, TrainError, Trainer, TrainingConfig, TrainingState,
+};
 use world::World;
 
 use crate::atomic_file::write_atomic;
-use crate::{checkpoint_dir, training_log};
+use crate::checkpoint_dir::{self, CheckpointDirError};
+use crate::training_log;
 
 pub const LOG_FILE: &str = "training.parquet";
+
+#[derive(Debug, thiserror::Error)]
+pub enum TrainingRunError {
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointDirError),
+    #[error(transparent)]
+    Train(#[from] TrainError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Log { path: PathBuf, source: PolarsError },
+    #[error("training log: {0}")]
+    Table(#[from] PolarsError),
+}
 
 pub struct TrainingRun {
     folder: PathBuf,
@@ -29,7 +50,7 @@ impl TrainingRun {
         world: Arc<World>,
         config: TrainingConfig,
         seed: u64,
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, TrainingRunError> {
         Ok(Self {
             folder: folder.to_owned(),
             trainer: Trainer::new(world, config, seed)?,
@@ -38,13 +59,20 @@ impl TrainingRun {
     }
 
     /// The run saved in `folder`, with `overrides` applied to its configuration.
-    pub fn resume(folder: &Path, world: Arc<World>, overrides: &[String]) -> anyhow::Result<Self> {
+    pub fn resume(
+        folder: &Path,
+        world: Arc<World>,
+        overrides: &[String],
+    ) -> Result<Self, TrainingRunError> {
         let mut state = checkpoint_dir::read_state(folder)?;
         state.config = state.config.with_overrides(overrides)?;
         let path = folder.join(LOG_FILE);
-        let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        let bytes = std::fs::read(&path).map_err(|source| TrainingRunError::Io {
+            path: path.clone(),
+            source,
+        })?;
         let log = training_log::from_parquet(&bytes)
-            .with_context(|| format!("reading {}", path.display()))?;
+            .map_err(|source| TrainingRunError::Log { path, source })?;
         let log = training_log::append(&log, state.episodes_done, &[])?;
         Ok(Self {
             folder: folder.to_owned(),
@@ -60,7 +88,7 @@ impl TrainingRun {
         world: Arc<World>,
         config: TrainingConfig,
         seed: u64,
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, TrainingRunError> {
         let same = checkpoint_dir::read_metadata(folder)
             .is_ok_and(|saved| saved.config == config && saved.seed == seed);
         if same && let Ok(run) = Self::resume(folder, world.clone(), &[]) {
@@ -88,7 +116,7 @@ impl TrainingRun {
         total: u64,
         save_every: u64,
         on_record: &mut dyn FnMut(&EpisodeRecord),
-    ) -> anyhow::Result<()> {
+    ) -> Result<(), TrainingRunError> {
         let total = total.min(self.state().config.episodes);
         let save_every = save_every.max(1);
         while self.state().episodes_done < total {
@@ -102,11 +130,11 @@ impl TrainingRun {
     }
 
     /// Writes the checkpoint and the log.
-    pub fn save(&mut self) -> anyhow::Result<()> {
+    pub fn save(&mut self) -> Result<(), TrainingRunError> {
         checkpoint_dir::write(&self.folder, self.trainer.state())?;
         let path = self.folder.join(LOG_FILE);
         let bytes = training_log::to_parquet(&mut self.log)?;
-        write_atomic(&path, &bytes).with_context(|| format!("writing {}", path.display()))
+        write_atomic(&path, &bytes).map_err(|source| TrainingRunError::Io { path, source })
     }
 }
 

@@ -179,17 +179,35 @@ fn features(x: &[f64], y: &[f64]) -> Features {
     }
 }
 
+/// What an agent does over a recorded episode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Role {
+    /// Keeps near one place (the smaller cluster of radius of gyration).
+    Stationary,
+    Touring,
+}
+
+impl Role {
+    /// The role as the roles table and the statements name it.
+    fn name(self) -> &'static str {
+        match self {
+            Role::Stationary => "stationary",
+            Role::Touring => "touring",
+        }
+    }
+}
+
 /// Roles of every agent of `motions` on one map: 2-means on the standardised features of all
 /// its agents (every policy and N_test), the cluster of smaller mean radius of gyration being
 /// "stationary". With fewer than two distinct feature vectors every agent is "touring".
-fn roles(features: &[Features], seed: u64) -> Vec<&'static str> {
+fn roles(features: &[Features], seed: u64) -> Vec<Role> {
     let distinct_points = distinct(
         features
             .iter()
             .map(|f| (f.radius_of_gyration.to_bits(), f.moving_share.to_bits())),
     );
     if distinct_points.len() < 2 {
-        return vec!["touring"; features.len()];
+        return vec![Role::Touring; features.len()];
     }
     let columns = [
         standardised(features.iter().map(|f| f.radius_of_gyration).collect()),
@@ -199,7 +217,7 @@ fn roles(features: &[Features], seed: u64) -> Vec<&'static str> {
     let dataset = DatasetBase::from(data.clone());
     let rng = rand_pcg_03::Pcg64Mcg::seed_from_u64(seed);
     let Ok(model) = KMeans::params_with_rng(2, rng).fit(&dataset) else {
-        return vec!["touring"; features.len()];
+        return vec![Role::Touring; features.len()];
     };
     let labels = model.predict(&data);
     let spread_of = |cluster: usize| {
@@ -216,9 +234,9 @@ fn roles(features: &[Features], seed: u64) -> Vec<&'static str> {
         .iter()
         .map(|&l| {
             if l == stationary {
-                "stationary"
+                Role::Stationary
             } else {
-                "touring"
+                Role::Touring
             }
         })
         .collect()
@@ -330,7 +348,7 @@ struct AgentRole {
     motion: usize,
     agent: usize,
     features: Features,
-    role: &'static str,
+    role: Role,
 }
 
 fn agent_roles(motions: &[Motion]) -> Vec<AgentRole> {
@@ -376,7 +394,7 @@ fn role_frame(motions: &[Motion], rows: &[AgentRole]) -> PolarsResult<DataFrame>
         ),
         Column::new(
             "role".into(),
-            rows.iter().map(|r| r.role).collect::<Vec<_>>(),
+            rows.iter().map(|r| r.role.name()).collect::<Vec<_>>(),
         ),
     ]);
     DataFrame::new(rows.len(), columns)
@@ -460,7 +478,7 @@ fn summary(
     };
     let touring: Vec<usize> = roles
         .iter()
-        .filter(|r| r.motion == index && r.role == "touring")
+        .filter(|r| r.motion == index && r.role == Role::Touring)
         .map(|r| r.agent)
         .collect();
     let on_the_team_period = |r: &Rhythm| match (r.period, r.team_period) {
@@ -590,8 +608,9 @@ mod tests {
             moving_share: 0.95,
         };
         let roles = roles(&[moving, still, moving, moving], 7);
-        assert_eq!(roles, vec!["touring", "stationary", "touring", "touring"]);
-        assert_eq!(super::roles(&[still, still], 7), vec!["touring", "touring"]);
+        use Role::{Stationary, Touring};
+        assert_eq!(roles, vec![Touring, Stationary, Touring, Touring]);
+        assert_eq!(super::roles(&[still, still], 7), vec![Touring, Touring]);
         let f = features(&[0.0, 1.0, 1.0, 0.0], &[0.0, 0.0, 0.0, 0.0]);
         assert_eq!(f.radius_of_gyration, 0.5);
         assert!((f.moving_share - 2.0 / 3.0).abs() < 1e-12);

@@ -93,7 +93,8 @@ fn expected_size(stem: &str) -> (u32, u32) {
         ("penalty_", (960, 540)),
         ("trajectory_", (520, 560)),
         ("motion_", (960, 60 + 3 * 330)),
-        ("illustration_", (3 * 520, 560)),
+        // Three maps and the colour bar of the penalty.
+        ("illustration_", (3 * 520 + 110, 560)),
     ];
     kinds
         .iter()

@@ -76,11 +76,7 @@ pub fn append(
     first: u64,
     records: &[EpisodeRecord],
 ) -> PolarsResult<DataFrame> {
-    let kept = earlier
-        .clone()
-        .lazy()
-        .filter(col("episode").lt(lit(first)))
-        .collect()?;
+    let kept = earlier.filter(&earlier.column("episode")?.u64()?.lt(first))?;
     kept.vstack(&to_frame(records)?)
 }
 

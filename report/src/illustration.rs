@@ -65,34 +65,23 @@ fn illustration_frame(
     n_test: u32,
 ) -> PolarsResult<DataFrame> {
     let of_episode = |frame: &DataFrame| {
-        frame
-            .clone()
-            .lazy()
-            .filter(
-                col("cell_key")
-                    .eq(lit(key))
-                    .and(col("n_test").eq(lit(n_test)))
-                    .and(col("episode").eq(lit(0u32))),
-            )
-            .collect()
+        let mask = frame.column("cell_key")?.str()?.equal(key)
+            & frame.column("n_test")?.u32()?.equal(n_test)
+            & frame.column("episode")?.u32()?.equal(0);
+        frame.filter(&mask)
     };
     let snapshot = of_episode(snapshots)?;
     let step = u32s(&snapshot, "step")?.first().copied().unwrap_or(0);
-    let cells = snapshot.select(["layer", "x", "y", "value"])?;
-    let cells = cells
-        .lazy()
-        .with_column(col("value").cast(DataType::Float64))
-        .collect()?;
-    let agents = of_episode(trajectories)?
-        .lazy()
-        .filter(col("step").eq(lit(step)))
-        .select([
-            lit(AGENTS).alias("layer"),
-            col("x"),
-            col("y"),
-            col("agent").cast(DataType::Float64).alias("value"),
-        ])
-        .collect()?;
+    let mut cells = snapshot.select(["layer", "x", "y", "value"])?;
+    let values = cells.column("value")?.cast(&DataType::Float64)?;
+    cells.with_column(values)?;
+    let episode = of_episode(trajectories)?;
+    let at_step = episode.filter(&episode.column("step")?.u32()?.equal(step))?;
+    let mut agents = at_step.select(["x", "y"])?;
+    let layer = Column::new("layer".into(), vec![AGENTS; agents.height()]);
+    let value = at_step.column("agent")?.cast(&DataType::Float64)?;
+    agents.with_column(value.with_name("value".into()))?;
+    agents.insert_column(0, layer)?;
     cells.vstack(&agents)
 }
 

@@ -1,6 +1,8 @@
 //! `harness curve`: the learning curve of a training folder, as the mean penalty per bin of
-//! episodes with the wall time at the bin's end.
+//! episodes with the wall time at the bin's end. The log is in episode order (a resumed run
+//! appends), so a bin is a run of consecutive rows.
 
+use std::ops::Range;
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -24,34 +26,59 @@ pub fn run(args: CurveArgs) -> anyhow::Result<()> {
         format!("reading {}", path.display())
     })?;
     let every = args.every.max(1);
-    let curve = log
-        .lazy()
-        .group_by_stable([(col("episode") / lit(every)).alias("bin")])
-        .agg([
-            col("episode").max().alias("last_episode"),
-            col("wall_seconds").max().alias("wall_seconds"),
-            (col("penalty").mean() / lit(1e6)).alias("mean_penalty_1e6"),
-            col("entropy").mean().alias("entropy"),
-        ])
-        .collect()?;
     let column = |name: &str| -> anyhow::Result<Vec<f64>> {
-        let values = curve.column(name)?.cast(&DataType::Float64)?;
+        let values = log.column(name)?.cast(&DataType::Float64)?;
         Ok(values.f64()?.into_no_null_iter().collect())
     };
-    let (last, wall) = (column("last_episode")?, column("wall_seconds")?);
-    let (penalty, entropy) = (column("mean_penalty_1e6")?, column("entropy")?);
+    let (episodes, wall) = (column("episode")?, column("wall_seconds")?);
+    let (penalty, entropy) = (column("penalty")?, column("entropy")?);
     println!(
         "{:>10} {:>12} {:>22} {:>10}",
         "episodes", "wall_s", "mean_penalty_x1e6", "entropy"
     );
-    for row in 0..last.len() {
+    for rows in bins(&episodes, every) {
+        let mean = |values: &[f64]| values[rows.clone()].iter().sum::<f64>() / rows.len() as f64;
+        let max = |values: &[f64]| {
+            values[rows.clone()]
+                .iter()
+                .copied()
+                .fold(f64::MIN, f64::max)
+        };
         println!(
             "{:>10} {:>12.0} {:>22.3} {:>10.3}",
-            last[row] + 1.0,
-            wall[row],
-            penalty[row],
-            entropy[row]
+            max(&episodes) + 1.0,
+            max(&wall),
+            mean(&penalty) / 1e6,
+            mean(&entropy)
         );
     }
     Ok(())
+}
+
+/// The rows of each bin of `every` episodes: runs of consecutive rows with one bin number.
+fn bins(episodes: &[f64], every: u64) -> Vec<Range<usize>> {
+    let bin_of = |row: usize| episodes[row] as u64 / every;
+    let mut bins = Vec::new();
+    let mut start = 0;
+    while start < episodes.len() {
+        let end = (start..episodes.len())
+            .find(|&row| bin_of(row) != bin_of(start))
+            .unwrap_or(episodes.len());
+        bins.push(start..end);
+        start = end;
+    }
+    bins
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bins_split_where_the_bin_number_changes() {
+        let episodes = [0.0, 1.0, 2.0, 3.0, 4.0];
+        assert_eq!(bins(&episodes, 2), vec![0..2, 2..4, 4..5]);
+        assert_eq!(bins(&episodes, 10), vec![0..5]);
+        assert!(bins(&[], 3).is_empty());
+    }
 }

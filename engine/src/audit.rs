@@ -3,20 +3,18 @@
 //! checks that every number comes back bit for bit.
 
 use std::collections::HashMap;
-use std::path::Path;
 use std::sync::{Arc, Mutex};
 
 use polars::prelude::*;
 use rand::RngExt;
 use rayon::prelude::*;
-use world::{Map, MapError, ParamError, Seed, StartError, World};
+use world::{ParamError, Seed, StartError, World};
 
 use policies::checkpoint::{self, WEIGHTS_FILE};
 use policies::ppo::{ConfigError, TrainError, Trainer};
 
 use crate::cell::CellConfig;
 use crate::execution::{CellError, stored_policy, test_episode};
-use crate::scenario::map_hash;
 use crate::store::tables::EpisodeRow;
 use crate::store::{CellRecord, Store, StoreError, TRAINING_FILE};
 use crate::training_log;
@@ -30,10 +28,6 @@ pub enum AuditError {
     Policy(#[from] CellError),
     #[error(transparent)]
     Start(#[from] StartError),
-    #[error(transparent)]
-    Map(#[from] MapError),
-    #[error("stored map {0} does not match its hash")]
-    MapHash(String),
     #[error(transparent)]
     World(#[from] ParamError),
     #[error(transparent)]
@@ -187,11 +181,7 @@ fn world_of(
     if let Some(world) = worlds.lock().expect("no panics hold the lock").get(hash) {
         return Ok(world.clone());
     }
-    let text = store.map_text(hash)?;
-    let map = Map::parse_text(name, &text, Path::new(hash))?;
-    if map_hash(&map) != *hash {
-        return Err(AuditError::MapHash(hash.clone()));
-    }
+    let map = store.map(name, hash)?;
     let params = config.world.params()?;
     let world = World::new(map, params);
     worlds

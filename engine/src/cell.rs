@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use world::Seed;
 
 use crate::code_version::code_version;
-use crate::scenario::{PolicySpec, Scenario, WorldConfig};
+use crate::scenario::{Learned, Scenario, ScenarioPolicy, WorldConfig};
 
 /// Branches of the scenario's seed tree, so training and testing never share a stream.
 mod branch {
@@ -21,7 +21,7 @@ mod branch {
 pub struct CellConfig {
     pub map: MapIdentity,
     pub world: WorldConfig,
-    pub policy: PolicySpec,
+    pub policy: ScenarioPolicy,
     pub n_train: Option<u32>,
     pub n_test: Vec<u32>,
     pub repetition: u32,
@@ -39,7 +39,7 @@ pub struct MapIdentity {
 
 /// A cell of a sweep: its place in the scenario's expansion, its key and its config.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Cell {
+pub struct SweepCell {
     pub index: usize,
     /// Which of the scenario's maps.
     pub map_index: usize,
@@ -65,14 +65,17 @@ impl CellConfig {
 
     /// The training run of a learned cell; `None` for a baseline.
     pub fn training_config(&self) -> Option<Result<TrainingConfig, ConfigError>> {
-        let Some(n_train) = self.n_train else {
-            let problem = ConfigError::Invalid {
-                field: "agents",
-                reason: "a learned policy's cell has no N_train".to_owned(),
-            };
-            return self.policy.learned().map(|_| Err(problem));
-        };
-        self.policy.training_config(&self.world, n_train)
+        let learned = self.policy.learned()?;
+        Some(self.training_config_of(learned))
+    }
+
+    /// The training run of this cell's `learned` policy.
+    pub fn training_config_of(&self, learned: &Learned) -> Result<TrainingConfig, ConfigError> {
+        let n_train = self.n_train.ok_or_else(|| ConfigError::Invalid {
+            field: "agents",
+            reason: "a learned policy's cell has no N_train".to_owned(),
+        })?;
+        learned.training_config(&self.world, n_train)
     }
 }
 
@@ -82,7 +85,7 @@ impl Scenario {
     /// Seeds depend on the repetition only, so every policy and map meets the same training
     /// seeds and the same test starts (common random numbers make comparisons paired), and
     /// adding a map or a policy to a scenario changes no other cell.
-    pub fn cells(&self) -> Vec<Cell> {
+    pub fn cells(&self) -> Vec<SweepCell> {
         let mut cells = Vec::new();
         for (map_index, map) in self.maps.iter().enumerate() {
             for policy in &self.policies {
@@ -109,7 +112,7 @@ impl Scenario {
                             test_seed: root.descend(&[branch::TESTING, repetition as u64]).value(),
                             test_episodes: self.test_episodes,
                         };
-                        cells.push(Cell {
+                        cells.push(SweepCell {
                             index: cells.len(),
                             map_index,
                             key: config.key(),

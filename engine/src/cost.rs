@@ -3,6 +3,7 @@
 //! no bit, so no key (`results_fingerprint`).
 
 use crate::cell::CellConfig;
+use crate::scenario::WorldConfig;
 
 /// What a cell or a sweep costs, in episodes and environment steps, and as estimated work.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -43,22 +44,58 @@ pub(crate) mod work {
 
 impl CellConfig {
     pub fn cost(&self) -> Cost {
-        let learned = self.policy.learned();
-        let training_episodes = learned.map_or(0, |l| l.episodes as u64);
-        let training_steps = training_episodes * self.world.train_steps as u64;
-        let test_episodes = self.n_test.len() as u64 * self.test_episodes as u64;
-        let test_steps = self.test_episodes as u64 * self.world.test_steps as u64;
-        let test_agent_steps: u64 = self.n_test.iter().map(|&n| n as u64 * test_steps).sum();
-        let test_step = match learned {
+        let episodes = self.policy.learned().map(|l| l.episodes);
+        Cost::of_cell(
+            &self.world,
+            episodes,
+            self.n_train,
+            &self.n_test,
+            self.test_episodes,
+        )
+    }
+}
+
+impl Cost {
+    /// A cell's cost from its shape: training `episodes` with `n_train` agents (none for a
+    /// baseline), then `test_episodes` at every N_test. Saturates rather than overflows, so
+    /// that a scenario's size can be checked from any numbers a file holds.
+    pub fn of_cell(
+        world: &WorldConfig,
+        episodes: Option<u32>,
+        n_train: Option<u32>,
+        n_test: &[u32],
+        test_episodes: u32,
+    ) -> Cost {
+        let training_episodes = episodes.map_or(0, u64::from);
+        let training_steps = training_episodes * u64::from(world.train_steps);
+        let per_count = u64::from(test_episodes) * u64::from(world.test_steps);
+        let test_episodes = n_test.len() as u64 * u64::from(test_episodes);
+        let test_agent_steps = n_test.iter().fold(0u64, |sum, &n| {
+            sum.saturating_add(u64::from(n).saturating_mul(per_count))
+        });
+        let test_step = match episodes {
             Some(_) => work::LEARNED_STEP,
             None => work::BASELINE_STEP,
         };
+        let training_work = training_steps
+            .saturating_mul(u64::from(n_train.unwrap_or(0)))
+            .saturating_mul(work::TRAINING_STEP);
         Cost {
             training_episodes,
             test_episodes,
-            env_steps: training_steps + test_episodes * self.world.test_steps as u64,
-            work: training_steps * self.n_train.unwrap_or(0) as u64 * work::TRAINING_STEP
-                + test_agent_steps * test_step,
+            env_steps: training_steps
+                .saturating_add(test_episodes.saturating_mul(u64::from(world.test_steps))),
+            work: training_work.saturating_add(test_agent_steps.saturating_mul(test_step)),
+        }
+    }
+
+    /// `count` cells of this cost.
+    pub fn times(self, count: u64) -> Cost {
+        Cost {
+            training_episodes: self.training_episodes.saturating_mul(count),
+            test_episodes: self.test_episodes.saturating_mul(count),
+            env_steps: self.env_steps.saturating_mul(count),
+            work: self.work.saturating_mul(count),
         }
     }
 }
@@ -68,10 +105,12 @@ impl std::ops::Add for Cost {
 
     fn add(self, other: Cost) -> Cost {
         Cost {
-            training_episodes: self.training_episodes + other.training_episodes,
-            test_episodes: self.test_episodes + other.test_episodes,
-            env_steps: self.env_steps + other.env_steps,
-            work: self.work + other.work,
+            training_episodes: self
+                .training_episodes
+                .saturating_add(other.training_episodes),
+            test_episodes: self.test_episodes.saturating_add(other.test_episodes),
+            env_steps: self.env_steps.saturating_add(other.env_steps),
+            work: self.work.saturating_add(other.work),
         }
     }
 }

@@ -5,19 +5,17 @@ use std::sync::Arc;
 use std::time::{Instant, SystemTime};
 
 use polars::prelude::DataFrame;
-use policies::baseline::UnknownBaseline;
 use policies::checkpoint::{self, CheckpointError, METADATA_FILE, WEIGHTS_FILE};
 use policies::nn::ActorCritic;
 use policies::ppo::{ConfigError, TrainingConfig, TrainingState};
-use policies::{ActionChoice, LearnedPolicy, PlanError, Policy};
+use policies::{LearnedPolicy, PlanError, Policy};
 use world::{StartError, World};
 
-use crate::cell::{Cell, CellConfig};
+use crate::cell::{CellConfig, SweepCell};
 use crate::code_version::{code_version, git_commit, sources};
 use crate::provenance::{cpu_description, host_name, utc_timestamp};
 use crate::runner::run_episode;
-use crate::scenario::PolicySpec;
-use crate::scenario::format::BaselineSpec;
+use crate::scenario::{Learned, ScenarioPolicy};
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{CellRecord, EPISODES_FILE, Store, StoreError, TRAINING_FILE};
 use crate::training_run::{TrainingRun, TrainingRunError};
@@ -25,8 +23,6 @@ use crate::trajectory::CellRecording;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CellError {
-    #[error(transparent)]
-    Policy(#[from] UnknownBaseline),
     #[error(transparent)]
     Plan(#[from] PlanError),
     #[error(transparent)]
@@ -57,24 +53,24 @@ pub fn run_cell(
     store: &Store,
     origin: &CellOrigin,
     world: &Arc<World>,
-    cell: &Cell,
+    cell: &SweepCell,
     advance: &dyn Fn(u64),
 ) -> Result<CellRecord, CellError> {
     let started = SystemTime::now();
     let clock = Instant::now();
     let config = &cell.config;
     let mut files = Vec::new();
-    let mut policy = match (&config.policy, config.training_config()) {
-        (PolicySpec::Baseline(baseline), _) => baseline_policy(baseline, world)?,
-        (_, None) => unreachable!("only baselines have no training run"),
-        (_, Some(training)) => {
-            let (state, log) = train_cell(store, cell, world, training?, advance)?;
+    let mut policy = match &config.policy {
+        ScenarioPolicy::Baseline(baseline) => baseline.build(world)?,
+        ScenarioPolicy::Learned(learned) => {
+            let training = config.training_config_of(learned)?;
+            let (state, log) = train_cell(store, cell, world, training, advance)?;
             let checkpoint = checkpoint::save(&state);
             let log = tables::training_frame(&cell.key, config, &log)?;
             files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
             files.push((WEIGHTS_FILE, checkpoint.weights));
             files.push((METADATA_FILE, checkpoint.metadata.into_bytes()));
-            learned_policy(world, state.model, &state.config, config)?
+            learned_policy(world, state.model, &state.config, learned)?
         }
     };
     let mut rows = Vec::new();
@@ -127,7 +123,7 @@ pub fn run_cell(
 /// Trains a learned cell's policy, continuing the run an interrupted sweep saved.
 fn train_cell(
     store: &Store,
-    cell: &Cell,
+    cell: &SweepCell,
     world: &Arc<World>,
     training: TrainingConfig,
     advance: &dyn Fn(u64),
@@ -149,32 +145,23 @@ pub fn stored_policy(
     record: &CellRecord,
     world: &Arc<World>,
 ) -> Result<Box<dyn Policy>, CellError> {
-    if let PolicySpec::Baseline(baseline) = &record.config.policy {
-        return baseline_policy(baseline, world);
-    }
+    let learned = match &record.config.policy {
+        ScenarioPolicy::Baseline(baseline) => return Ok(baseline.build(world)?),
+        ScenarioPolicy::Learned(learned) => learned,
+    };
     let metadata = String::from_utf8_lossy(&store.cell_file(record, METADATA_FILE)?).into_owned();
     let metadata = checkpoint::read_metadata(&metadata)?;
     let model = checkpoint::load_model(&metadata, &store.cell_file(record, WEIGHTS_FILE)?)?;
-    learned_policy(world, model, &metadata.config, &record.config)
-}
-
-fn baseline_policy(
-    baseline: &BaselineSpec,
-    world: &Arc<World>,
-) -> Result<Box<dyn Policy>, CellError> {
-    Ok(baseline.name.parse::<policies::Baseline>()?.build(world)?)
+    learned_policy(world, model, &metadata.config, learned)
 }
 
 fn learned_policy(
     world: &Arc<World>,
     model: ActorCritic<f32>,
     training: &TrainingConfig,
-    cell: &CellConfig,
+    learned: &Learned,
 ) -> Result<Box<dyn Policy>, CellError> {
-    let choice = cell
-        .policy
-        .learned()
-        .map_or(ActionChoice::Sampled, |l| l.action_choice());
+    let choice = learned.test_actions;
     Ok(Box::new(LearnedPolicy::new(
         world, model, training, choice,
     )?))

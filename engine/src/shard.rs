@@ -9,7 +9,7 @@ use std::collections::BinaryHeap;
 use std::fmt;
 use std::str::FromStr;
 
-use crate::cell::Cell;
+use crate::cell::SweepCell;
 
 /// Shard `index` of `count`, counted from 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -20,20 +20,20 @@ pub struct Shard {
 
 impl Shard {
     /// This shard's cells, in the scenario's order.
-    pub fn select(self, cells: &[Cell]) -> Vec<&Cell> {
+    pub fn select(self, cells: &[SweepCell]) -> Vec<&SweepCell> {
         slices(cells, self.count).swap_remove(self.index - 1)
     }
 }
 
 /// What the balance weighs a cell by: its estimated work, in which a training step weighs
 /// far more than a test step.
-pub fn weight(cell: &Cell) -> u64 {
+pub fn weight(cell: &SweepCell) -> u64 {
     cell.config.cost().work
 }
 
 /// The cells split into `count` slices of about equal total weight, each in the scenario's
 /// order.
-pub fn slices(cells: &[Cell], count: usize) -> Vec<Vec<&Cell>> {
+pub fn slices(cells: &[SweepCell], count: usize) -> Vec<Vec<&SweepCell>> {
     let weights: Vec<u64> = cells.iter().map(weight).collect();
     let mut slices = vec![Vec::new(); count];
     for (cell, slice) in cells.iter().zip(balance(&weights, count)) {
@@ -92,7 +92,7 @@ mod tests {
     use crate::scenario::Scenario;
 
     /// `repetitions` cells of equal cost.
-    fn equal_cells(repetitions: u32) -> Vec<Cell> {
+    fn equal_cells(repetitions: u32) -> Vec<SweepCell> {
         let text = format!(
             "name: unit\nseed: 3\nmaps:\n  - inline: {{name: m, grid: \"....\\n....\\n\"}}\n\
              world: {{fov: 3, test_steps: 20}}\npolicies:\n  - baseline: {{name: random}}\n\
@@ -103,7 +103,7 @@ mod tests {
             .cells()
     }
 
-    fn indices(slice: &[&Cell]) -> Vec<usize> {
+    fn indices(slice: &[&SweepCell]) -> Vec<usize> {
         slice.iter().map(|c| c.index).collect()
     }
 

@@ -54,6 +54,15 @@ pub fn standard_deviation(values: &[f64]) -> Result<f64, StatsError> {
     Ok((squares / (values.len() - 1) as f64).sqrt())
 }
 
+/// A seed named by text, so a statistic's resampling does not depend on row order.
+pub fn named_seed(name: &str) -> world::Seed {
+    let hash = blake3::hash(name.as_bytes());
+    let bytes: [u8; 8] = hash.as_bytes()[..8]
+        .try_into()
+        .expect("a blake3 hash has 32 bytes");
+    world::Seed::new(u64::from_le_bytes(bytes))
+}
+
 pub fn median(values: &[f64]) -> Result<f64, StatsError> {
     let sorted = sorted(values)?;
     let half = sorted.len() / 2;

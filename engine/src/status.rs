@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::store::{LeaseHolder, Liveness, Store, StoreError};
+use crate::store::{CellFailure, LeaseHolder, Liveness, Store, StoreError};
 
 /// Where a Slurm output folder's tasks keep their stores.
 pub const SHARDS_FOLDER: &str = "shards";
@@ -34,6 +34,11 @@ pub enum CellState {
         folder: PathBuf,
         holder: LeaseHolder,
     },
+    /// Not done and not running; its last run failed (`failed.json`), with why.
+    Failed {
+        folder: PathBuf,
+        failure: CellFailure,
+    },
     /// Not done and not running; `interrupted` when a killed process left its lease.
     Missing {
         interrupted: Option<(PathBuf, LeaseHolder)>,
@@ -51,14 +56,15 @@ pub enum StatusError {
 }
 
 impl SweepStatus {
-    /// How many cells are done, running and missing.
-    pub fn counts(&self) -> [usize; 3] {
-        let mut counts = [0; 3];
+    /// How many cells are done, running, missing and failed.
+    pub fn counts(&self) -> [usize; 4] {
+        let mut counts = [0; 4];
         for cell in &self.cells {
             counts[match cell.state {
                 CellState::Done { .. } => 0,
                 CellState::Running { .. } => 1,
                 CellState::Missing { .. } => 2,
+                CellState::Failed { .. } => 3,
             }] += 1;
         }
         counts
@@ -129,7 +135,7 @@ fn shard_order(path: &Path) -> (u64, String) {
     (name.parse().unwrap_or(u64::MAX), name.into_owned())
 }
 
-/// Done in any store, else running in any, else missing.
+/// Done in any store, else running in any, else failed in any, else missing.
 fn cell_state(stores: &[(PathBuf, Store)], key: &str) -> CellState {
     if let Some((folder, _)) = stores.iter().find(|(_, s)| s.finished(key).is_some()) {
         return CellState::Done {
@@ -140,11 +146,17 @@ fn cell_state(stores: &[(PathBuf, Store)], key: &str) -> CellState {
         .iter()
         .filter_map(|(folder, store)| store.lease_holder(key).map(|h| (folder, h)))
         .collect();
-    match leases.iter().find(|(_, h)| h.liveness() != Liveness::Gone) {
-        Some((folder, holder)) => CellState::Running {
+    if let Some((folder, holder)) = leases.iter().find(|(_, h)| h.liveness() != Liveness::Gone) {
+        return CellState::Running {
             folder: (*folder).clone(),
             holder: holder.clone(),
-        },
+        };
+    }
+    let failed = stores
+        .iter()
+        .find_map(|(folder, store)| Some((folder.clone(), store.failure(key)?)));
+    match failed {
+        Some((folder, failure)) => CellState::Failed { folder, failure },
         None => CellState::Missing {
             interrupted: leases
                 .into_iter()

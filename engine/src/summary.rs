@@ -12,8 +12,10 @@
 use polars::prelude::*;
 use world::Seed;
 
+use crate::grouping::group_rows;
 use crate::stats::{
-    RESAMPLES, StatsError, iqm, mean, median, standard_deviation, stratified_bootstrap_interval,
+    RESAMPLES, StatsError, iqm, mean, median, named_seed, standard_deviation,
+    stratified_bootstrap_interval,
 };
 use crate::store::StoreError;
 
@@ -149,66 +151,54 @@ fn summarise(group: &Group) -> Result<GroupSummary, StatsError> {
 
 /// The group's own resampling seed: a hash of its name.
 fn group_seed(group: &Group) -> Seed {
-    let name = format!(
+    named_seed(&format!(
         "{}\0{}\0{:?}\0{}",
         group.map, group.policy, group.n_train, group.n_test
-    );
-    let hash = blake3::hash(name.as_bytes());
-    let bytes: [u8; 8] = hash.as_bytes()[..8]
-        .try_into()
-        .expect("a blake3 hash has 32 bytes");
-    Seed::new(u64::from_le_bytes(bytes))
+    ))
 }
 
 fn groups(episodes: &DataFrame) -> Result<Vec<Group>, StoreError> {
-    let map = episodes.column("map")?.str()?;
-    let policy = episodes.column("policy")?.str()?;
-    let n_train = episodes.column("n_train")?.u32()?;
-    let n_test = episodes.column("n_test")?.u32()?;
-    let cell = episodes.column("cell_key")?.str()?;
-    let penalty = episodes.column("cumulative_penalty")?.f64()?;
-    let average_idleness = episodes.column("average_idleness")?.f64()?;
-    let worst_idleness = episodes.column("worst_idleness")?.u32()?;
+    let column = |name: &str| episodes.column(name);
+    let map = column("map")?.str()?;
+    let policy = column("policy")?.str()?;
+    let n_train = column("n_train")?.u32()?;
+    let n_test = column("n_test")?.u32()?;
+    let cell = column("cell_key")?.str()?;
+    let penalty = column("cumulative_penalty")?.f64()?;
+    let average_idleness = column("average_idleness")?.f64()?;
+    let worst_idleness = column("worst_idleness")?.u32()?;
     let missing = || PolarsError::NoData("a null in the episodes table".into());
-    let mut groups: Vec<Group> = Vec::new();
-    for i in 0..episodes.height() {
-        let (map, policy) = (
-            map.get(i).ok_or_else(missing)?,
-            policy.get(i).ok_or_else(missing)?,
-        );
-        let (n_train, n_test) = (n_train.get(i), n_test.get(i).ok_or_else(missing)?);
-        let cell = cell.get(i).ok_or_else(missing)?;
-        let (value, average, worst) = (
-            penalty.get(i).ok_or_else(missing)?,
-            average_idleness.get(i).ok_or_else(missing)?,
-            worst_idleness.get(i).ok_or_else(missing)?,
-        );
-        let position = groups.iter().position(|g| {
-            g.map == map && g.policy == policy && g.n_train == n_train && g.n_test == n_test
+    let keys = (0..episodes.height())
+        .map(|i| match (map.get(i), policy.get(i), n_test.get(i)) {
+            (Some(map), Some(policy), Some(n_test)) => Ok((map, policy, n_train.get(i), n_test)),
+            _ => Err(missing()),
+        })
+        .collect::<PolarsResult<Vec<_>>>()?;
+    let cells = (0..episodes.height())
+        .map(|i| cell.get(i).ok_or_else(missing))
+        .collect::<PolarsResult<Vec<_>>>()?;
+    let mut groups = Vec::new();
+    for ((map, policy, n_train, n_test), rows) in group_rows(&keys) {
+        let of_group: Vec<&str> = rows.iter().map(|&i| cells[i]).collect();
+        let mut strata = Vec::new();
+        for (cell, within) in group_rows(&of_group) {
+            let mut stratum = Stratum::default();
+            for row in within.iter().map(|&j| rows[j]) {
+                stratum.penalty.push(penalty.get(row).ok_or_else(missing)?);
+                let average = average_idleness.get(row).ok_or_else(missing)?;
+                stratum.average_idleness.push(average);
+                let worst = worst_idleness.get(row).ok_or_else(missing)?;
+                stratum.worst_idleness.push(f64::from(worst));
+            }
+            strata.push((cell.to_owned(), stratum));
+        }
+        groups.push(Group {
+            map: map.to_owned(),
+            policy: policy.to_owned(),
+            n_train,
+            n_test,
+            strata,
         });
-        let group = match position {
-            Some(p) => &mut groups[p],
-            None => {
-                groups.push(Group {
-                    map: map.to_owned(),
-                    policy: policy.to_owned(),
-                    n_train,
-                    n_test,
-                    strata: Vec::new(),
-                });
-                groups.last_mut().expect("just pushed")
-            }
-        };
-        let stratum = match group.strata.iter().position(|(key, _)| key == cell) {
-            Some(p) => &mut group.strata[p].1,
-            None => {
-                group.strata.push((cell.to_owned(), Stratum::default()));
-                &mut group.strata.last_mut().expect("just pushed").1
-            }
-        };
-        stratum.penalty.push(value);
-        stratum.average_idleness.push(average);
-        stratum.worst_idleness.push(f64::from(worst));
     }
     Ok(groups)
 }

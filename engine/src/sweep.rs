@@ -4,17 +4,19 @@
 //! Nothing is shared between cells but read-only worlds, and every cell's seeds come from its
 //! config, so results do not depend on `--jobs`, on sharding or on interruptions.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use world::World;
 
-use crate::cell::{Cell, CellConfig};
+use crate::cell::{CellConfig, SweepCell};
 use crate::code_version::code_version;
 use crate::execution::{CellError, CellOrigin, run_cell};
 use crate::progress::Progress;
 use crate::scenario::Scenario;
 use crate::shard::Shard;
+use crate::stop;
+use crate::store::lease::exit_giving_back_leases;
 use crate::store::{Manifest, Store, StoreError};
 
 pub struct SweepOptions {
@@ -62,11 +64,11 @@ pub fn run_sweep(
 ) -> Result<SweepReport, SweepError> {
     let cells = scenario.cells();
     prepare(scenario, scenario_text, &cells, store, options.shard)?;
-    let selected: Vec<&Cell> = match options.shard {
+    let selected: Vec<&SweepCell> = match options.shard {
         Some(shard) => shard.select(&cells),
         None => cells.iter().collect(),
     };
-    let mut todo: Vec<&Cell> = selected
+    let mut todo: Vec<&SweepCell> = selected
         .iter()
         .copied()
         .filter(|c| store.finished(&c.key).is_none())
@@ -96,7 +98,7 @@ pub fn run_sweep(
 pub fn prepare(
     scenario: &Scenario,
     scenario_text: &str,
-    cells: &[Cell],
+    cells: &[SweepCell],
     store: &Store,
     shard: Option<Shard>,
 ) -> Result<(), StoreError> {
@@ -124,8 +126,8 @@ pub fn prepare(
 fn exchange_with_cache(
     store: &Store,
     cache: &Store,
-    selected: &[&Cell],
-    todo: &mut Vec<&Cell>,
+    selected: &[&SweepCell],
+    todo: &mut Vec<&SweepCell>,
 ) -> Result<usize, StoreError> {
     cache.prepare_cache()?;
     for cell in selected {
@@ -165,7 +167,7 @@ fn run_cells(
     scenario: &Scenario,
     store: &Store,
     cache: Option<&Store>,
-    todo: &[&Cell],
+    todo: &[&SweepCell],
     jobs: usize,
 ) -> Result<CellsRun, SweepError> {
     let cores = std::thread::available_parallelism().map_or(1, usize::from);
@@ -177,7 +179,7 @@ fn run_cells(
         .expect("checked when the scenario was loaded");
     let progress = Progress::new(todo.iter().map(|c| c.config.cost().env_steps).sum());
     let elsewhere = AtomicUsize::new(0);
-    let run_one = |cell: &Cell| -> Result<(), CellError> {
+    let run_one = |cell: &SweepCell| -> Result<(), CellError> {
         let map = &scenario.maps[cell.map_index];
         let world = worlds[cell.map_index].get_or_init(|| World::new(map.map.clone(), params));
         let origin = CellOrigin {
@@ -204,7 +206,9 @@ fn run_cells(
     };
     let next = AtomicUsize::new(0);
     let failed = Mutex::new(Vec::new());
+    let ended = AtomicBool::new(false);
     let started: Result<(), SweepError> = std::thread::scope(|scope| {
+        scope.spawn(|| stop_when_asked(&ended));
         let workers: Vec<_> = (0..jobs.min(todo.len()))
             .map(|_| {
                 scope.spawn(|| {
@@ -215,7 +219,13 @@ fn run_cells(
                     // The loop itself runs on the pool, so a cell starts with no hand-over.
                     pool.install(|| {
                         while let Some(&cell) = todo.get(next.fetch_add(1, Ordering::Relaxed)) {
+                            if stop::requested().is_some() {
+                                break;
+                            }
                             if let Err(error) = run_one(cell) {
+                                // Kept for status and the report; if even that cannot be
+                                // written, the sweep still reports the failure itself.
+                                let _ = store.record_failure(&cell.key, &error.to_string());
                                 let mut failed = failed.lock().unwrap_or_else(|e| e.into_inner());
                                 failed.push((cell.index, cell.key.clone(), error));
                             }
@@ -225,11 +235,15 @@ fn run_cells(
                 })
             })
             .collect();
-        workers
+        let joined = workers
             .into_iter()
-            .try_for_each(|w| w.join().expect("a sweep worker never panics"))
+            .try_for_each(|w| w.join().expect("a sweep worker never panics"));
+        ended.store(true, Ordering::SeqCst);
+        joined
     });
     started?;
+    // A stop that came as the last cells ended: no cell is in flight, the tables wait.
+    exit_if_asked();
     progress.finish();
     let mut failed = failed.into_inner().unwrap_or_else(|e| e.into_inner());
     failed.sort_by_key(|(index, _, _)| *index);
@@ -242,8 +256,32 @@ fn run_cells(
     })
 }
 
+/// Watches for a stop (`stop::catch_termination`) until the workers end.
+fn stop_when_asked(ended: &AtomicBool) {
+    while !ended.load(Ordering::SeqCst) {
+        exit_if_asked();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
+/// On a stop, gives back the leases of the cells in flight and exits with 128 + the signal,
+/// as a shell reports a process that the signal ended.
+fn exit_if_asked() {
+    let Some(signal) = stop::requested() else {
+        return;
+    };
+    exit_giving_back_leases(128 + signal, |abandoned| {
+        eprintln!(
+            "sweep stopped by {}: {abandoned} cells in flight given back (a training run \
+             resumes from its last save); finished cells are kept, and the next sweep into \
+             this folder goes on from there",
+            stop::signal_name(signal)
+        );
+    });
+}
+
 /// How a cell is named on screen and in messages.
-pub fn cell_label(cell: &Cell) -> String {
+pub fn cell_label(cell: &SweepCell) -> String {
     format!("{} ({})", cell_title(&cell.config), cell.key)
 }
 

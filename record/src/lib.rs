@@ -12,7 +12,7 @@ use std::sync::{Arc, Mutex};
 
 use rerun::external::re_entity_db::EntityDb;
 use rerun::external::re_log_encoding::DecoderApp;
-use world::{Episode, Map, World};
+use world::{Episode, World};
 
 use policies::{AttentionEdges, Policy};
 
@@ -82,9 +82,7 @@ pub fn record_episode(
         key: choice.cell.clone(),
         problem,
     };
-    let text = store.map_text(&config.map.hash)?;
-    let map = Map::parse_text(&config.map.name, &text, Path::new(&config.map.hash))
-        .map_err(|e| map_problem(e.to_string()))?;
+    let map = store.map(&config.map.name, &config.map.hash)?;
     let params = config
         .world
         .params()

@@ -115,7 +115,8 @@ fn rhythms(motions: &[Motion]) -> Vec<Rhythm> {
     for (index, motion) in motions.iter().enumerate() {
         for (signal, values) in motion.signals() {
             let periods: Vec<Option<f64>> = values.iter().map(|v| dominant_period(v)).collect();
-            let team_period = median(periods.iter().flatten().copied().collect());
+            let found: Vec<f64> = periods.iter().flatten().copied().collect();
+            let team_period = engine::stats::median(&found).ok();
             let harmonics: Vec<Option<Harmonic>> = values
                 .iter()
                 .map(|v| team_period.and_then(|p| fit_harmonic(v, p)))
@@ -138,16 +139,6 @@ fn rhythms(motions: &[Motion]) -> Vec<Rhythm> {
         }
     }
     rows
-}
-
-fn median(mut values: Vec<f64>) -> Option<f64> {
-    values.sort_unstable_by(f64::total_cmp);
-    let n = values.len();
-    match n {
-        0 => None,
-        _ if n % 2 == 1 => Some(values[n / 2]),
-        _ => Some((values[n / 2 - 1] + values[n / 2]) / 2.0),
-    }
 }
 
 /// Motion features of one agent, for the roles.

@@ -98,50 +98,5 @@ impl GroupKey {
     }
 }
 
-/// The distinct values of `items` in order of first appearance.
-pub fn distinct<T: Clone + PartialEq>(items: impl IntoIterator<Item = T>) -> Vec<T> {
-    let mut seen: Vec<T> = Vec::new();
-    for item in items {
-        if !seen.contains(&item) {
-            seen.push(item);
-        }
-    }
-    seen
-}
-
-/// Row indices grouped by key, groups in order of first appearance.
-pub fn group_rows<T: Clone + PartialEq>(keys: &[T]) -> Vec<(T, Vec<usize>)> {
-    let mut groups: Vec<(T, Vec<usize>)> = Vec::new();
-    for (row, key) in keys.iter().enumerate() {
-        match groups.iter_mut().find(|(k, _)| k == key) {
-            Some((_, rows)) => rows.push(row),
-            None => groups.push((key.clone(), vec![row])),
-        }
-    }
-    groups
-}
-
-/// A seed named by text, so a statistic's resampling does not depend on row order.
-pub fn named_seed(name: &str) -> world::Seed {
-    let hash = blake3::hash(name.as_bytes());
-    let bytes: [u8; 8] = hash.as_bytes()[..8]
-        .try_into()
-        .expect("a blake3 hash has 32 bytes");
-    world::Seed::new(u64::from_le_bytes(bytes))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn groups_keep_first_appearance_order() {
-        let keys = ["b", "a", "b", "c", "a"];
-        let groups = group_rows(&keys);
-        assert_eq!(
-            groups,
-            vec![("b", vec![0, 2]), ("a", vec![1, 4]), ("c", vec![3])]
-        );
-        assert_eq!(distinct(keys), vec!["b", "a", "c"]);
-    }
-}
+pub use engine::grouping::{distinct, group_rows};
+pub use engine::stats::named_seed;

@@ -24,6 +24,7 @@ use polars::prelude::*;
 
 use chart::{ChartError, Figure, render};
 use engine::atomic_file::write_atomic;
+use engine::status::CellState;
 use engine::store::{Store, StoreError, tables};
 use world::Map;
 
@@ -49,6 +50,8 @@ pub enum ReportError {
     NoSweep(PathBuf),
     #[error(transparent)]
     Claims(#[from] engine::scenario::ScenarioError),
+    #[error(transparent)]
+    Status(#[from] engine::status::StatusError),
 }
 
 /// What a report wrote.
@@ -77,6 +80,9 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
     ));
     if let Some(cells) = optional_table(store, "cells")? {
         report.paragraph(&provenance(&cells)?);
+    }
+    if let Some(missing) = missing_cells(store)? {
+        report.paragraph(&missing);
     }
     let loaded = StoreTables::load(store)?;
     let claims = store_claims(store)?;
@@ -138,6 +144,36 @@ fn provenance(cells: &DataFrame) -> PolarsResult<String> {
         counted.join("; "),
         wall_seconds
     ))
+}
+
+/// The cells of the sweep that its tables lack, failed or not run, each with why: every
+/// figure and verdict rests on the others, and the reader must know which. `None` when every
+/// cell is there.
+fn missing_cells(store: &Store) -> Result<Option<String>, ReportError> {
+    let status = engine::status::sweep_status(store.root())?;
+    let lines: Vec<String> = status
+        .cells
+        .iter()
+        .filter_map(|cell| {
+            let why = match &cell.state {
+                CellState::Done { .. } => return None,
+                CellState::Failed { failure, .. } => format!("failed: {}", failure.error),
+                CellState::Running { .. } => "still running".to_owned(),
+                CellState::Missing { .. } => "not run".to_owned(),
+            };
+            Some(format!("- {} (`{}`): {why}", cell.label, cell.key))
+        })
+        .collect();
+    if lines.is_empty() {
+        return Ok(None);
+    }
+    Ok(Some(format!(
+        "**{} of {} cells are missing** from these tables, and every number, figure and verdict \
+         below rests on the others:\n\n{}",
+        lines.len(),
+        status.cells.len(),
+        lines.join("\n")
+    )))
 }
 
 /// The claims of the scenario as the sweep ran it (its copy in the store).

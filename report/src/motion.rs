@@ -3,7 +3,6 @@
 //! about the map centre (the open map's tours) and the team's penalty per step.
 
 use std::collections::HashMap;
-use std::path::Path;
 
 use polars::prelude::*;
 use world::Map;
@@ -12,7 +11,7 @@ use super::chart::grid::{GridFigure, GridPanel, Shade};
 use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{GroupKey, f64s, group_rows, strings, u32s};
 use super::{ReportError, ReportWriter, file_stem};
-use engine::store::{Store, StoreError};
+use engine::store::Store;
 
 /// The maps of a store by name, from its `cells` table and map files.
 pub fn maps(store: &Store) -> Result<HashMap<String, Map>, ReportError> {
@@ -24,12 +23,7 @@ pub fn maps(store: &Store) -> Result<HashMap<String, Map>, ReportError> {
         if maps.contains_key(&name) {
             continue;
         }
-        let text = store.map_text(&hash)?;
-        let file = Path::new("maps").join(format!("{hash}.txt"));
-        let map = Map::parse_text(&name, &text, &file).map_err(|e| StoreError::Corrupt {
-            path: store.root().join(&file),
-            problem: e.to_string(),
-        })?;
+        let map = store.map(&name, &hash)?;
         maps.insert(name, map);
     }
     Ok(maps)

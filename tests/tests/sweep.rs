@@ -1,11 +1,12 @@
 //! `harness sweep`, `check`, `merge` and `audit` as a user runs them: real processes, real
-//! folders, a real SIGKILL.
+//! folders, a real SIGKILL. The plumbing runs on the tiny scenario; the smoke sweep runs once,
+//! for its pinned tables.
 
 mod common;
 mod smoke;
 
 use common::{harness, scratch, succeed};
-use smoke::{assert_same_tables, finished_cells, read_table, reference_run, smoke, sweep};
+use smoke::{SMOKE, TINY, assert_same_tables, finished_cells, read_table, reference_run, sweep};
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -46,7 +47,7 @@ fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
     let out = dir.join("store");
     let cache = dir.join("cache");
     let cache_arg = ["--cache", cache.to_str().unwrap()];
-    let first = sweep(&out, &cache_arg);
+    let first = sweep(TINY, &out, &cache_arg);
     assert!(
         first.contains(", 0 already finished, 0 from the cache,"),
         "{first}"
@@ -54,7 +55,7 @@ fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
     let cells = finished_cells(&out);
     assert!(cells >= 2, "{first}");
     let before = snapshot(&out.join("cells"));
-    let second = sweep(&out, &[]);
+    let second = sweep(TINY, &out, &[]);
     let expected =
         format!("{cells} cells, {cells} already finished, 0 from the cache, 0 computed, 0 failed");
     assert!(second.contains(&expected), "{second}");
@@ -63,7 +64,7 @@ fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
         before,
         "no cell file was rewritten"
     );
-    assert_same_tables(&out, reference_run());
+    assert_same_tables(&out, &reference_run(TINY));
 
     assert_eq!(
         finished_cells(&cache),
@@ -71,10 +72,10 @@ fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
         "every computed cell went to the cache"
     );
     let other = dir.join("other store");
-    let served = sweep(&other, &cache_arg);
+    let served = sweep(TINY, &other, &cache_arg);
     let expected = format!("{cells} cells, 0 already finished, {cells} from the cache, 0 computed");
     assert!(served.contains(&expected), "{served}");
-    assert_same_tables(&other, reference_run());
+    assert_same_tables(&other, &reference_run(TINY));
 }
 
 #[test]
@@ -83,7 +84,7 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
     let mut child = Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
         .args([
             "sweep",
-            &smoke(),
+            &common::repo_file(TINY),
             "--jobs",
             "1",
             "--out",
@@ -94,23 +95,7 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    // Killed once a cell is finished and another one is in flight (leased, not finished).
-    let in_flight = |out: &Path| {
-        std::fs::read_dir(out.join("cells")).map_or(0, |entries| {
-            entries
-                .flatten()
-                .filter(|e| e.path().join("running.json").exists())
-                .filter(|e| !e.path().join("cell.json").exists())
-                .count()
-        })
-    };
-    while finished_cells(&out) == 0 || in_flight(&out) == 0 {
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "the sweep ended before the kill"
-        );
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    wait_for_a_cell_in_flight(&mut child, &out);
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
     let done = finished_cells(&out);
@@ -121,7 +106,7 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
         "{killed}"
     );
     assert!(killed.contains("interrupted in ."), "{killed}");
-    let resumed = sweep(&out, &["--jobs", "1"]);
+    let resumed = sweep(TINY, &out, &["--jobs", "1"]);
     let total = finished_cells(&out);
     let after = status(&out);
     assert!(
@@ -139,20 +124,142 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
         total - done
     );
     assert!(resumed.contains(&expected), "{resumed}");
-    assert_same_tables(&out, reference_run());
+    assert_same_tables(&out, &reference_run(TINY));
+}
+
+/// Cells of `out` that are leased and not finished.
+fn cells_in_flight(out: &Path) -> usize {
+    std::fs::read_dir(out.join("cells")).map_or(0, |entries| {
+        entries
+            .flatten()
+            .filter(|e| e.path().join("running.json").exists())
+            .filter(|e| !e.path().join("cell.json").exists())
+            .count()
+    })
+}
+
+/// Waits until the sweep `child` into `out` has finished a cell and has another in flight.
+fn wait_for_a_cell_in_flight(child: &mut std::process::Child, out: &Path) {
+    while finished_cells(out) == 0 || cells_in_flight(out) == 0 {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the sweep ended before it could be stopped"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+/// A scheduler's pre-emption: SIGTERM, the sweep stops between writes, gives back its leases
+/// and exits with 143; nothing is left marked as running, and the next sweep resumes.
+#[test]
+fn a_sweep_stopped_by_sigterm_gives_back_its_leases_and_resumes() {
+    let out = scratch("sigterm").join("store");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
+        .args([
+            "sweep",
+            &common::repo_file(TINY),
+            "--jobs",
+            "1",
+            "--no-report",
+        ])
+        .args(["--out", out.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for_a_cell_in_flight(&mut child, &out);
+    let pid = child.id().to_string();
+    succeed(Command::new("kill").args(["-TERM", &pid]).output().unwrap());
+    let stopped = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&stopped.stderr);
+    assert_eq!(stopped.status.code(), Some(143), "{stderr}");
+    assert!(stderr.contains("sweep stopped by SIGTERM: "), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let done = finished_cells(&out);
+    let status = succeed(harness(&["status", out.to_str().unwrap()]));
+    assert!(
+        status.contains(&format!(" {done} done, 0 running,")),
+        "{status}"
+    );
+    assert!(!status.contains("interrupted"), "{status}");
+    let resumed = sweep(TINY, &out, &["--jobs", "1"]);
+    assert!(
+        resumed.contains(&format!("{done} already finished")),
+        "{resumed}"
+    );
+    assert_same_tables(&out, &reference_run(TINY));
+}
+
+/// Two rooms with no door: Random runs there, a patrol tour cannot be planned.
+const TWO_ROOMS: &str = "\
+name: failing
+seed: 5
+maps:
+  - inline:
+      name: two_rooms
+      grid: |
+        #########
+        #...#...#
+        #...#...#
+        #########
+world: {fov: 3, test_steps: 30}
+policies:
+  - baseline: {name: random}
+  - baseline: {name: tspc}
+agents: {test: [2]}
+repetitions: 2
+test_episodes: 2
+";
+
+/// A cell that fails does not sink the sweep: the others finish, the failure is kept in the
+/// cell's folder, status lists it, the report names it, and the exit status says so.
+#[test]
+fn a_failing_cell_is_kept_as_failed_and_named_while_the_others_finish() {
+    let dir = scratch("failing");
+    let scenario = dir.join("failing.yaml");
+    std::fs::write(&scenario, TWO_ROOMS).unwrap();
+    let out = dir.join("store");
+    let reports = dir.join("reports");
+    let output = harness(&[
+        "sweep",
+        scenario.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--report-to",
+        reports.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(stderr.contains("2 cells failed"), "{stderr}");
+    assert!(
+        stderr.contains("a patrol tour needs one connected"),
+        "{stderr}"
+    );
+    assert_eq!(finished_cells(&out), 2, "the Random cells finish");
+    let status = succeed(harness(&["status", out.to_str().unwrap()]));
+    assert!(
+        status.contains(": 4 cells, 2 done, 0 running, 0 missing, 2 failed"),
+        "{status}"
+    );
+    let failed = status.lines().filter(|l| l.starts_with("failed ")).count();
+    assert_eq!(failed, 2, "{status}");
+    let readme = std::fs::read_to_string(reports.join("failing/README.md")).unwrap();
+    assert!(readme.contains("**2 of 4 cells are missing**"), "{readme}");
+    assert_eq!(readme.matches("tspc rep ").count(), 2, "{readme}");
+    assert!(readme.contains("failed: map \"two_rooms\""), "{readme}");
 }
 
 #[test]
 fn two_shards_merged_equal_one_unsharded_run() {
     let dir = scratch("shards");
     let shards = [dir.join("shard1"), dir.join("shard2")];
-    let one = sweep(&shards[0], &["--shard", "1/2"]);
-    let two = sweep(&shards[1], &["--shard", "2/2"]);
+    let one = sweep(TINY, &shards[0], &["--shard", "1/2"]);
+    let two = sweep(TINY, &shards[1], &["--shard", "2/2"]);
     assert!(
         one.contains("(shard 1/2)") && two.contains("(shard 2/2)"),
         "{one}{two}"
     );
-    let total = finished_cells(reference_run());
+    let total = finished_cells(&reference_run(TINY));
     assert_eq!(
         finished_cells(&shards[0]) + finished_cells(&shards[1]),
         total
@@ -169,7 +276,7 @@ fn two_shards_merged_equal_one_unsharded_run() {
         printed.contains(&format!("{total} of {total} cells")),
         "{printed}"
     );
-    assert_same_tables(&merged, reference_run());
+    assert_same_tables(&merged, &reference_run(TINY));
 
     let partial = dir.join("partial");
     let output = harness(&[
@@ -186,7 +293,7 @@ fn two_shards_merged_equal_one_unsharded_run() {
 fn audit_passes_and_fails_when_a_stored_number_is_altered() {
     // A copy of the reference run, since this test alters it.
     let store = scratch("audit").join("store");
-    copy_folder(reference_run(), &store);
+    copy_folder(&reference_run(TINY), &store);
     let rows = read_table(&store, "episodes").height();
     let trained = read_table(&store, "cells")
         .column("training_hash")
@@ -196,7 +303,7 @@ fn audit_passes_and_fails_when_a_stored_number_is_altered() {
         .iter()
         .flatten()
         .count();
-    assert!(trained > 0, "the smoke sweep trains learned policies");
+    assert!(trained > 0, "the tiny sweep trains a learned policy");
     let audit = |store: &Path| {
         let store = store.to_str().unwrap();
         harness(&[
@@ -247,7 +354,7 @@ fn audit_passes_and_fails_when_a_stored_number_is_altered() {
 
 #[test]
 fn check_prints_every_cell_and_the_cost() {
-    let printed = succeed(harness(&["check", &smoke()]));
+    let printed = succeed(harness(&["check", &common::repo_file(SMOKE)]));
     assert!(printed.starts_with("scenario smoke"), "{printed}");
     let cells = printed
         .lines()
@@ -293,7 +400,7 @@ const BAD_CASES: [BadCase; 14] = [
         what: "unknown key in a block",
         from: "rmax: 400",
         to: "rmax: 400, decoy: 1",
-        message: "bad.yaml:5: unknown field `decoy`",
+        message: "bad.yaml:5: world: unknown field `decoy`",
     },
     BadCase {
         what: "wrong type",
@@ -347,7 +454,7 @@ const BAD_CASES: [BadCase; 14] = [
         what: "unknown policy kind",
         from: "ma-g-ppo:",
         to: "ma-gppo:",
-        message: "bad.yaml:8: unknown variant `ma-gppo`",
+        message: "bad.yaml:8: policies[1]: unknown variant `ma-gppo`",
     },
     BadCase {
         what: "no training episodes",
@@ -526,7 +633,7 @@ fn two_sweeps_into_one_folder_never_compute_a_cell_twice() {
 fn the_smoke_tables_are_the_pinned_bytes() {
     let pinned = std::fs::read_to_string(common::repo_file("tests/tests/smoke/tables.blake3"))
         .unwrap_or_default();
-    let computed = smoke::table_hashes(reference_run());
+    let computed = smoke::table_hashes(&reference_run(SMOKE));
     assert!(
         computed == pinned,
         "the smoke sweep's tables changed; if on purpose, write into \

@@ -99,9 +99,6 @@ pub struct Point {
 /// The claims of a scenario's text, checked for their own shape only: the store's copy of a
 /// scenario whose maps and policies were checked when the sweep loaded it.
 pub fn claims_of_text(text: &str, file: &Path) -> Result<Vec<Claim>, ScenarioError> {
-    let spec: format::ClaimsOnly = serde_saphyr::from_str(text).map_err(|e| {
-        let line = e.location().and_then(crate::scenario::error::line_of);
-        ScenarioError::new(file, line, "claims", e.to_string())
-    })?;
+    let spec: format::ClaimsOnly = crate::scenario::yaml::from_yaml(text, file)?;
     check_claims(&spec.claims, None, file)
 }

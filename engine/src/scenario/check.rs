@@ -4,16 +4,16 @@
 use std::collections::HashSet;
 use std::path::Path;
 
-use policies::Baseline;
 use serde_saphyr::Spanned;
 use world::{Map, MapError, WorldParams};
 
 use super::error::ScenarioError;
-use super::format::{LearnedSpec, MapSpec, PolicySpec, ScenarioFile, WorldSpec};
-use super::{Scenario, ScenarioMap, WorldConfig};
+use super::format::{MapSpec, PolicySpec, ScenarioFile, WorldSpec};
+use super::size::{Limits, check_size};
+use super::{Scenario, ScenarioMap, ScenarioPolicy, WorldConfig};
 use crate::claims::{ClaimContext, check_claims};
 
-pub fn check(spec: ScenarioFile, file: &Path) -> Result<Scenario, ScenarioError> {
+pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenario, ScenarioError> {
     let name = check_name(&spec.name, file)?;
     let maps = load_maps(&spec.maps, file)?;
     let policies = check_policies(&spec.policies, file)?;
@@ -24,7 +24,14 @@ pub fn check(spec: ScenarioFile, file: &Path) -> Result<Scenario, ScenarioError>
     } else {
         Vec::new()
     };
-    check_training(&spec.policies, &world, &train_agents, &maps, file)?;
+    check_training(
+        &spec.policies,
+        &policies,
+        &world,
+        &train_agents,
+        &maps,
+        file,
+    )?;
     let test_agents = agent_counts(&spec.agents.test, "agents.test", &maps, file)?;
     let repetitions = positive(&spec.repetitions, "repetitions", file)?;
     let test_episodes = positive(&spec.test_episodes, "test_episodes", file)?;
@@ -39,9 +46,9 @@ pub fn check(spec: ScenarioFile, file: &Path) -> Result<Scenario, ScenarioError>
         test_agents: test_agents.clone(),
     };
     let claims = check_claims(&spec.claims, Some(&context), file)?;
-    Ok(Scenario {
+    let scenario = Scenario {
         name,
-        description: spec.description,
+        description: spec.description.clone(),
         file: file.to_owned(),
         maps,
         world,
@@ -53,7 +60,9 @@ pub fn check(spec: ScenarioFile, file: &Path) -> Result<Scenario, ScenarioError>
         test_episodes,
         outputs,
         claims,
-    })
+    };
+    check_size(&scenario, &spec, limits, file)?;
+    Ok(scenario)
 }
 
 /// The name becomes a folder name, so it keeps to letters, digits, `-` and `_`.
@@ -135,69 +144,41 @@ fn check_world(spec: &WorldSpec, learned: bool, file: &Path) -> Result<WorldConf
 fn check_policies(
     policies: &Spanned<Vec<Spanned<PolicySpec>>>,
     file: &Path,
-) -> Result<Vec<PolicySpec>, ScenarioError> {
-    let mut checked: Vec<PolicySpec> = Vec::new();
+) -> Result<Vec<ScenarioPolicy>, ScenarioError> {
+    let mut checked: Vec<ScenarioPolicy> = Vec::new();
     for (i, spec) in non_empty(policies, "policies", file)?.iter().enumerate() {
         let field = format!("policies[{i}]");
         let fail = |problem: String| ScenarioError::at(file, spec, &field, problem);
-        check_policy(&spec.value).map_err(fail)?;
-        let label = spec.value.label();
+        let policy =
+            ScenarioPolicy::try_from(spec.value.clone()).map_err(|e| fail(e.to_string()))?;
+        let label = policy.label();
         if checked.iter().any(|p| p.label() == label) {
             return Err(fail(format!("policy {label:?} is listed twice")));
         }
-        checked.push(spec.value.clone());
+        checked.push(policy);
     }
     Ok(checked)
-}
-
-fn check_policy(spec: &PolicySpec) -> Result<(), String> {
-    match spec {
-        PolicySpec::Baseline(baseline) => baseline
-            .name
-            .parse::<Baseline>()
-            .map(drop)
-            .map_err(|e| e.to_string()),
-        PolicySpec::MaGPpo(learned) | PolicySpec::MaPpo(learned) => {
-            if learned.episodes == 0 {
-                return Err("episodes must be at least 1".to_owned());
-            }
-            if learned.channels.is_empty() {
-                return Err("channels is empty (use [local, mini], [local] or [mini])".to_owned());
-            }
-            if learned.channels.len() == 2 && learned.channels[0] == learned.channels[1] {
-                return Err("channels lists one channel twice".to_owned());
-            }
-            Ok(())
-        }
-    }
 }
 
 /// Resolves every learned policy's training run for every N_train and map, so that a bad
 /// `set` or a network that does not fit a map's images fails now, not hours into a sweep.
 fn check_training(
-    policies: &Spanned<Vec<Spanned<PolicySpec>>>,
+    specs: &Spanned<Vec<Spanned<PolicySpec>>>,
+    policies: &[ScenarioPolicy],
     world: &WorldConfig,
     train_agents: &[u32],
     maps: &[ScenarioMap],
     file: &Path,
 ) -> Result<(), ScenarioError> {
-    for (i, spec) in policies.value.iter().enumerate() {
+    for (i, (spec, policy)) in specs.value.iter().zip(policies).enumerate() {
         let field = format!("policies[{i}]");
         let fail = |problem: String| ScenarioError::at(file, spec, &field, problem);
-        let Some(learned) = spec.value.learned() else {
+        let Some(learned) = policy.learned() else {
             continue;
         };
-        let own = |key: &&String| LearnedSpec::OWN_FIELDS.contains(&key.as_str());
-        if let Some(key) = learned.set.keys().find(own) {
-            return Err(fail(format!(
-                "set.{key}: the scenario sets this itself (agents.train, episodes, \
-                 world.train_steps, channels, the policy's kind and profile)"
-            )));
-        }
         for &n_train in train_agents {
-            let config = spec.value.training_config(world, n_train);
-            let config = config
-                .expect("a learned policy")
+            let config = learned
+                .training_config(world, n_train)
                 .map_err(|e| fail(e.to_string()))?;
             for map in maps {
                 let side =

@@ -5,11 +5,9 @@
 
 use std::collections::BTreeMap;
 
-use policies::ActionChoice;
-use policies::ppo::{ArchitectureName, Profile};
+use policies::ppo::Profile;
 use serde::{Deserialize, Serialize};
 use serde_saphyr::{Location, Spanned};
-use world::Channels;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -182,90 +180,6 @@ impl Output {
 
     fn all() -> Spanned<Vec<Output>> {
         unplaced(Self::ALL.to_vec())
-    }
-}
-
-impl PolicySpec {
-    /// The name in tables: the baseline's name, or the architecture with its non-default
-    /// channels and profile (`ma-g-ppo`, `ma-g-ppo[mini]`, `ma-ppo@fast`), or the name given.
-    pub fn label(&self) -> String {
-        match self {
-            PolicySpec::Baseline(baseline) => baseline.name.clone(),
-            PolicySpec::MaGPpo(learned) => learned.label("ma-g-ppo"),
-            PolicySpec::MaPpo(learned) => learned.label("ma-ppo"),
-        }
-    }
-
-    /// The architecture of a learned policy, as the training configuration names it.
-    pub fn architecture(&self) -> Option<ArchitectureName> {
-        match self {
-            PolicySpec::Baseline(_) => None,
-            PolicySpec::MaGPpo(_) => Some(ArchitectureName::MaGPpo),
-            PolicySpec::MaPpo(_) => Some(ArchitectureName::MaPpo),
-        }
-    }
-
-    pub fn learned(&self) -> Option<&LearnedSpec> {
-        match self {
-            PolicySpec::Baseline(_) => None,
-            PolicySpec::MaGPpo(learned) | PolicySpec::MaPpo(learned) => Some(learned),
-        }
-    }
-}
-
-impl LearnedSpec {
-    fn label(&self, architecture: &str) -> String {
-        if let Some(name) = &self.name {
-            return name.clone();
-        }
-        let mut label = architecture.to_owned();
-        if self.channels != both_channels() {
-            let names: Vec<&str> = self.channels.iter().map(|c| c.name()).collect();
-            label += &format!("[{}]", names.join("+"));
-        }
-        if self.profile != paper_profile() {
-            label += match self.profile {
-                Profile::Paper => "@paper",
-                Profile::Fast => "@fast",
-            };
-        }
-        label
-    }
-}
-
-impl LearnedSpec {
-    /// The fields a scenario sets through its own keys, which `set` may not name.
-    pub const OWN_FIELDS: [&'static str; 6] = [
-        "architecture",
-        "channels",
-        "episodes",
-        "steps_per_episode",
-        "agents",
-        "profile",
-    ];
-
-    pub fn observation_channels(&self) -> Channels {
-        match self.channels[..] {
-            [Channel::Local] => Channels::Local,
-            [Channel::Mini] => Channels::Mini,
-            _ => Channels::Both,
-        }
-    }
-
-    pub fn action_choice(&self) -> ActionChoice {
-        match self.test_actions {
-            TestActions::Sampled => ActionChoice::Sampled,
-            TestActions::Greedy => ActionChoice::Greedy,
-        }
-    }
-}
-
-impl Channel {
-    pub fn name(self) -> &'static str {
-        match self {
-            Channel::Local => "local",
-            Channel::Mini => "mini",
-        }
     }
 }
 

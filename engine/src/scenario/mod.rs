@@ -4,15 +4,19 @@
 mod check;
 pub mod error;
 pub mod format;
+mod policy;
+mod size;
+pub(crate) mod yaml;
 
 use std::path::{Path, PathBuf};
 
-use policies::ppo::{AgentCount, ConfigError, TrainingConfig};
 use serde::{Deserialize, Serialize};
 use world::{Map, WorldParams};
 
 pub use error::ScenarioError;
-pub use format::{Output, PolicySpec};
+pub use format::Output;
+pub use policy::{Learned, PolicyError, ScenarioPolicy};
+pub use size::{Limits, Size};
 
 /// A checked scenario: every map loaded, every value possible.
 #[derive(Debug)]
@@ -23,7 +27,7 @@ pub struct Scenario {
     pub file: PathBuf,
     pub maps: Vec<ScenarioMap>,
     pub world: WorldConfig,
-    pub policies: Vec<PolicySpec>,
+    pub policies: Vec<ScenarioPolicy>,
     pub train_agents: Vec<u32>,
     pub test_agents: Vec<u32>,
     pub seed: u64,
@@ -61,35 +65,6 @@ impl WorldConfig {
     }
 }
 
-impl PolicySpec {
-    /// The training run of a learned policy with `n_train` agents: the profile, then the
-    /// scenario's `set`, then the fields the scenario owns (architecture, channels, N_train,
-    /// episodes, T); `None` for a baseline.
-    pub fn training_config(
-        &self,
-        world: &WorldConfig,
-        n_train: u32,
-    ) -> Option<Result<TrainingConfig, ConfigError>> {
-        let (learned, architecture) = (self.learned()?, self.architecture()?);
-        let owned = [
-            ("architecture", serde_json::to_value(architecture)),
-            (
-                "channels",
-                serde_json::to_value(learned.observation_channels()),
-            ),
-            ("episodes", serde_json::to_value(learned.episodes)),
-            ("steps_per_episode", serde_json::to_value(world.train_steps)),
-            (
-                "agents",
-                serde_json::to_value(AgentCount::fixed(n_train as usize)),
-            ),
-        ]
-        .map(|(field, value)| (field.to_owned(), value.expect("plain values serialise")));
-        let given = learned.set.iter().map(|(k, v)| (k.clone(), v.clone()));
-        Some(TrainingConfig::profile(learned.profile).with_values(given.chain(owned)))
-    }
-}
-
 impl ScenarioMap {
     pub fn new(map: Map, source: String) -> Self {
         let hash = map_hash(&map);
@@ -106,35 +81,30 @@ pub fn map_hash(map: &Map) -> String {
 impl Scenario {
     /// Reads and checks a scenario file; map files are relative to its folder.
     pub fn load(path: &Path) -> Result<Self, ScenarioError> {
+        Self::load_within(path, &Limits::DEFAULT)
+    }
+
+    /// [`Scenario::load`], refusing a scenario larger than `limits`.
+    pub fn load_within(path: &Path, limits: &Limits) -> Result<Self, ScenarioError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| ScenarioError::new(path, None, "", format!("cannot read: {e}")))?;
-        Self::parse(&text, path)
+        Self::parse_within(&text, path, limits)
     }
 
     /// Checks a scenario held in memory; `file` names it in errors and anchors map paths.
     pub fn parse(text: &str, file: &Path) -> Result<Self, ScenarioError> {
-        let spec: format::ScenarioFile = serde_saphyr::from_str(text).map_err(|e| {
-            let line = e.location().and_then(error::line_of);
-            ScenarioError::new(file, line, "", problem_of(&e.to_string()))
-        })?;
-        check::check(spec, file)
+        Self::parse_within(text, file, &Limits::DEFAULT)
+    }
+
+    /// [`Scenario::parse`], refusing a scenario larger than `limits`.
+    pub fn parse_within(text: &str, file: &Path, limits: &Limits) -> Result<Self, ScenarioError> {
+        let spec: format::ScenarioFile = yaml::from_yaml(text, file)?;
+        check::check(spec, file, limits)
     }
 
     pub fn has_learned_policies(&self) -> bool {
         self.policies.iter().any(|p| p.learned().is_some())
     }
-}
-
-/// The problem alone from a serde-saphyr message (`error: line 3 column 1: unknown field ...`
-/// and a source snippet): the location is reported apart.
-fn problem_of(message: &str) -> String {
-    let first = message.lines().next().unwrap_or_default();
-    first
-        .strip_prefix("error: ")
-        .and_then(|rest| rest.split_once(": "))
-        .filter(|(location, _)| location.starts_with("line "))
-        .map_or(first, |(_, problem)| problem)
-        .to_owned()
 }
 
 #[cfg(test)]
@@ -361,7 +331,9 @@ mod tests {
         let error = parse(&wrong).unwrap_err();
         assert_eq!(error.line, Some(14), "{error}");
         assert!(
-            error.to_string().starts_with("unit.yaml:14: invalid"),
+            error
+                .to_string()
+                .starts_with("unit.yaml:14: repetitions: invalid u32: expected a whole number"),
             "{error}"
         );
     }

@@ -13,6 +13,7 @@ use std::fs::{File, OpenOptions, TryLockError};
 use std::io::Write;
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use serde::{Deserialize, Serialize};
 
@@ -91,8 +92,26 @@ pub struct Lease {
 
 impl Drop for Lease {
     fn drop(&mut self) {
+        let mut held = HELD.lock().unwrap_or_else(|e| e.into_inner());
+        held.retain(|path| path != &self.path);
         let _ = std::fs::remove_file(&self.path);
     }
+}
+
+/// The lease files this process holds, so that a process that stops on a signal can give
+/// them back before it exits (a lease's lock dies with the process, its file does not).
+static HELD: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Removes every lease file this process holds, tells `last_words` how many, and exits with
+/// `code`; no lease is taken meanwhile, so a process that stops leaves no cell marked as
+/// running.
+pub fn exit_giving_back_leases(code: i32, last_words: impl FnOnce(usize)) -> ! {
+    let held = HELD.lock().unwrap_or_else(|e| e.into_inner());
+    for path in held.iter() {
+        let _ = std::fs::remove_file(path);
+    }
+    last_words(held.len());
+    std::process::exit(code)
 }
 
 impl Store {
@@ -121,9 +140,11 @@ impl Store {
             if !is_at(&file, &path) {
                 continue;
             }
+            let mut held = HELD.lock().unwrap_or_else(|e| e.into_inner());
             file.set_len(0).map_err(io)?;
             file.write_all(&json_bytes(&LeaseHolder::this_process()))
                 .map_err(io)?;
+            held.push(path.clone());
             return Ok(Some(Lease {
                 path,
                 _locked: file,

@@ -11,6 +11,7 @@
 //! OUT/cells/KEY/training-in-progress/  a learned cell's run while it trains
 //! OUT/cells/KEY/cell.json      the record, written last: the cell's done-marker
 //! OUT/cells/KEY/running.json   while the cell runs: the lease (process id, host, start)
+//! OUT/cells/KEY/failed.json    why the cell's last run failed, until one succeeds
 //! OUT/{episodes,training,cells,summary,trajectories,snapshots}.{parquet,csv}
 //! ```
 //!
@@ -29,13 +30,14 @@ use polars::prelude::{DataFrame, PolarsError};
 use crate::atomic_file::write_atomic;
 use crate::scenario::Output;
 pub use lease::{Lease, LeaseHolder, Liveness};
-pub use record::{CellRecord, Manifest};
+pub use record::{CellFailure, CellRecord, Manifest};
 
 pub const EPISODES_FILE: &str = "episodes.parquet";
 pub const TRAINING_FILE: &str = "training.parquet";
 pub const TRAJECTORIES_FILE: &str = "trajectories.parquet";
 pub const SNAPSHOTS_FILE: &str = "snapshots.parquet";
 const RECORD_FILE: &str = "cell.json";
+const FAILURE_FILE: &str = "failed.json";
 const MANIFEST_FILE: &str = "sweep.json";
 const SCENARIO_FILE: &str = "scenario.yaml";
 
@@ -202,7 +204,30 @@ impl Store {
             record.sizes.insert((*name).to_owned(), bytes.len() as u64);
         }
         write(&folder.join(RECORD_FILE), &json_bytes(&record))?;
+        // A failure of an earlier run is history now.
+        let _ = std::fs::remove_file(folder.join(FAILURE_FILE));
         Ok(record)
+    }
+
+    /// Keeps why cell `key` failed, for status and the report; the cell stays unfinished.
+    pub fn record_failure(&self, key: &str, error: &str) -> Result<(), StoreError> {
+        let folder = self.cell_folder(key);
+        std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
+        let failure = CellFailure {
+            error: error.to_owned(),
+            host: crate::provenance::host_name(),
+            when: crate::provenance::utc_timestamp(std::time::SystemTime::now()),
+            code_version: crate::code_version::code_version(),
+        };
+        write(&folder.join(FAILURE_FILE), &json_bytes(&failure))
+    }
+
+    /// Why cell `key`'s last run failed, if it did and has not finished since.
+    pub fn failure(&self, key: &str) -> Option<CellFailure> {
+        if self.finished(key).is_some() {
+            return None;
+        }
+        read_json(&self.cell_folder(key).join(FAILURE_FILE)).ok()
     }
 
     /// A result file of a finished cell, checked against its recorded hash.
@@ -256,6 +281,20 @@ impl Store {
     pub fn map_text(&self, hash: &str) -> Result<String, StoreError> {
         let path = self.map_path(hash);
         std::fs::read_to_string(&path).map_err(|e| StoreError::io(&path, e))
+    }
+
+    /// The stored map `name` of content hash `hash`, checked against the hash.
+    pub fn map(&self, name: &str, hash: &str) -> Result<world::Map, StoreError> {
+        let path = self.map_path(hash);
+        let map = world::Map::parse_text(name, &self.map_text(hash)?, &path)
+            .map_err(|e| StoreError::corrupt(&path, e))?;
+        if crate::scenario::map_hash(&map) != hash {
+            return Err(StoreError::corrupt(
+                &path,
+                "the map does not match its hash",
+            ));
+        }
+        Ok(map)
     }
 
     /// Copies a verified cell and its map from `other`, unless this store has it already.

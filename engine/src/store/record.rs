@@ -61,3 +61,14 @@ pub struct Manifest {
     pub selected: Option<Vec<String>>,
     pub outputs: Vec<crate::scenario::Output>,
 }
+
+/// Why a cell's last run failed, kept in its folder (`failed.json`) until a run succeeds: the
+/// cell is not finished, a later sweep tries it again, and status and the report name it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellFailure {
+    pub error: String,
+    pub host: String,
+    /// UTC, ISO 8601.
+    pub when: String,
+    pub code_version: String,
+}

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use engine::cost::Cost;
-use engine::scenario::Scenario;
+use engine::scenario::{Limits, Scenario};
 use engine::store::Store;
 
 #[derive(clap::Args)]
@@ -16,10 +16,13 @@ pub struct CheckArgs {
     /// Cells the sweep runs at once, for the wall-time estimate; default one per core.
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
     jobs: Option<u16>,
+    /// Accept a scenario above the size limits (cells, test episodes, CPU time, memory).
+    #[arg(long)]
+    no_limits: bool,
 }
 
 pub fn run(args: CheckArgs) -> anyhow::Result<()> {
-    let scenario = Scenario::load(&args.scenario)?;
+    let scenario = Scenario::load_within(&args.scenario, &limits(args.no_limits))?;
     let cells = scenario.cells();
     println!(
         "scenario {} ({}): {} maps, {} policies, N_train {:?}, N_test {:?}, {} repetitions, {} test episodes",
@@ -103,5 +106,14 @@ pub fn duration(seconds: f64) -> String {
         s if s < 7200.0 => format!("{:.0} min", s / 60.0),
         s if s < 172_800.0 => format!("{:.1} h", s / 3600.0),
         s => format!("{:.1} days", s / 86_400.0),
+    }
+}
+
+/// The size limits a command checks a scenario against.
+pub fn limits(no_limits: bool) -> Limits {
+    if no_limits {
+        Limits::NONE
+    } else {
+        Limits::DEFAULT
     }
 }

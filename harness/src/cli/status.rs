@@ -23,10 +23,10 @@ pub fn run(args: StatusArgs) -> anyhow::Result<()> {
 
 fn print(status: &SweepStatus, dir: &Path) -> std::io::Result<()> {
     let mut out = std::io::stdout().lock();
-    let [done, running, missing] = status.counts();
+    let [done, running, missing, failed] = status.counts();
     writeln!(
         out,
-        "sweep {} in {}: {} cells, {done} done, {running} running, {missing} missing",
+        "sweep {} in {}: {} cells, {done} done, {running} running, {missing} missing, {failed} failed",
         status.scenario,
         dir.display(),
         status.cells.len()
@@ -37,6 +37,15 @@ fn print(status: &SweepStatus, dir: &Path) -> std::io::Result<()> {
             CellState::Running { folder, holder } => (
                 "running",
                 format!("in {}, {}", folder.display(), holder_text(holder)),
+            ),
+            CellState::Failed { folder, failure } => (
+                "failed",
+                format!(
+                    "in {}, at {}: {}",
+                    folder.display(),
+                    failure.when,
+                    failure.error
+                ),
             ),
             CellState::Missing { interrupted: None } => ("missing", String::new()),
             CellState::Missing {

@@ -37,15 +37,21 @@ pub struct SweepArgs {
     /// Folder of reports; the report goes to its subfolder named after the scenario.
     #[arg(long, default_value = "reports")]
     report_to: PathBuf,
+    /// Accept a scenario above the size limits (cells, test episodes, CPU time, memory).
+    #[arg(long)]
+    no_limits: bool,
 }
 
 pub fn run(args: SweepArgs) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(&args.scenario)
         .with_context(|| format!("{}: cannot read", args.scenario.display()))?;
-    let scenario = Scenario::parse(&text, &args.scenario)?;
+    let limits = super::check::limits(args.no_limits);
+    let scenario = Scenario::parse_within(&text, &args.scenario, &limits)?;
     if args.record {
         super::record::ensure_built()?;
     }
+    // Pre-emption (a scheduler's SIGTERM) and Ctrl-C stop the sweep between writes.
+    engine::stop::catch_termination();
     let out = args
         .out
         .unwrap_or_else(|| PathBuf::from("results").join(&scenario.name));
@@ -83,11 +89,6 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
     for (key, error) in &report.failed {
         eprintln!("cell {key} failed: {error}");
     }
-    anyhow::ensure!(
-        report.failed.is_empty(),
-        "{} cells failed",
-        report.failed.len()
-    );
     if args.record {
         let folder = out.join("recordings");
         let keys: Vec<String> = scenario.cells().into_iter().map(|c| c.key).collect();
@@ -103,5 +104,13 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
             written.folder.display()
         );
     }
+    // The report names the failed cells; the exit status says that the sweep is incomplete.
+    anyhow::ensure!(
+        report.failed.is_empty(),
+        "{} cells failed (kept in their folders as failed.json; `harness status {}` lists them, \
+         and the next sweep tries them again)",
+        report.failed.len(),
+        out.display()
+    );
     Ok(())
 }

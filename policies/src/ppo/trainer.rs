@@ -55,6 +55,11 @@ pub enum TrainError {
         #[source]
         source: StartError,
     },
+    /// A weight became NaN or infinite: every later episode would be noise.
+    #[error(
+        "training diverged: a weight is not finite after the update of episodes {first}..{end}"
+    )]
+    Diverged { first: u64, end: u64 },
 }
 
 /// Where a training run stands; what a checkpoint stores besides the weights.
@@ -176,6 +181,10 @@ impl Trainer {
             shuffle,
         );
         let update_seconds = started.elapsed().as_secs_f64() - rollout_seconds;
+        if !state.model.params().values().iter().all(|w| w.is_finite()) {
+            let end = first + count;
+            return Err(TrainError::Diverged { first, end });
+        }
         state.episodes_done += count;
         state.wall_seconds += rollout_seconds + update_seconds;
         let steps = (count as usize * config.steps_per_episode) as f64;

@@ -1,26 +1,29 @@
-//! The smoke sweep as the end-to-end tests run it: locally, once per test binary, as the
-//! reference that sharded, interrupted or cluster runs must equal, and the comparison of two
-//! stores' tables.
+//! Sweeps as the end-to-end tests run them: a scenario swept locally, once per test binary, as
+//! the reference that sharded, interrupted or cluster runs must equal, and the comparison of
+//! two stores' tables. The plumbing tests sweep `TINY` (seconds); the smoke sweep, the main
+//! job, runs once for its pinned tables (and on Slurm, where runs must be slow enough to kill).
 
 // Each test crate includes this module and uses a part of it.
 #![allow(dead_code)]
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::sync::Mutex;
 
 use polars::prelude::*;
 
 use crate::common::{harness, repo_file, scratch, succeed};
 
-pub fn smoke() -> String {
-    repo_file("scenarios/smoke.yaml")
-}
+/// The main job's scenario: every policy, a minute of CPU.
+pub const SMOKE: &str = "scenarios/smoke.yaml";
+/// The plumbing tests' scenario: every kind of cell in seconds.
+pub const TINY: &str = "tests/tests/tiny.yaml";
 
-/// Runs `harness sweep` on the smoke scenario into `out`; returns what it printed.
-pub fn sweep(out: &Path, extra: &[&str]) -> String {
+/// Runs `harness sweep` on `scenario` (a repository file) into `out`; returns what it printed.
+pub fn sweep(scenario: &str, out: &Path, extra: &[&str]) -> String {
     let out = out.to_str().unwrap();
-    let smoke = smoke();
-    let sweep = ["sweep", &smoke, "--out", out, "--no-report"];
+    let file = repo_file(scenario);
+    let sweep = ["sweep", &file, "--out", out, "--no-report"];
     succeed(harness(&[&sweep[..], extra].concat()))
 }
 
@@ -94,12 +97,16 @@ pub fn table_hashes(store: &Path) -> String {
     lines
 }
 
-/// One uninterrupted, unsharded smoke sweep, shared by the tests that compare against it.
-pub fn reference_run() -> &'static Path {
-    static REFERENCE: OnceLock<PathBuf> = OnceLock::new();
-    REFERENCE.get_or_init(|| {
-        let out = scratch("reference").join("store");
-        sweep(&out, &["--jobs", "2"]);
+/// One uninterrupted, unsharded sweep of `scenario`, shared by the tests of a binary that
+/// compare against it.
+pub fn reference_run(scenario: &'static str) -> PathBuf {
+    static REFERENCES: Mutex<BTreeMap<&str, PathBuf>> = Mutex::new(BTreeMap::new());
+    let mut references = REFERENCES.lock().unwrap_or_else(|p| p.into_inner());
+    let run = references.entry(scenario).or_insert_with(|| {
+        let name = Path::new(scenario).file_stem().unwrap().to_string_lossy();
+        let out = scratch(&format!("reference-{name}")).join("store");
+        sweep(scenario, &out, &["--jobs", "2"]);
         out
-    })
+    });
+    run.clone()
 }

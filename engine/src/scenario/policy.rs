@@ -1,0 +1,250 @@
+//! A scenario's policies once checked: a baseline that exists, or a learned architecture with
+//! its channels in canonical form. Cells carry these, and nothing after the load reads the
+//! file's `PolicySpec` again.
+//!
+//! A cell's key is the JSON of its config, so a checked policy is written and read as the
+//! file's spec: the keys of cells computed when cells held the spec itself stay valid, and a
+//! stored record is checked again as it is read back.
+
+use std::collections::BTreeMap;
+
+use policies::ppo::{AgentCount, ArchitectureName, ConfigError, Profile, TrainingConfig};
+use policies::{ActionChoice, Baseline, baseline::UnknownBaseline};
+use serde::{Deserialize, Serialize};
+use world::Channels;
+
+use super::WorldConfig;
+use super::format::{BaselineSpec, Channel, LearnedSpec, PolicySpec, TestActions};
+
+/// One policy of a sweep.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(into = "PolicySpec", try_from = "PolicySpec")]
+pub enum ScenarioPolicy {
+    Baseline(Baseline),
+    Learned(Learned),
+}
+
+/// A learned policy: its architecture and what its training starts from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Learned {
+    pub architecture: ArchitectureName,
+    /// The name in tables, when the scenario gives one.
+    pub name: Option<String>,
+    pub profile: Profile,
+    pub channels: Channels,
+    pub episodes: u32,
+    /// Training fields beyond the profile, none of them a field the scenario sets itself;
+    /// checked against every N_train and map when the scenario is loaded.
+    pub set: BTreeMap<String, serde_json::Value>,
+    pub test_actions: ActionChoice,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum PolicyError {
+    #[error(transparent)]
+    UnknownBaseline(#[from] UnknownBaseline),
+    #[error("episodes must be at least 1")]
+    NoEpisodes,
+    #[error("channels is empty (use [local, mini], [local] or [mini])")]
+    NoChannels,
+    #[error("channels lists one channel twice")]
+    ChannelTwice,
+    #[error(
+        "set.{0}: the scenario sets this itself (agents.train, episodes, world.train_steps, \
+         channels, the policy's kind and profile)"
+    )]
+    OwnField(String),
+}
+
+/// The training fields a scenario sets through its own keys, which `set` may not name.
+const OWN_FIELDS: [&str; 6] = [
+    "architecture",
+    "channels",
+    "episodes",
+    "steps_per_episode",
+    "agents",
+    "profile",
+];
+
+impl ScenarioPolicy {
+    /// The name in tables: the baseline's name, or the architecture with its non-default
+    /// channels and profile (`ma-g-ppo`, `ma-g-ppo[mini]`, `ma-ppo@fast`), or the name given.
+    pub fn label(&self) -> String {
+        match self {
+            ScenarioPolicy::Baseline(baseline) => baseline.name().to_owned(),
+            ScenarioPolicy::Learned(learned) => learned.label(),
+        }
+    }
+
+    pub fn learned(&self) -> Option<&Learned> {
+        match self {
+            ScenarioPolicy::Baseline(_) => None,
+            ScenarioPolicy::Learned(learned) => Some(learned),
+        }
+    }
+}
+
+impl Learned {
+    fn label(&self) -> String {
+        if let Some(name) = &self.name {
+            return name.clone();
+        }
+        let mut label = match self.architecture {
+            ArchitectureName::MaGPpo => "ma-g-ppo",
+            ArchitectureName::MaPpo => "ma-ppo",
+        }
+        .to_owned();
+        label += match self.channels {
+            Channels::Both => "",
+            Channels::Local => "[local]",
+            Channels::Mini => "[mini]",
+        };
+        label += match self.profile {
+            Profile::Paper => "",
+            Profile::Fast => "@fast",
+        };
+        label
+    }
+
+    /// The training run with `n_train` agents: the profile, then `set`, then the fields the
+    /// scenario owns (architecture, channels, N_train, episodes, T).
+    pub fn training_config(
+        &self,
+        world: &WorldConfig,
+        n_train: u32,
+    ) -> Result<TrainingConfig, ConfigError> {
+        let owned = [
+            ("architecture", serde_json::to_value(self.architecture)),
+            ("channels", serde_json::to_value(self.channels)),
+            ("episodes", serde_json::to_value(self.episodes)),
+            ("steps_per_episode", serde_json::to_value(world.train_steps)),
+            (
+                "agents",
+                serde_json::to_value(AgentCount::fixed(n_train as usize)),
+            ),
+        ]
+        .map(|(field, value)| (field.to_owned(), value.expect("plain values serialise")));
+        let given = self.set.iter().map(|(k, v)| (k.clone(), v.clone()));
+        TrainingConfig::profile(self.profile).with_values(given.chain(owned))
+    }
+}
+
+impl TryFrom<PolicySpec> for ScenarioPolicy {
+    type Error = PolicyError;
+
+    fn try_from(spec: PolicySpec) -> Result<Self, PolicyError> {
+        let (architecture, learned) = match spec {
+            PolicySpec::Baseline(baseline) => {
+                return Ok(ScenarioPolicy::Baseline(baseline.name.parse()?));
+            }
+            PolicySpec::MaGPpo(learned) => (ArchitectureName::MaGPpo, learned),
+            PolicySpec::MaPpo(learned) => (ArchitectureName::MaPpo, learned),
+        };
+        if learned.episodes == 0 {
+            return Err(PolicyError::NoEpisodes);
+        }
+        if let Some(key) = learned
+            .set
+            .keys()
+            .find(|k| OWN_FIELDS.contains(&k.as_str()))
+        {
+            return Err(PolicyError::OwnField(key.clone()));
+        }
+        Ok(ScenarioPolicy::Learned(Learned {
+            architecture,
+            name: learned.name,
+            profile: learned.profile,
+            channels: channels(&learned.channels)?,
+            episodes: learned.episodes,
+            set: learned.set,
+            test_actions: match learned.test_actions {
+                TestActions::Sampled => ActionChoice::Sampled,
+                TestActions::Greedy => ActionChoice::Greedy,
+            },
+        }))
+    }
+}
+
+/// The set of channels a list names, in whatever order it names them.
+fn channels(listed: &[Channel]) -> Result<Channels, PolicyError> {
+    match listed {
+        [] => Err(PolicyError::NoChannels),
+        [Channel::Local] => Ok(Channels::Local),
+        [Channel::Mini] => Ok(Channels::Mini),
+        [a, b] if a != b => Ok(Channels::Both),
+        _ => Err(PolicyError::ChannelTwice),
+    }
+}
+
+impl From<ScenarioPolicy> for PolicySpec {
+    fn from(policy: ScenarioPolicy) -> Self {
+        let learned = match policy {
+            ScenarioPolicy::Baseline(baseline) => {
+                let name = baseline.name().to_owned();
+                return PolicySpec::Baseline(BaselineSpec { name });
+            }
+            ScenarioPolicy::Learned(learned) => learned,
+        };
+        let spec = LearnedSpec {
+            name: learned.name,
+            profile: learned.profile,
+            channels: match learned.channels {
+                Channels::Both => vec![Channel::Local, Channel::Mini],
+                Channels::Local => vec![Channel::Local],
+                Channels::Mini => vec![Channel::Mini],
+            },
+            episodes: learned.episodes,
+            set: learned.set,
+            test_actions: match learned.test_actions {
+                ActionChoice::Sampled => TestActions::Sampled,
+                ActionChoice::Greedy => TestActions::Greedy,
+            },
+        };
+        match learned.architecture {
+            ArchitectureName::MaGPpo => PolicySpec::MaGPpo(spec),
+            ArchitectureName::MaPpo => PolicySpec::MaPpo(spec),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn learned(channels: &str) -> ScenarioPolicy {
+        let yaml = format!("ma-g-ppo: {{profile: fast, episodes: 5, channels: {channels}}}");
+        let spec: PolicySpec = serde_saphyr::from_str(&yaml).unwrap();
+        ScenarioPolicy::try_from(spec).unwrap()
+    }
+
+    #[test]
+    fn channels_in_either_order_are_one_policy_with_one_form() {
+        let (written, reversed) = (learned("[local, mini]"), learned("[mini, local]"));
+        assert_eq!(written, reversed);
+        assert_eq!(reversed.label(), "ma-g-ppo@fast");
+        let json = serde_json::to_string(&reversed).unwrap();
+        assert!(json.contains(r#""channels":["local","mini"]"#), "{json}");
+        assert_eq!(learned("[mini]").label(), "ma-g-ppo[mini]@fast");
+    }
+
+    #[test]
+    fn the_stored_form_is_the_files_and_reads_back_checked() {
+        let gcs = ScenarioPolicy::Baseline(Baseline::Gcs);
+        assert_eq!(
+            serde_json::to_string(&gcs).unwrap(),
+            r#"{"baseline":{"name":"gcs"}}"#
+        );
+        let policy = learned("[local]");
+        let json = serde_json::to_string(&policy).unwrap();
+        assert_eq!(
+            json,
+            r#"{"ma-g-ppo":{"name":null,"profile":"fast","channels":["local"],"episodes":5,"set":{},"test_actions":"sampled"}}"#
+        );
+        assert_eq!(
+            serde_json::from_str::<ScenarioPolicy>(&json).unwrap(),
+            policy
+        );
+        let unknown = serde_json::from_str::<ScenarioPolicy>(r#"{"baseline":{"name":"gsc"}}"#);
+        assert!(unknown.unwrap_err().to_string().contains("gsc"));
+    }
+}

@@ -1,0 +1,260 @@
+//! How much a scenario asks of the machine, from its numbers alone, before a single cell is
+//! made: a file's counts multiply (maps x policies x N_train x repetitions x N_test x episodes
+//! x steps), and a typo of a few digits would otherwise fill the memory while the cells are
+//! listed, long before the first one runs.
+
+use std::path::Path;
+
+use serde_saphyr::Spanned;
+
+use super::error::ScenarioError;
+use super::format::ScenarioFile;
+use super::{Output, Scenario};
+use crate::cost::Cost;
+
+/// What a scenario may ask for. The defaults are what a 2-core, 24 GB machine survives, and
+/// the paper's budgets on a cluster stay well below them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    pub cells: u64,
+    pub test_episodes: u64,
+    pub cpu_seconds: f64,
+    pub memory_bytes: u64,
+}
+
+impl Limits {
+    pub const DEFAULT: Limits = Limits {
+        cells: 100_000,
+        test_episodes: 10_000_000,
+        // A CPU-year: every paper-budget scenario takes a few CPU-months.
+        cpu_seconds: 365.0 * 86_400.0,
+        memory_bytes: 16 << 30,
+    };
+    /// No limit: the user has checked the numbers.
+    pub const NONE: Limits = Limits {
+        cells: u64::MAX,
+        test_episodes: u64::MAX,
+        cpu_seconds: f64::INFINITY,
+        memory_bytes: u64::MAX,
+    };
+}
+
+/// A scenario's size.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Size {
+    pub cells: u64,
+    pub cost: Cost,
+    /// The sweep's tables in memory, and the two largest cells' training runs at once.
+    pub memory_bytes: u64,
+}
+
+/// Bytes of an `episodes` row in memory (its key, names and a dozen numbers).
+const EPISODE_ROW_BYTES: u64 = 256;
+/// Bytes of a `trajectories` row (one agent at one step).
+const TRAJECTORY_ROW_BYTES: u64 = 64;
+/// A training run's rollout buffer, the update's gathered minibatches and the network's
+/// workspaces: about three copies of the observations.
+const ROLLOUT_COPIES: u64 = 3;
+
+impl Scenario {
+    /// The size of the sweep of this scenario, computed without listing its cells.
+    pub fn size(&self) -> Size {
+        let mut size = Size::default();
+        let mut largest_runs = [0u64; 2];
+        let test = &self.test_agents;
+        for map in &self.maps {
+            for policy in &self.policies {
+                let runs: Vec<Option<u32>> = match policy.learned() {
+                    Some(_) => self.train_agents.iter().copied().map(Some).collect(),
+                    None => vec![None],
+                };
+                for n_train in runs {
+                    let episodes = policy.learned().map(|l| l.episodes);
+                    let cell =
+                        Cost::of_cell(&self.world, episodes, n_train, test, self.test_episodes);
+                    size.cost = size.cost + cell.times(u64::from(self.repetitions));
+                    size.cells = size.cells.saturating_add(u64::from(self.repetitions));
+                    let run = match (policy.learned(), n_train) {
+                        (Some(learned), Some(n)) => {
+                            learned.training_config(&self.world, n).map_or(0, |config| {
+                                let geometry = world::ImageGeometry::new(
+                                    &map.map,
+                                    self.world.fov,
+                                    config.mini_map_block,
+                                );
+                                let image = (geometry.side * geometry.side) as u64;
+                                u64::from(self.world.train_steps + 1)
+                                    .saturating_mul(u64::from(n))
+                                    .saturating_mul(config.environments as u64)
+                                    .saturating_mul(config.channels.count() as u64 * image * 4)
+                                    .saturating_mul(ROLLOUT_COPIES)
+                            })
+                        }
+                        _ => 0,
+                    };
+                    if run > largest_runs[0] {
+                        largest_runs = [run, largest_runs[0]];
+                    } else if run > largest_runs[1] {
+                        largest_runs[1] = run;
+                    }
+                }
+            }
+        }
+        let tables = size.cost.test_episodes.saturating_mul(EPISODE_ROW_BYTES);
+        let recorded = if self.outputs.contains(&Output::Trajectories) {
+            // The first test episode at every N_test of each repetition-0 cell.
+            let per_cell = test.iter().fold(0u64, |sum, &n| {
+                sum.saturating_add(u64::from(n) * (u64::from(self.world.test_steps) + 1))
+            });
+            let first_cells = size.cells / u64::from(self.repetitions.max(1));
+            per_cell
+                .saturating_mul(first_cells)
+                .saturating_mul(TRAJECTORY_ROW_BYTES)
+        } else {
+            0
+        };
+        size.memory_bytes = tables
+            .saturating_add(recorded)
+            .saturating_add(largest_runs[0])
+            .saturating_add(largest_runs[1]);
+        size
+    }
+}
+
+/// Fails when `scenario` exceeds `limits`, naming the field that weighs most in the product
+/// that went over.
+pub(super) fn check_size(
+    scenario: &Scenario,
+    spec: &ScenarioFile,
+    limits: &Limits,
+    file: &Path,
+) -> Result<(), ScenarioError> {
+    let size = scenario.size();
+    let counts = format!(
+        "{} maps, {} policies, N_train {:?}, {} repetitions, N_test {:?}, {} test episodes, \
+         T = {} / {}",
+        scenario.maps.len(),
+        scenario.policies.len(),
+        scenario.train_agents,
+        scenario.repetitions,
+        scenario.test_agents,
+        scenario.test_episodes,
+        scenario.world.train_steps,
+        scenario.world.test_steps,
+    );
+    let over = |what: String, drivers: &[(&str, &Spanned<u32>)]| {
+        let (field, value) = drivers
+            .iter()
+            .max_by_key(|(_, value)| value.value)
+            .expect("every limit has a driver");
+        let problem =
+            format!("{what} ({counts}); check the numbers, or pass --no-limits to run it anyway");
+        ScenarioError::at(file, value, field, problem)
+    };
+    let repetitions = ("repetitions", &spec.repetitions);
+    let test_episodes = ("test_episodes", &spec.test_episodes);
+    let train_steps = ("world.train_steps", &spec.world.train_steps);
+    let test_steps = ("world.test_steps", &spec.world.test_steps);
+    if size.cells > limits.cells {
+        let what = format!(
+            "the scenario expands to {} cells, above the limit of {}",
+            size.cells, limits.cells
+        );
+        return Err(over(what, &[repetitions]));
+    }
+    if size.cost.test_episodes > limits.test_episodes {
+        let what = format!(
+            "the scenario plays {} test episodes, above the limit of {}",
+            size.cost.test_episodes, limits.test_episodes
+        );
+        return Err(over(what, &[test_episodes, repetitions]));
+    }
+    let cpu = size.cost.cpu_seconds();
+    if cpu > limits.cpu_seconds {
+        let what = format!(
+            "the scenario needs about {:.0} CPU-days ({} environment steps), above the limit of \
+             {:.0}",
+            cpu / 86_400.0,
+            size.cost.env_steps,
+            limits.cpu_seconds / 86_400.0
+        );
+        return Err(over(
+            what,
+            &[train_steps, test_steps, test_episodes, repetitions],
+        ));
+    }
+    if size.memory_bytes > limits.memory_bytes {
+        let what = format!(
+            "the sweep would hold about {:.1} GB in memory (its tables and two training runs), \
+             above the limit of {:.1} GB",
+            size.memory_bytes as f64 / 1e9,
+            limits.memory_bytes as f64 / 1e9
+        );
+        return Err(over(
+            what,
+            &[train_steps, test_steps, test_episodes, repetitions],
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SCENARIO: &str = "name: unit\nseed: 3\nmaps:\n  - inline:\n      name: a\n      grid: |\n        ......\n        ..#...\n        ......\nworld: {fov: 3, test_steps: 20, train_steps: 10}\npolicies:\n  - baseline: {name: random}\n  - ma-ppo: {profile: fast, episodes: 5, set: {network: compact}}\nagents: {train: [2, 3], test: [1, 2]}\nrepetitions: 2\ntest_episodes: 4\n";
+
+    fn error(edits: &[(&str, &str)]) -> String {
+        let text = edits.iter().fold(SCENARIO.to_owned(), |text, (from, to)| {
+            text.replace(from, to)
+        });
+        Scenario::parse(&text, Path::new("unit.yaml"))
+            .unwrap_err()
+            .to_string()
+    }
+
+    #[test]
+    fn the_size_is_the_cells_product_and_listing_them_agrees() {
+        let scenario = Scenario::parse(SCENARIO, Path::new("unit.yaml")).unwrap();
+        let size = scenario.size();
+        let cells = scenario.cells();
+        assert_eq!(size.cells, cells.len() as u64);
+        let listed = cells
+            .iter()
+            .fold(Cost::default(), |sum, cell| sum + cell.config.cost());
+        assert_eq!(size.cost, listed);
+        assert!(size.memory_bytes > 0);
+    }
+
+    #[test]
+    fn numbers_past_the_limits_fail_at_their_field_before_any_cell_exists() {
+        let cells = error(&[("repetitions: 2", "repetitions: 100000000")]);
+        assert!(
+            cells.starts_with("unit.yaml:15: repetitions: the scenario expands to 300000000 cells"),
+            "{cells}"
+        );
+        assert!(cells.contains("--no-limits"), "{cells}");
+        let episodes = error(&[("test_episodes: 4", "test_episodes: 4000000")]);
+        assert!(
+            episodes.contains("test_episodes: the scenario plays 48000000 test episodes"),
+            "{episodes}"
+        );
+        let cpu = error(&[
+            ("test_steps: 20", "test_steps: 4000000000"),
+            ("test_episodes: 4", "test_episodes: 100"),
+        ]);
+        assert!(
+            cpu.contains("world.test_steps: the scenario needs about"),
+            "{cpu}"
+        );
+        // A few CPU-days, but rollouts of 5 million steps of 8 environments.
+        let memory = error(&[("train_steps: 10", "train_steps: 5000000")]);
+        assert!(
+            memory.contains("world.train_steps: the sweep would hold about"),
+            "{memory}"
+        );
+        let text = SCENARIO.replace("repetitions: 2", "repetitions: 200000");
+        let unbounded = Scenario::parse_within(&text, Path::new("unit.yaml"), &Limits::NONE);
+        assert_eq!(unbounded.unwrap().repetitions, 200_000);
+    }
+}

@@ -1,0 +1,43 @@
+//! A sweep stopped from outside. A scheduler pre-empts with SIGTERM and sends SIGKILL after a
+//! grace period (Slurm's `KillWait`, 30 s by default); a user presses Ctrl-C. Either way the
+//! sweep stops taking cells, gives back the leases of the cells in flight (their training
+//! resumes from its last save), and exits, well inside the grace period: every result file is
+//! written whole or not at all, so nothing it leaves is trusted half-written, and the
+//! re-queued task continues where it stopped.
+
+use std::sync::atomic::{AtomicI32, Ordering};
+
+/// The signal that asked the sweep to stop, 0 before any.
+static REQUESTED: AtomicI32 = AtomicI32::new(0);
+
+extern "C" fn on_signal(signal: libc::c_int) {
+    // Only an atomic store: nothing else is safe inside a signal handler.
+    REQUESTED.store(signal, Ordering::SeqCst);
+}
+
+/// From now on SIGTERM and SIGINT ask the sweep to stop instead of killing the process.
+pub fn catch_termination() {
+    for signal in [libc::SIGTERM, libc::SIGINT] {
+        // SAFETY: `on_signal` only stores to an atomic, which is async-signal-safe.
+        unsafe {
+            libc::signal(signal, on_signal as *const () as libc::sighandler_t);
+        }
+    }
+}
+
+/// The signal that asked for a stop, if one did.
+pub fn requested() -> Option<i32> {
+    match REQUESTED.load(Ordering::SeqCst) {
+        0 => None,
+        signal => Some(signal),
+    }
+}
+
+/// The name of a signal, for the message a stopped sweep prints.
+pub fn signal_name(signal: i32) -> &'static str {
+    match signal {
+        libc::SIGTERM => "SIGTERM",
+        libc::SIGINT => "SIGINT",
+        _ => "a signal",
+    }
+}

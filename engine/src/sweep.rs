@@ -53,6 +53,17 @@ pub enum SweepError {
     Store(#[from] StoreError),
     #[error("cannot start {0} worker threads: {1}")]
     Threads(usize, rayon::ThreadPoolBuildError),
+    /// The store took no more: no further cell was started, and finished cells are kept.
+    #[error(
+        "{folder} cannot be written: cell {key}: {error}; the sweep stopped and started no \
+         further cell. Finished cells are kept and no half-written file is trusted: free space \
+         (or make the folder writable) and run the same sweep again to go on"
+    )]
+    StoreFull {
+        folder: std::path::PathBuf,
+        key: String,
+        error: Box<CellError>,
+    },
 }
 
 /// Runs `scenario` (read from `scenario_text`) into `store`.
@@ -79,6 +90,12 @@ pub fn run_sweep(
     };
     let CellsRun { failed, elsewhere } =
         run_cells(scenario, store, options.cache.as_ref(), &todo, options.jobs)?;
+    if let Some(position) = failed.iter().position(|(_, e)| out_of_storage(e)) {
+        let (key, error) = failed.into_iter().nth(position).expect("found above");
+        let folder = store.root().to_owned();
+        let error = Box::new(error);
+        return Err(SweepError::StoreFull { folder, key, error });
+    }
 
     let selected_keys: Vec<String> = selected.iter().map(|c| c.key.clone()).collect();
     let tabled = store.build_tables(&selected_keys, &scenario.outputs)?;
@@ -207,6 +224,7 @@ fn run_cells(
     let next = AtomicUsize::new(0);
     let failed = Mutex::new(Vec::new());
     let ended = AtomicBool::new(false);
+    let halted = AtomicBool::new(false);
     let started: Result<(), SweepError> = std::thread::scope(|scope| {
         scope.spawn(|| stop_when_asked(&ended));
         let workers: Vec<_> = (0..jobs.min(todo.len()))
@@ -219,10 +237,14 @@ fn run_cells(
                     // The loop itself runs on the pool, so a cell starts with no hand-over.
                     pool.install(|| {
                         while let Some(&cell) = todo.get(next.fetch_add(1, Ordering::Relaxed)) {
-                            if stop::requested().is_some() {
+                            if stop::requested().is_some() || halted.load(Ordering::SeqCst) {
                                 break;
                             }
                             if let Err(error) = run_one(cell) {
+                                // Every later cell would fail alike: take no more.
+                                if out_of_storage(&error) {
+                                    halted.store(true, Ordering::SeqCst);
+                                }
                                 // Kept for status and the report; if even that cannot be
                                 // written, the sweep still reports the failure itself.
                                 let _ = store.record_failure(&cell.key, &error.to_string());
@@ -254,6 +276,27 @@ fn run_cells(
             .collect(),
         elsewhere: elsewhere.into_inner(),
     })
+}
+
+/// Whether `error` comes from storage that takes no more (full, over a size limit or quota,
+/// read-only, not writable): every later cell would fail the same way.
+fn out_of_storage(error: &CellError) -> bool {
+    use std::io::ErrorKind;
+    let mut next: Option<&(dyn std::error::Error + 'static)> = Some(error);
+    while let Some(error) = next {
+        if let Some(io) = error.downcast_ref::<std::io::Error>() {
+            return matches!(
+                io.kind(),
+                ErrorKind::StorageFull
+                    | ErrorKind::FileTooLarge
+                    | ErrorKind::QuotaExceeded
+                    | ErrorKind::ReadOnlyFilesystem
+                    | ErrorKind::PermissionDenied
+            );
+        }
+        next = error.source();
+    }
+    false
 }
 
 /// Watches for a stop (`stop::catch_termination`) until the workers end.

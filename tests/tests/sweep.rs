@@ -81,20 +81,7 @@ fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
 #[test]
 fn a_killed_sweep_resumes_to_the_same_tables() {
     let out = scratch("kill").join("store");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
-        .args([
-            "sweep",
-            &common::repo_file(TINY),
-            "--jobs",
-            "1",
-            "--out",
-            out.to_str().unwrap(),
-            "--no-report",
-        ])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let mut child = start_tiny_sweep(&out, Stdio::null());
     wait_for_a_cell_in_flight(&mut child, &out);
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
@@ -127,6 +114,23 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
     assert_same_tables(&out, &reference_run(TINY));
 }
 
+/// `harness sweep` of the tiny scenario into `out`, one cell at a time, as a child process.
+fn start_tiny_sweep(out: &Path, stderr: Stdio) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
+        .args([
+            "sweep",
+            &common::repo_file(TINY),
+            "--jobs",
+            "1",
+            "--no-report",
+        ])
+        .args(["--out", out.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(stderr)
+        .spawn()
+        .unwrap()
+}
+
 /// Cells of `out` that are leased and not finished.
 fn cells_in_flight(out: &Path) -> usize {
     std::fs::read_dir(out.join("cells")).map_or(0, |entries| {
@@ -154,19 +158,7 @@ fn wait_for_a_cell_in_flight(child: &mut std::process::Child, out: &Path) {
 #[test]
 fn a_sweep_stopped_by_sigterm_gives_back_its_leases_and_resumes() {
     let out = scratch("sigterm").join("store");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
-        .args([
-            "sweep",
-            &common::repo_file(TINY),
-            "--jobs",
-            "1",
-            "--no-report",
-        ])
-        .args(["--out", out.to_str().unwrap()])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = start_tiny_sweep(&out, Stdio::piped());
     wait_for_a_cell_in_flight(&mut child, &out);
     let pid = child.id().to_string();
     succeed(Command::new("kill").args(["-TERM", &pid]).output().unwrap());
@@ -247,6 +239,59 @@ fn a_failing_cell_is_kept_as_failed_and_named_while_the_others_finish() {
     assert!(readme.contains("**2 of 4 cells are missing**"), "{readme}");
     assert_eq!(readme.matches("tspc rep ").count(), 2, "{readme}");
     assert!(readme.contains("failed: map \"two_rooms\""), "{readme}");
+}
+
+/// A store that takes no more (here every file is limited to 1 MB, as `ulimit -f` does, so the
+/// trained policy's checkpoint cannot be written): the sweep stops with an error naming the
+/// folder and starts no further cell; the finished cells stand, and once the limit is gone the
+/// same sweep goes on to the reference tables.
+#[test]
+fn a_full_store_stops_the_sweep_and_a_later_run_goes_on() {
+    use std::os::unix::process::CommandExt;
+    let out = scratch("full").join("store");
+    let mut limited = Command::new(env!("CARGO_BIN_EXE_harness-e2e"));
+    limited
+        .args([
+            "sweep",
+            &common::repo_file(TINY),
+            "--jobs",
+            "1",
+            "--no-report",
+        ])
+        .args(["--out", out.to_str().unwrap()]);
+    // SAFETY: between fork and exec the closure calls only setrlimit and signal, which are
+    // async-signal-safe, and allocates nothing.
+    unsafe {
+        limited.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: 1 << 20,
+                rlim_max: 1 << 20,
+            };
+            if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // A write past the limit then fails with EFBIG, as on a full disk, instead of
+            // killing the process.
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            Ok(())
+        });
+    }
+    let output = limited.output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    let expected = format!("{} cannot be written: cell ", out.display());
+    assert!(stderr.contains(&expected), "{stderr}");
+    assert!(stderr.contains("started no further cell"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    // The baselines (small files) finished; the first learned cell stopped the sweep.
+    let done = finished_cells(&out);
+    assert_eq!(done, 6, "{stderr}");
+    let resumed = sweep(TINY, &out, &["--jobs", "1"]);
+    assert!(
+        resumed.contains(&format!("8 cells, {done} already finished")),
+        "{resumed}"
+    );
+    assert_same_tables(&out, &reference_run(TINY));
 }
 
 #[test]

@@ -11,7 +11,7 @@ mod common;
 mod smoke;
 
 use common::{harness, repo_file, scratch, succeed};
-use smoke::{SMOKE, assert_same_tables, finished_cells, reference_run};
+use smoke::{SMOKE, assert_same_tables, cells_in_flight, finished_cells, reference_run};
 
 use std::io::Write;
 use std::os::unix::fs::PermissionsExt;
@@ -284,12 +284,41 @@ fn the_smoke_sweep_as_a_job_array_equals_a_local_run() {
 
 #[test]
 fn a_task_killed_mid_run_and_requeued_still_gives_the_same_tables() {
+    // SIGKILL (a node lost): the cell in flight keeps its lease file, which status shows as
+    // interrupted.
+    stop_task_1_and_requeue("slurm-requeue", "KILL", |status| {
+        assert!(status.contains("interrupted in shards/1, pid"), "{status}");
+    });
+}
+
+#[test]
+fn a_task_pre_empted_with_sigterm_and_requeued_still_gives_the_same_tables() {
+    // SIGTERM (pre-emption, scancel, a time limit): the sweep gives its leases back and says so.
+    stop_task_1_and_requeue("slurm-preempt", "TERM", |status| {
+        assert!(!status.contains("interrupted"), "{status}");
+    });
+}
+
+/// The process id in the lease of a cell in flight in the store `shard`.
+fn running_pid(shard: &Path) -> u32 {
+    let store = engine::store::Store::new(shard);
+    let entries = std::fs::read_dir(shard.join("cells")).unwrap();
+    entries
+        .flatten()
+        .filter(|e| !e.path().join("cell.json").exists())
+        .find_map(|e| store.lease_holder(&e.file_name().to_string_lossy()))
+        .expect("a cell in flight")
+        .pid
+}
+
+/// Stops task 1 of the smoke array with `signal` once it has finished a cell, checks the
+/// status with `check_status`, re-queues the task and expects it to finish only the rest, to
+/// the local run's tables.
+fn stop_task_1_and_requeue(name: &str, signal: &str, check_status: impl Fn(&str)) {
     let _one = one_at_a_time();
-    let dir = scratch("slurm-requeue");
-    let Some(slurm) = LoopbackSlurm::start(
-        dir.join("slurm"),
-        "a_task_killed_mid_run_and_requeued_still_gives_the_same_tables",
-    ) else {
+    let dir = scratch(name);
+    let test = format!("stop_task_1_and_requeue({signal})");
+    let Some(slurm) = LoopbackSlurm::start(dir.join("slurm"), &test) else {
         return;
     };
     let reference = reference_run(SMOKE);
@@ -298,30 +327,42 @@ fn a_task_killed_mid_run_and_requeued_still_gives_the_same_tables() {
     let task = format!("{}_1", jobs.array);
     let shard = jobs.out.join("shards/1");
 
-    slurm.wait_until("task 1 to finish a cell", &jobs.out, || {
-        finished_cells(&shard) > 0
-    });
-    slurm.run("scancel", &["--signal=KILL", "--full", &task], &jobs.out);
-    slurm.wait_until("task 1 to die", &jobs.out, || {
+    // Stopped with a cell finished and another in flight.
+    slurm.wait_until(
+        "task 1 to finish a cell and start another",
+        &jobs.out,
+        || finished_cells(&shard) > 0 && cells_in_flight(&shard) > 0,
+    );
+    if signal == "KILL" {
+        // As a lost node or the OOM killer would: the sweep gets no chance to act. (scancel
+        // cancels with SIGTERM first, which the sweep answers cleanly.)
+        let pid = running_pid(&shard).to_string();
+        succeed(Command::new("kill").args(["-KILL", &pid]).output().unwrap());
+    } else {
+        let signal_option = format!("--signal={signal}");
+        slurm.run("scancel", &[&signal_option, "--full", &task], &jobs.out);
+    }
+    slurm.wait_until("task 1 to end", &jobs.out, || {
         !["RUNNING", "COMPLETING"].contains(&slurm.state(&task, &jobs.out).as_str())
     });
-    let killed = slurm.state(&task, &jobs.out);
+    let stopped = slurm.state(&task, &jobs.out);
     let done = finished_cells(&shard);
     assert!(
-        killed != "COMPLETED" && done < per_task,
-        "the kill came after task 1's last cell ({killed}, {done} of {per_task} cells)"
+        stopped != "COMPLETED" && done < per_task,
+        "the signal came after task 1's last cell ({stopped}, {done} of {per_task} cells)"
     );
-    let interrupted = status(&jobs.out);
+    let after = status(&jobs.out);
+    check_status(&after);
     assert!(
-        interrupted.contains("interrupted in shards/1, pid"),
-        "{interrupted}"
-    );
-    assert!(
-        !interrupted
+        !after
             .lines()
             .any(|l| l.starts_with("running") && l.contains("in shards/1,")),
-        "{interrupted}"
+        "{after}"
     );
+    if signal == "TERM" {
+        let log = std::fs::read_to_string(jobs.out.join("slurm/task-1.log")).unwrap();
+        assert!(log.contains("sweep stopped by SIGTERM"), "{log}");
+    }
 
     slurm.run("scontrol", &["requeue", &task], &jobs.out);
     slurm.wait_for_the_end(&jobs);

@@ -6,7 +6,10 @@ mod common;
 mod smoke;
 
 use common::{harness, scratch, succeed};
-use smoke::{SMOKE, TINY, assert_same_tables, finished_cells, read_table, reference_run, sweep};
+use smoke::{
+    SMOKE, TINY, assert_same_tables, cells_in_flight, finished_cells, read_table, reference_run,
+    sweep,
+};
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -129,17 +132,6 @@ fn start_tiny_sweep(out: &Path, stderr: Stdio) -> std::process::Child {
         .stderr(stderr)
         .spawn()
         .unwrap()
-}
-
-/// Cells of `out` that are leased and not finished.
-fn cells_in_flight(out: &Path) -> usize {
-    std::fs::read_dir(out.join("cells")).map_or(0, |entries| {
-        entries
-            .flatten()
-            .filter(|e| e.path().join("running.json").exists())
-            .filter(|e| !e.path().join("cell.json").exists())
-            .count()
-    })
 }
 
 /// Waits until the sweep `child` into `out` has finished a cell and has another in flight.

@@ -39,6 +39,17 @@ pub fn finished_cells(store: &Path) -> usize {
         .unwrap_or(0)
 }
 
+/// Cells of the store in `out` that are leased and not finished.
+pub fn cells_in_flight(out: &Path) -> usize {
+    std::fs::read_dir(out.join("cells")).map_or(0, |entries| {
+        entries
+            .flatten()
+            .filter(|e| e.path().join("running.json").exists())
+            .filter(|e| !e.path().join("cell.json").exists())
+            .count()
+    })
+}
+
 pub fn read_table(store: &Path, name: &str) -> DataFrame {
     let file = std::fs::File::open(store.join(format!("{name}.parquet"))).unwrap();
     ParquetReader::new(file).finish().unwrap()

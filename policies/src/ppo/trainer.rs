@@ -281,6 +281,20 @@ mod tests {
     }
 
     #[test]
+    fn a_run_whose_weights_stop_being_finite_stops_with_an_error() {
+        let config = tiny_config(&["learning_rate=1e38", "anneal_learning_rate=false"]);
+        let mut trainer = Trainer::new(tiny_world(), config, 3).unwrap();
+        let error = trainer.train(u64::MAX, &mut |_| ()).unwrap_err();
+        assert!(
+            matches!(error, TrainError::Diverged { first, end } if end > first),
+            "{error}"
+        );
+        assert!(error.to_string().contains("training diverged"), "{error}");
+        let done = trainer.state().episodes_done;
+        assert!(done < 8, "the diverged round is not counted ({done} done)");
+    }
+
+    #[test]
     fn a_resumed_run_continues_bit_for_bit() {
         for profile in [
             &[][..],

@@ -70,6 +70,8 @@ pub struct ArrayJob {
     out: String,
     tasks: usize,
     options: SbatchOptions,
+    /// The tasks' sweeps accept a scenario above the size limits (`--no-limits`).
+    no_limits: bool,
 }
 
 /// The two job scripts of an `ArrayJob`.
@@ -123,7 +125,14 @@ impl ArrayJob {
             out,
             tasks,
             options,
+            no_limits: false,
         })
+    }
+
+    /// The tasks accept a scenario above the size limits, as `harness slurm --no-limits` did.
+    pub fn without_limits(mut self) -> Self {
+        self.no_limits = true;
+        self
     }
 
     /// The job array: task i runs shard i/N into `OUT/shards/i`, with one sweep thread per CPU
@@ -151,10 +160,11 @@ impl ArrayJob {
             script,
             "set -euo pipefail\n\
              exec {} sweep {} --shard \"$SLURM_ARRAY_TASK_ID/{tasks}\" \\\n    \
-             --out {}/\"$SLURM_ARRAY_TASK_ID\" --jobs \"${{SLURM_CPUS_PER_TASK:-1}}\"",
+             --out {}/\"$SLURM_ARRAY_TASK_ID\" --jobs \"${{SLURM_CPUS_PER_TASK:-1}}\"{}",
             shell_word(&self.harness),
             shell_word(&self.scenario),
             shell_word(&shard_out),
+            if self.no_limits { " --no-limits" } else { "" },
         )
         .expect("a String takes writes");
         script
@@ -352,6 +362,13 @@ mod tests {
         // Every #SBATCH line comes before the first command, or sbatch ignores it.
         let first_command = script.find("set -euo").unwrap();
         assert!(script.rfind("#SBATCH").unwrap() < first_command);
+        assert!(!script.contains("--no-limits"), "{script}");
+        let unbounded = job(6, SbatchOptions::default()).unwrap().without_limits();
+        let script = unbounded.array_script();
+        assert!(
+            script.contains("--jobs \"${SLURM_CPUS_PER_TASK:-1}\" --no-limits\n"),
+            "{script}"
+        );
     }
 
     #[test]

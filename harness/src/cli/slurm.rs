@@ -42,12 +42,17 @@ pub struct SlurmArgs {
     /// Submit both jobs with sbatch and print their ids.
     #[arg(long)]
     submit: bool,
+    /// Accept a scenario above the size limits (cells, test episodes, CPU time, memory); the
+    /// tasks' sweeps get the flag too.
+    #[arg(long)]
+    no_limits: bool,
 }
 
 pub fn run(args: SlurmArgs) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(&args.scenario)
         .with_context(|| format!("{}: cannot read", args.scenario.display()))?;
-    let scenario = Scenario::parse(&text, &args.scenario)?;
+    let limits = super::check::limits(args.no_limits);
+    let scenario = Scenario::parse_within(&text, &args.scenario, &limits)?;
     let cells = scenario.cells();
     let tasks = args.tasks.map_or(cells.len(), |t| t as usize);
     let harness = match args.harness {
@@ -71,6 +76,11 @@ pub fn run(args: SlurmArgs) -> anyhow::Result<()> {
         cells.len(),
         options,
     )?;
+    let job = if args.no_limits {
+        job.without_limits()
+    } else {
+        job
+    };
     prepare(&scenario, &text, &cells, &Store::new(&out), None)?;
     let scripts = job.write_scripts()?;
 

@@ -85,6 +85,10 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         total.env_steps,
         duration(total.cpu_seconds())
     );
+    println!(
+        "memory: about {:.2} GB at the peak (the sweep's tables and its two largest training runs)",
+        scenario.size().memory_bytes as f64 / 1e9
+    );
     let jobs = args.jobs.map_or_else(
         || std::thread::available_parallelism().map_or(1, usize::from),
         usize::from,

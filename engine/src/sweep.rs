@@ -227,6 +227,8 @@ fn run_cells(
     let halted = AtomicBool::new(false);
     let started: Result<(), SweepError> = std::thread::scope(|scope| {
         scope.spawn(|| stop_when_asked(&ended));
+        // Ends the watcher also when a worker panics, or the scope would wait for it forever.
+        let _end = EndOnDrop(&ended);
         let workers: Vec<_> = (0..jobs.min(todo.len()))
             .map(|_| {
                 scope.spawn(|| {
@@ -257,11 +259,9 @@ fn run_cells(
                 })
             })
             .collect();
-        let joined = workers
+        workers
             .into_iter()
-            .try_for_each(|w| w.join().expect("a sweep worker never panics"));
-        ended.store(true, Ordering::SeqCst);
-        joined
+            .try_for_each(|w| w.join().expect("a sweep worker never panics"))
     });
     started?;
     // A stop that came as the last cells ended: no cell is in flight, the tables wait.
@@ -299,6 +299,15 @@ fn out_of_storage(error: &CellError) -> bool {
     false
 }
 
+/// Sets its flag when dropped: at the end of the workers' scope, returned or unwinding.
+struct EndOnDrop<'a>(&'a AtomicBool);
+
+impl Drop for EndOnDrop<'_> {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+}
+
 /// Watches for a stop (`stop::catch_termination`) until the workers end.
 fn stop_when_asked(ended: &AtomicBool) {
     while !ended.load(Ordering::SeqCst) {
@@ -308,8 +317,9 @@ fn stop_when_asked(ended: &AtomicBool) {
 }
 
 /// On a stop, gives back the leases of the cells in flight and exits with 128 + the signal,
-/// as a shell reports a process that the signal ended.
-fn exit_if_asked() {
+/// as a shell reports a process that the signal ended. The command calls it again after the
+/// tables, so that a stop is never swallowed by the work that follows the cells.
+pub fn exit_if_asked() {
     let Some(signal) = stop::requested() else {
         return;
     };

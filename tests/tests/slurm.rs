@@ -299,16 +299,15 @@ fn a_task_pre_empted_with_sigterm_and_requeued_still_gives_the_same_tables() {
     });
 }
 
-/// The process id in the lease of a cell in flight in the store `shard`.
-fn running_pid(shard: &Path) -> u32 {
+/// The process id in the lease of a cell in flight in the store `shard`, once one is readable.
+fn running_pid(shard: &Path) -> Option<u32> {
     let store = engine::store::Store::new(shard);
-    let entries = std::fs::read_dir(shard.join("cells")).unwrap();
-    entries
+    let entries = std::fs::read_dir(shard.join("cells")).ok()?;
+    let holder = entries
         .flatten()
         .filter(|e| !e.path().join("cell.json").exists())
-        .find_map(|e| store.lease_holder(&e.file_name().to_string_lossy()))
-        .expect("a cell in flight")
-        .pid
+        .find_map(|e| store.lease_holder(&e.file_name().to_string_lossy()))?;
+    Some(holder.pid)
 }
 
 /// Stops task 1 of the smoke array with `signal` once it has finished a cell, checks the
@@ -336,7 +335,12 @@ fn stop_task_1_and_requeue(name: &str, signal: &str, check_status: impl Fn(&str)
     if signal == "KILL" {
         // As a lost node or the OOM killer would: the sweep gets no chance to act. (scancel
         // cancels with SIGTERM first, which the sweep answers cleanly.)
-        let pid = running_pid(&shard).to_string();
+        let mut pid = None;
+        slurm.wait_until("a readable lease of task 1", &jobs.out, || {
+            pid = running_pid(&shard);
+            pid.is_some()
+        });
+        let pid = pid.expect("waited for it").to_string();
         succeed(Command::new("kill").args(["-KILL", &pid]).output().unwrap());
     } else {
         let signal_option = format!("--signal={signal}");

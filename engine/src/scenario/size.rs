@@ -83,7 +83,7 @@ impl Scenario {
                                     config.mini_map_block,
                                 );
                                 let image = (geometry.side * geometry.side) as u64;
-                                u64::from(self.world.train_steps + 1)
+                                (u64::from(self.world.train_steps) + 1)
                                     .saturating_mul(u64::from(n))
                                     .saturating_mul(config.environments as u64)
                                     .saturating_mul(config.channels.count() as u64 * image * 4)
@@ -253,6 +253,9 @@ mod tests {
             memory.contains("world.train_steps: the sweep would hold about"),
             "{memory}"
         );
+        // The largest T a file can hold overflows nothing.
+        let longest = error(&[("train_steps: 10", "train_steps: 4294967295")]);
+        assert!(longest.contains("world.train_steps: "), "{longest}");
         let text = SCENARIO.replace("repetitions: 2", "repetitions: 200000");
         let unbounded = Scenario::parse_within(&text, Path::new("unit.yaml"), &Limits::NONE);
         assert_eq!(unbounded.unwrap().repetitions, 200_000);

@@ -65,6 +65,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         cache: args.cache.as_deref().map(Store::new),
     };
     let report = run_sweep(&scenario, &text, &Store::new(&out), &options)?;
+    engine::sweep::exit_if_asked();
     let shard = args
         .shard
         .map_or(String::new(), |s| format!(" (shard {s})"));
@@ -96,13 +97,17 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         println!("recordings: {written} written in {}", folder.display());
     }
     if !args.no_report && args.shard.is_none() {
-        let written = write_report(&Store::new(&out), &args.report_to)?;
-        println!(
-            "report: {} tables and {} figures in {}",
-            written.tables,
-            written.figures,
-            written.folder.display()
-        );
+        match write_report(&Store::new(&out), &args.report_to) {
+            Ok(written) => println!(
+                "report: {} tables and {} figures in {}",
+                written.tables,
+                written.figures,
+                written.folder.display()
+            ),
+            // With failed cells (every cell, perhaps) the failures are the news, not the report.
+            Err(error) if !report.failed.is_empty() => eprintln!("no report: {error}"),
+            Err(error) => return Err(error.into()),
+        }
     }
     // The report names the failed cells; the exit status says that the sweep is incomplete.
     anyhow::ensure!(

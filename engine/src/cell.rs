@@ -87,41 +87,51 @@ impl Scenario {
     /// adding a map or a policy to a scenario changes no other cell.
     pub fn cells(&self) -> Vec<SweepCell> {
         let mut cells = Vec::new();
-        for (map_index, map) in self.maps.iter().enumerate() {
-            for policy in &self.policies {
-                let n_trains: Vec<Option<u32>> = match policy.learned() {
-                    Some(_) => self.train_agents.iter().copied().map(Some).collect(),
-                    None => vec![None],
+        for (map_index, policy, n_train) in self.runs() {
+            let map = &self.maps[map_index];
+            for repetition in 0..self.repetitions {
+                let root = Seed::new(self.seed);
+                let config = CellConfig {
+                    map: MapIdentity {
+                        name: map.map.name().to_owned(),
+                        hash: map.hash.clone(),
+                    },
+                    world: self.world,
+                    policy: policy.clone(),
+                    n_train,
+                    n_test: self.test_agents.clone(),
+                    repetition,
+                    training_seed: root.descend(&[branch::TRAINING, repetition as u64]).value(),
+                    test_seed: root.descend(&[branch::TESTING, repetition as u64]).value(),
+                    test_episodes: self.test_episodes,
                 };
-                for n_train in n_trains {
-                    for repetition in 0..self.repetitions {
-                        let root = Seed::new(self.seed);
-                        let config = CellConfig {
-                            map: MapIdentity {
-                                name: map.map.name().to_owned(),
-                                hash: map.hash.clone(),
-                            },
-                            world: self.world,
-                            policy: policy.clone(),
-                            n_train,
-                            n_test: self.test_agents.clone(),
-                            repetition,
-                            training_seed: root
-                                .descend(&[branch::TRAINING, repetition as u64])
-                                .value(),
-                            test_seed: root.descend(&[branch::TESTING, repetition as u64]).value(),
-                            test_episodes: self.test_episodes,
-                        };
-                        cells.push(SweepCell {
-                            index: cells.len(),
-                            map_index,
-                            key: config.key(),
-                            config,
-                        });
-                    }
-                }
+                cells.push(SweepCell {
+                    index: cells.len(),
+                    map_index,
+                    key: config.key(),
+                    config,
+                });
             }
         }
         cells
+    }
+
+    /// The cells without their repetitions, in the cells' order: (map index, policy,
+    /// N_train), a learned policy once per N_train and a baseline once, with no N_train.
+    pub(crate) fn runs(&self) -> Vec<(usize, &ScenarioPolicy, Option<u32>)> {
+        let mut runs = Vec::new();
+        for map_index in 0..self.maps.len() {
+            for policy in &self.policies {
+                match policy.learned() {
+                    Some(_) => runs.extend(
+                        self.train_agents
+                            .iter()
+                            .map(|&n| (map_index, policy, Some(n))),
+                    ),
+                    None => runs.push((map_index, policy, None)),
+                }
+            }
+        }
+        runs
     }
 }

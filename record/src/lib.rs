@@ -43,8 +43,8 @@ pub enum RecordingError {
     Store(#[from] StoreError),
     #[error(transparent)]
     Cell(#[from] CellError),
-    #[error("the stored map of cell {key} does not load: {problem}")]
-    Map { key: String, problem: String },
+    #[error("the stored world parameters of cell {key} are not valid: {problem}")]
+    World { key: String, problem: String },
     #[error("cell {key} was not tested with {n_test} agents or has no test episode {episode}")]
     NoSuchEpisode {
         key: String,
@@ -78,15 +78,11 @@ pub fn record_episode(
             episode: choice.episode,
         });
     }
-    let map_problem = |problem: String| RecordingError::Map {
-        key: choice.cell.clone(),
-        problem,
-    };
     let map = store.map(&config.map.name, &config.map.hash)?;
-    let params = config
-        .world
-        .params()
-        .map_err(|e| map_problem(e.to_string()))?;
+    let params = config.world.params().map_err(|e| RecordingError::World {
+        key: choice.cell.clone(),
+        problem: e.to_string(),
+    })?;
     let world = World::new(map, params);
     let mut policy = stored_policy(store, &record, &world)?;
     let attention = Arc::new(Mutex::new(None));

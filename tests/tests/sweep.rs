@@ -117,9 +117,11 @@ fn a_killed_sweep_resumes_to_the_same_tables() {
     assert_same_tables(&out, &reference_run(TINY));
 }
 
-/// `harness sweep` of the tiny scenario into `out`, one cell at a time, as a child process.
-fn start_tiny_sweep(out: &Path, stderr: Stdio) -> std::process::Child {
-    Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
+/// `harness sweep` of the tiny scenario into `out`, one cell at a time, no report: the
+/// command, for a test to start as a child process.
+fn tiny_sweep(out: &Path) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_harness-e2e"));
+    command
         .args([
             "sweep",
             &common::repo_file(TINY),
@@ -127,7 +129,13 @@ fn start_tiny_sweep(out: &Path, stderr: Stdio) -> std::process::Child {
             "1",
             "--no-report",
         ])
-        .args(["--out", out.to_str().unwrap()])
+        .args(["--out", out.to_str().unwrap()]);
+    command
+}
+
+/// The tiny sweep into `out` started, its output discarded but for `stderr`.
+fn start_tiny_sweep(out: &Path, stderr: Stdio) -> std::process::Child {
+    tiny_sweep(out)
         .stdout(Stdio::null())
         .stderr(stderr)
         .spawn()
@@ -241,16 +249,7 @@ fn a_failing_cell_is_kept_as_failed_and_named_while_the_others_finish() {
 fn a_full_store_stops_the_sweep_and_a_later_run_goes_on() {
     use std::os::unix::process::CommandExt;
     let out = scratch("full").join("store");
-    let mut limited = Command::new(env!("CARGO_BIN_EXE_harness-e2e"));
-    limited
-        .args([
-            "sweep",
-            &common::repo_file(TINY),
-            "--jobs",
-            "1",
-            "--no-report",
-        ])
-        .args(["--out", out.to_str().unwrap()]);
+    let mut limited = tiny_sweep(&out);
     // SAFETY: between fork and exec the closure calls only setrlimit and signal, which are
     // async-signal-safe, and allocates nothing.
     unsafe {
@@ -634,11 +633,8 @@ fn count_before(summary: &str, word: &str) -> usize {
 fn two_sweeps_into_one_folder_never_compute_a_cell_twice() {
     let dir = scratch("two-at-once");
     let out = dir.join("store");
-    let tiny = common::repo_file("tests/tests/tiny.yaml");
     let start = || {
-        Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
-            .args(["sweep", &tiny, "--out", out.to_str().unwrap()])
-            .args(["--jobs", "1", "--no-report"])
+        tiny_sweep(&out)
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()

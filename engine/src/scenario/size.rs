@@ -9,7 +9,7 @@ use serde_saphyr::Spanned;
 
 use super::error::ScenarioError;
 use super::format::ScenarioFile;
-use super::{Output, Scenario};
+use super::{Learned, Output, Scenario};
 use crate::cost::Cost;
 
 /// What a scenario may ask for. The defaults are what a 2-core, 24 GB machine survives, and
@@ -60,64 +60,61 @@ impl Scenario {
     /// The size of the sweep of this scenario, computed without listing its cells.
     pub fn size(&self) -> Size {
         let mut size = Size::default();
-        let mut largest_runs = [0u64; 2];
-        let test = &self.test_agents;
-        for map in &self.maps {
-            for policy in &self.policies {
-                let runs: Vec<Option<u32>> = match policy.learned() {
-                    Some(_) => self.train_agents.iter().copied().map(Some).collect(),
-                    None => vec![None],
-                };
-                for n_train in runs {
-                    let episodes = policy.learned().map(|l| l.episodes);
-                    let cell =
-                        Cost::of_cell(&self.world, episodes, n_train, test, self.test_episodes);
-                    size.cost = size.cost + cell.times(u64::from(self.repetitions));
-                    size.cells = size.cells.saturating_add(u64::from(self.repetitions));
-                    let run = match (policy.learned(), n_train) {
-                        (Some(learned), Some(n)) => {
-                            learned.training_config(&self.world, n).map_or(0, |config| {
-                                let geometry = world::ImageGeometry::new(
-                                    &map.map,
-                                    self.world.fov,
-                                    config.mini_map_block,
-                                );
-                                let image = (geometry.side * geometry.side) as u64;
-                                (u64::from(self.world.train_steps) + 1)
-                                    .saturating_mul(u64::from(n))
-                                    .saturating_mul(config.environments as u64)
-                                    .saturating_mul(config.channels.count() as u64 * image * 4)
-                                    .saturating_mul(ROLLOUT_COPIES)
-                            })
-                        }
-                        _ => 0,
-                    };
-                    if run > largest_runs[0] {
-                        largest_runs = [run, largest_runs[0]];
-                    } else if run > largest_runs[1] {
-                        largest_runs[1] = run;
-                    }
-                }
+        let mut runs = Vec::new();
+        for (map_index, policy, n_train) in self.runs() {
+            let learned = policy.learned();
+            let cell = Cost::of_cell(
+                &self.world,
+                learned.map(|l| l.episodes),
+                n_train,
+                &self.test_agents,
+                self.test_episodes,
+            );
+            size.cost = size.cost + cell.times(u64::from(self.repetitions));
+            size.cells = size.cells.saturating_add(u64::from(self.repetitions));
+            if let (Some(learned), Some(n)) = (learned, n_train) {
+                runs.push(self.rollout_bytes(map_index, learned, n));
             }
         }
-        let tables = size.cost.test_episodes.saturating_mul(EPISODE_ROW_BYTES);
-        let recorded = if self.outputs.contains(&Output::Trajectories) {
-            // The first test episode at every N_test of each repetition-0 cell.
-            let per_cell = test.iter().fold(0u64, |sum, &n| {
-                sum.saturating_add(u64::from(n) * (u64::from(self.world.test_steps) + 1))
-            });
-            let first_cells = size.cells / u64::from(self.repetitions.max(1));
-            per_cell
-                .saturating_mul(first_cells)
-                .saturating_mul(TRAJECTORY_ROW_BYTES)
-        } else {
-            0
-        };
-        size.memory_bytes = tables
-            .saturating_add(recorded)
-            .saturating_add(largest_runs[0])
-            .saturating_add(largest_runs[1]);
+        runs.sort_unstable_by(|a, b| b.cmp(a));
+        let two_largest = runs
+            .iter()
+            .take(2)
+            .fold(0u64, |sum, &b| sum.saturating_add(b));
+        size.memory_bytes = self.table_bytes(size).saturating_add(two_largest);
         size
+    }
+
+    /// The memory of a training run of `learned` with `n` agents on map `map_index`.
+    fn rollout_bytes(&self, map_index: usize, learned: &Learned, n: u32) -> u64 {
+        let Ok(config) = learned.training_config(&self.world, n) else {
+            return 0;
+        };
+        let map = &self.maps[map_index].map;
+        let geometry = world::ImageGeometry::new(map, self.world.fov, config.mini_map_block);
+        let image = (geometry.side * geometry.side) as u64;
+        (u64::from(self.world.train_steps) + 1)
+            .saturating_mul(u64::from(n))
+            .saturating_mul(config.environments as u64)
+            .saturating_mul(config.channels.count() as u64 * image * 4)
+            .saturating_mul(ROLLOUT_COPIES)
+    }
+
+    /// The memory of the sweep's tables: every test episode's row, and the recorded first
+    /// test episode at every N_test of each repetition-0 cell.
+    fn table_bytes(&self, size: Size) -> u64 {
+        let episodes = size.cost.test_episodes.saturating_mul(EPISODE_ROW_BYTES);
+        if !self.outputs.contains(&Output::Trajectories) {
+            return episodes;
+        }
+        let per_cell = self.test_agents.iter().fold(0u64, |sum, &n| {
+            sum.saturating_add(u64::from(n) * (u64::from(self.world.test_steps) + 1))
+        });
+        let first_cells = size.cells / u64::from(self.repetitions.max(1));
+        let recorded = per_cell
+            .saturating_mul(first_cells)
+            .saturating_mul(TRAJECTORY_ROW_BYTES);
+        episodes.saturating_add(recorded)
     }
 }
 

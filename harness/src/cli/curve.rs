@@ -1,13 +1,12 @@
 //! `harness curve`: the learning curve of a training folder, as the mean penalty per bin of
-//! episodes with the wall time at the bin's end. The log is in episode order (a resumed run
-//! appends), so a bin is a run of consecutive rows.
+//! episodes with the wall time at the bin's end.
 
-use std::ops::Range;
 use std::path::PathBuf;
 
 use anyhow::Context;
 use polars::prelude::*;
 
+use engine::grouping::group_rows;
 use engine::training_log;
 
 #[derive(clap::Args)]
@@ -36,14 +35,11 @@ pub fn run(args: CurveArgs) -> anyhow::Result<()> {
         "{:>10} {:>12} {:>22} {:>10}",
         "episodes", "wall_s", "mean_penalty_x1e6", "entropy"
     );
-    for rows in bins(&episodes, every) {
-        let mean = |values: &[f64]| values[rows.clone()].iter().sum::<f64>() / rows.len() as f64;
-        let max = |values: &[f64]| {
-            values[rows.clone()]
-                .iter()
-                .copied()
-                .fold(f64::MIN, f64::max)
-        };
+    let bins: Vec<u64> = episodes.iter().map(|&e| e as u64 / every).collect();
+    for (_, rows) in group_rows(&bins) {
+        let mean =
+            |values: &[f64]| rows.iter().map(|&r| values[r]).sum::<f64>() / rows.len() as f64;
+        let max = |values: &[f64]| rows.iter().map(|&r| values[r]).fold(f64::MIN, f64::max);
         println!(
             "{:>10} {:>12.0} {:>22.3} {:>10.3}",
             max(&episodes) + 1.0,
@@ -53,32 +49,4 @@ pub fn run(args: CurveArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
-}
-
-/// The rows of each bin of `every` episodes: runs of consecutive rows with one bin number.
-fn bins(episodes: &[f64], every: u64) -> Vec<Range<usize>> {
-    let bin_of = |row: usize| episodes[row] as u64 / every;
-    let mut bins = Vec::new();
-    let mut start = 0;
-    while start < episodes.len() {
-        let end = (start..episodes.len())
-            .find(|&row| bin_of(row) != bin_of(start))
-            .unwrap_or(episodes.len());
-        bins.push(start..end);
-        start = end;
-    }
-    bins
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn bins_split_where_the_bin_number_changes() {
-        let episodes = [0.0, 1.0, 2.0, 3.0, 4.0];
-        assert_eq!(bins(&episodes, 2), vec![0..2, 2..4, 4..5]);
-        assert_eq!(bins(&episodes, 10), vec![0..5]);
-        assert!(bins(&[], 3).is_empty());
-    }
 }

@@ -1,4 +1,5 @@
-//! 2-D convolution as im2col + one GEMM for the whole batch. Outputs are channels-last
+//! 2-D convolution as im2col + one GEMM for the whole batch, the patch matrix written band by
+//! band just before its band is multiplied, while it is in the caches. Outputs are channels-last
 //! (`[batch, out_h, out_w, channels]`, which is the GEMM's natural `[batch * positions,
 //! channels]` result); inputs may be either order, so observations can arrive as channel
 //! planes. The weight keeps PyTorch's `[out, in, kh, kw]` layout.
@@ -17,13 +18,17 @@ use super::buffer::ReusableBuffer;
 use super::error::NnError;
 use super::init::Init;
 use super::linear::Linear;
-use super::matmul::matmul;
-use super::matmul::matmul_add;
+use super::matmul::{matmul, matmul_add_banded};
 use super::params::ParamStore;
 use super::real::Real;
 
-/// Samples per rayon task when gathering or scattering patches.
+/// Samples per rayon task when scattering patches.
 const SAMPLES_PER_TASK: usize = 32;
+
+/// Patch values written and multiplied as one band of the forward product (256 KiB of `f32`):
+/// a band stays in L2 between im2col and the GEMM, where the whole patch matrix (51 MB for the
+/// paper's first layer at 4000 samples) would go out to memory and back.
+const PATCH_BAND_VALUES: usize = 1 << 16;
 
 /// Where the channel index sits in one sample's memory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -161,38 +166,37 @@ impl Conv2d {
             .iter_mut()
             .zip(&self.weight_order)
             .for_each(|(w, &source)| *w = stored[source]);
-        let per_sample = self.patch_len_per_sample;
-        ws.patches
-            .slice_mut(batch * per_sample)
-            .par_chunks_mut(per_sample)
-            .zip(x.par_chunks(self.input.len()))
-            .with_min_len(SAMPLES_PER_TASK)
-            .for_each(|(sample_patches, sample)| {
-                let mut rest = sample_patches;
-                for run in &self.patch_runs {
-                    let (target, tail) = rest.split_at_mut(run.len);
-                    match run.source {
-                        Some(start) => target.copy_from_slice(&sample[start..start + run.len]),
-                        None => target.fill(T::zero()),
-                    }
-                    rest = tail;
-                }
-            });
+        let (per_sample, positions) = (self.patch_len_per_sample, self.positions());
+        let band_samples = (PATCH_BAND_VALUES / per_sample).max(1);
         self.dense.fill_with_bias(params, y.view_mut());
-        matmul_add(self.patch_matrix(ws, batch), self.gemm_weight(ws), y);
+        let weight = ws.weight.matrix(self.dense.inputs(), self.dense.outputs());
+        matmul_add_banded(
+            ws.patches.slice_mut(batch * per_sample),
+            self.dense.inputs(),
+            band_samples * positions,
+            weight,
+            y,
+            |first_row, band| {
+                let samples =
+                    x[first_row / positions * self.input.len()..].chunks(self.input.len());
+                for (patches, sample) in band.chunks_mut(per_sample).zip(samples) {
+                    self.write_patches(sample, patches);
+                }
+            },
+        );
     }
 
-    fn patch_matrix<'w, T: Real>(
-        &self,
-        ws: &'w ConvWorkspace<T>,
-        batch: usize,
-    ) -> ArrayView2<'w, T> {
-        ws.patches
-            .matrix(batch * self.positions(), self.dense.inputs())
-    }
-
-    fn gemm_weight<'w, T: Real>(&self, ws: &'w ConvWorkspace<T>) -> ArrayView2<'w, T> {
-        ws.weight.matrix(self.dense.inputs(), self.dense.outputs())
+    /// im2col of one sample: its patch matrix, as runs copied from the input or zeroed.
+    fn write_patches<T: Real>(&self, sample: &[T], patches: &mut [T]) {
+        let mut rest = patches;
+        for run in &self.patch_runs {
+            let (target, tail) = rest.split_at_mut(run.len);
+            match run.source {
+                Some(start) => target.copy_from_slice(&sample[start..start + run.len]),
+                None => target.fill(T::zero()),
+            }
+            rest = tail;
+        }
     }
 
     /// Accumulates the parameter gradients from `dy` (as `y`) and, when `dx` is given, writes

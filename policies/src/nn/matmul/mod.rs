@@ -16,7 +16,8 @@
 mod kernel;
 mod packed;
 
-use ndarray::{ArrayView2, ArrayViewMut2};
+use ndarray::{ArrayView2, ArrayViewMut2, Axis};
+use rayon::prelude::*;
 
 pub use kernel::{INSTRUCTIONS, TileKernel};
 pub use packed::PackingBuffers;
@@ -43,11 +44,7 @@ fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>, add
     assert_eq!(k, k_b, "inner dimensions differ");
     assert_eq!(c.dim(), (m, n), "output shape differs");
     let multiply_adds = m * n * k;
-    if m <= FEW_ROWS
-        && multiply_adds < PARALLEL_MULTIPLY_ADDS
-        && rows_are_contiguous(a)
-        && rows_are_contiguous(b.t())
-    {
+    if rows_are_contiguous(a) && !takes_packed_path(m, k, b) {
         few_rows_product(a, b, c, add);
         return;
     }
@@ -57,6 +54,48 @@ fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>, add
         rayon::current_num_threads()
     };
     packed::product(a, b, c, add, threads);
+}
+
+/// `c += a b`, where `a` (`a_values` row-major, `k` columns) is written band by band: `fill`
+/// gets a band's first row and its values just before the band is multiplied, so that an `a`
+/// far larger than the caches (a convolution's patch matrix) is read while its band is still
+/// in them. Bands of `band_rows` rows run in parallel. The bits are those of `matmul_add` on
+/// the filled `a`: each band takes the path that the whole product would, and the packed path
+/// computes every row of the output independently of the others.
+pub fn matmul_add_banded<T: Real>(
+    a_values: &mut [T],
+    k: usize,
+    band_rows: usize,
+    b: ArrayView2<T>,
+    mut c: ArrayViewMut2<T>,
+    fill: impl Fn(usize, &mut [T]) + Sync,
+) {
+    let m = c.nrows();
+    assert_eq!(a_values.len(), m * k, "a holds the output's rows");
+    let band_rows = band_rows.max(1);
+    let bands = a_values.par_chunks_mut(band_rows * k.max(1));
+    if !takes_packed_path(m, k, b) || k == 0 {
+        bands
+            .enumerate()
+            .for_each(|(band, values)| fill(band * band_rows, values));
+        let a = ArrayView2::from_shape((m, k), &*a_values).expect("length checked");
+        matmul_add(a, b, c);
+        return;
+    }
+    bands
+        .zip(c.axis_chunks_iter_mut(Axis(0), band_rows))
+        .enumerate()
+        .for_each(|(band, (values, c_band))| {
+            fill(band * band_rows, values);
+            let a = ArrayView2::from_shape((c_band.nrows(), k), &*values).expect("band shape");
+            packed::product(a, b, c_band, true, 1);
+        });
+}
+
+/// Whether a product of `m` rows of contiguous `a` rows by `b` runs on the packed kernels.
+fn takes_packed_path<T: Real>(m: usize, k: usize, b: ArrayView2<T>) -> bool {
+    let small = m * k * b.ncols() < PARALLEL_MULTIPLY_ADDS;
+    !(m <= FEW_ROWS && small && rows_are_contiguous(b.t()))
 }
 
 /// Products of at most this many rows (a rollout step's agents times a weight matrix) are
@@ -220,6 +259,39 @@ mod tests {
         let double = products(2);
         for (a, b) in single.iter().zip(&double) {
             assert!(a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()));
+        }
+    }
+
+    #[test]
+    fn a_banded_product_has_the_bits_of_the_whole_product() {
+        let mut rng = Pcg64Mcg::seed_from_u64(5);
+        // The packed path with bands that do not divide the rows, and the few-rows path.
+        for (m, k, n, band_rows) in [(1000, 130, 16, 96), (300, 33, 40, 7), (4, 50, 9, 1)] {
+            let a = random((m, k), false, &mut rng);
+            let b = random((k, n), false, &mut rng);
+            let start = random((m, n), false, &mut rng);
+            let mut whole = start.clone();
+            matmul_add(a.view(), b.view(), whole.view_mut());
+            let mut banded = start;
+            let mut values = vec![f32::NAN; m * k];
+            let source = a.as_slice().unwrap();
+            matmul_add_banded(
+                &mut values,
+                k,
+                band_rows,
+                b.view(),
+                banded.view_mut(),
+                |row, band| {
+                    band.copy_from_slice(&source[row * k..row * k + band.len()]);
+                },
+            );
+            assert_eq!(values, source, "every band was filled");
+            assert!(
+                whole
+                    .iter()
+                    .zip(&banded)
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+            );
         }
     }
 }

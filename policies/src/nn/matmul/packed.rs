@@ -22,9 +22,11 @@ const MC: usize = 144;
 /// Columns of a packed block of `b` (`KC x NC`, 4 MiB, in L3).
 const NC: usize = 4080;
 /// Up to this many rows of output, panels of a `b` with contiguous rows are read in place:
-/// too few tiles would reuse a packed copy to repay it. With more, packing wins, as rows of
-/// `b` a power of two apart in memory would compete for the same cache sets.
-const IN_PLACE_ROWS: usize = MR;
+/// too few tiles would reuse a packed copy to repay it. A weight gradient (16 or 32 rows, a
+/// reduction over a whole batch) reads `b` about 1.3x faster in place than packed; with many
+/// more rows, packing wins, as rows of `b` a power of two apart in memory compete for the
+/// same cache sets.
+const IN_PLACE_ROWS: usize = 32;
 
 /// A matrix operand as a pointer and element strides, shareable among the threads that read it.
 #[derive(Clone, Copy)]
@@ -221,7 +223,7 @@ impl<T: Real> BlockOfB<T> {
             index_stride: b.column_stride,
         };
         // SAFETY: rows `0..kc` and columns `first..nc` of the block are inside `b`.
-        unsafe { pack(buffer, kc, nc - first, NR, source) };
+        unsafe { pack::<T, NR>(buffer, kc, nc - first, source) };
         let in_place = Some(corner).filter(|_| panels_in_place > 0);
         Self {
             in_place,
@@ -290,7 +292,7 @@ unsafe fn block_tiles<T: Real>(
             index_stride: a.row_stride,
         };
         // SAFETY: rows `first..block.rows.1` and columns `pc..pc + kc` are inside `a`.
-        unsafe { pack(a_packed, kc, mc - in_place_rows, MR, source) };
+        unsafe { pack::<T, MR>(a_packed, kc, mc - in_place_rows, source) };
     }
     for jr in (0..nc).step_by(NR) {
         let b_panel = b_block.panel(jr);
@@ -378,39 +380,40 @@ unsafe fn copy_tile<T: Real>(
     }
 }
 
-/// Copies `depth` steps of `len` values from `source` into panels of `width` values: panel
-/// `p` holds, for each step, values `p * width..(p + 1) * width`, zero past `len`. The zeros
-/// only reach tile elements that are dropped.
+/// Copies `depth` steps of `len` values from `source` into panels of `W` values: panel `p`
+/// holds, for each step, values `p * W..(p + 1) * W`, zero past `len`. The zeros only reach
+/// tile elements that are dropped. `W` is a constant so that a whole step of a panel is a
+/// fixed-size copy, inlined, rather than a call to `memcpy` for a few values.
 ///
 /// # Safety
 /// `source` has `depth` steps of `len` readable values.
-unsafe fn pack<T: Real>(
+unsafe fn pack<T: Real, const W: usize>(
     panels: &mut Vec<T>,
     depth: usize,
     len: usize,
-    width: usize,
     source: Panel<T>,
 ) {
-    let size = len.div_ceil(width) * width * depth;
+    let size = len.div_ceil(W) * W * depth;
     if panels.len() < size {
         panels.resize(size, T::zero());
     }
-    for (p, panel) in panels[..size].chunks_exact_mut(width * depth).enumerate() {
-        let first = p * width;
-        let count = width.min(len - first);
-        for (k, step) in panel.chunks_exact_mut(width).enumerate() {
-            let (inside, past) = step.split_at_mut(count);
+    for (p, panel) in panels[..size].chunks_exact_mut(W * depth).enumerate() {
+        let first = p * W;
+        let count = W.min(len - first);
+        let (steps, _) = panel.as_chunks_mut::<W>();
+        for (k, step) in steps.iter_mut().enumerate() {
             let start = k as isize * source.k_stride + first as isize * source.index_stride;
             // SAFETY: step `k`, values `first..first + count` are readable by the promise.
             let from = unsafe { source.ptr.offset(start) };
-            if source.index_stride == 1 {
-                // SAFETY: as above; the values are contiguous.
-                inside.copy_from_slice(unsafe { std::slice::from_raw_parts(from, count) });
-            } else {
-                for (index, slot) in inside.iter_mut().enumerate() {
-                    // SAFETY: as above.
-                    *slot = unsafe { *from.offset(index as isize * source.index_stride) };
-                }
+            if count == W && source.index_stride == 1 {
+                // SAFETY: as above; the `W` values are contiguous.
+                *step = unsafe { from.cast::<[T; W]>().read_unaligned() };
+                continue;
+            }
+            let (inside, past) = step.split_at_mut(count);
+            for (index, slot) in inside.iter_mut().enumerate() {
+                // SAFETY: as above.
+                *slot = unsafe { *from.offset(index as isize * source.index_stride) };
             }
             past.fill(T::zero());
         }

@@ -174,12 +174,34 @@ fn a_sweep_stopped_by_sigterm_gives_back_its_leases_and_resumes() {
         "{status}"
     );
     assert!(!status.contains("interrupted"), "{status}");
+    assert_stopped_sweep_reports(&out, done);
     let resumed = sweep(TINY, &out, &["--jobs", "1"]);
     assert!(
         resumed.contains(&format!("{done} already finished")),
         "{resumed}"
     );
     assert_same_tables(&out, &reference_run(TINY));
+}
+
+/// A stopped sweep has no tables: its report is built from the finished cells and names the
+/// others, or, before any cell has finished, says so.
+fn assert_stopped_sweep_reports(out: &Path, done: usize) {
+    let reports = scratch("stopped-report");
+    let store = out.to_str().unwrap();
+    let report = harness(&["report", store, "--to", reports.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&report.stderr);
+    if done == 0 {
+        assert!(!report.status.success(), "{stderr}");
+        assert!(stderr.contains("cells has finished yet"), "{stderr}");
+        return;
+    }
+    assert!(report.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!("built from the {done} of ")),
+        "{stderr}"
+    );
+    let readme = std::fs::read_to_string(reports.join("tiny/README.md")).unwrap();
+    assert!(readme.contains("cells are missing**"), "{readme}");
 }
 
 /// Two rooms with no door: Random runs there, a patrol tour cannot be planned.

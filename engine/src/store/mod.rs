@@ -363,6 +363,28 @@ impl Store {
     }
 }
 
+impl Store {
+    /// Builds the sweep-level tables from the finished cells when the sweep has not written
+    /// them (it is still running, or was stopped), so that its report and claims can be read
+    /// mid-sweep. Returns how many of the sweep's cells the tables hold, out of how many, or
+    /// `None` when there is no sweep or its tables were there.
+    pub fn build_missing_tables(&self) -> Result<Option<(usize, usize)>, StoreError> {
+        let Some(manifest) = self.manifest()? else {
+            return Ok(None);
+        };
+        if self
+            .root
+            .join(format!("{}.parquet", Output::Episodes.name()))
+            .exists()
+        {
+            return Ok(None);
+        }
+        let keys = manifest.selected.as_ref().unwrap_or(&manifest.cells);
+        let records = self.build_tables(keys, &manifest.outputs)?;
+        Ok(Some((records.len(), keys.len())))
+    }
+}
+
 fn write(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
     write_atomic(path, bytes).map_err(|e| StoreError::io(path, e))
 }

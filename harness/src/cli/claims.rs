@@ -28,6 +28,7 @@ pub fn run(args: ClaimsArgs) -> anyhow::Result<()> {
         None => store_claims(&store)?,
     };
     anyhow::ensure!(!claims.is_empty(), "the scenario has no claims");
+    super::report::tables_of_unfinished_sweep(&store)?;
     let results = StoreTables::load(&store)?.verdicts(&claims)?;
     print!("{}", markdown::table(&verdicts::results_frame(&results)?)?);
     Ok(())

@@ -15,12 +15,33 @@ pub struct ReportArgs {
 }
 
 pub fn run(args: ReportArgs) -> anyhow::Result<()> {
-    let summary = write_report(&Store::new(&args.store), &args.to)?;
+    let store = Store::new(&args.store);
+    tables_of_unfinished_sweep(&store)?;
+    let summary = write_report(&store, &args.to)?;
     println!(
         "report: {} tables and {} figures in {}",
         summary.tables,
         summary.figures,
         summary.folder.display()
+    );
+    Ok(())
+}
+
+/// A sweep still running (or stopped) has no tables yet: they are built from its finished
+/// cells, and the report names the missing ones.
+pub fn tables_of_unfinished_sweep(store: &Store) -> anyhow::Result<()> {
+    let Some((finished, cells)) = store.build_missing_tables()? else {
+        return Ok(());
+    };
+    anyhow::ensure!(
+        finished > 0,
+        "{}: none of the sweep's {cells} cells has finished yet",
+        store.root().display()
+    );
+    eprintln!(
+        "{}: the sweep has not finished; its tables are built from the {finished} of {cells} \
+         cells that have",
+        store.root().display()
     );
     Ok(())
 }

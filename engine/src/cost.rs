@@ -28,18 +28,20 @@ pub fn work_seconds(work: u64) -> f64 {
     work as f64 * work::UNIT_SECONDS
 }
 
-/// CPU time per agent and step, measured on an AVX2 machine (2 cores, all threads counted):
-/// a training step of the paper network (rollout plus its share of the update) about 625 us
-/// as a sweep runs it, one single-thread cell per core (the `rq3` sweep: 5,984 s of CPU for
-/// 9.6 M training agent-steps, `fast` profile, N = 2 and 4; `harness bench training` alone
-/// gives 400 to 580 us at N = 2 to 10, the two cells sharing caches cost more); a test step of a
-/// learned policy about 25 us (`harness bench network`'s rollout step over its agents); a
-/// baseline's step 1 to 9 us (Random to TSPC, a world step included).
+/// CPU time per agent and step. A training step of the paper network (rollout plus its share
+/// of the update), as a sweep runs it (one single-thread cell per core): 625 us measured on an
+/// AVX2 machine (the `rq3` sweep: 5,984 s of CPU for 9.6 M training agent-steps, `fast`
+/// profile, N = 2 and 4) before the banded convolution made the update about 1.16x faster;
+/// 400 to 490 us on an AVX-512 machine (the `rq4` cells at N = 2, 4 and 10, 800 episodes
+/// each, test episodes included), most of them trained before it too. 450 us sits within 1.3x of both machines
+/// after it, inside the 1.5x that `harness check` promises. A test step of a learned policy is
+/// about 25 us (`harness bench network`'s rollout step over its agents); a baseline's step 1
+/// to 9 us (Random to TSPC, a world step included).
 pub(crate) mod work {
     pub const UNIT_SECONDS: f64 = 0.5e-6;
     pub const BASELINE_STEP: u64 = 10;
     pub const LEARNED_STEP: u64 = 50;
-    pub const TRAINING_STEP: u64 = 1250;
+    pub const TRAINING_STEP: u64 = 900;
 }
 
 impl CellConfig {

@@ -33,10 +33,10 @@ pub fn work_seconds(work: u64) -> f64 {
 /// AVX2 machine (the `rq3` sweep: 5,984 s of CPU for 9.6 M training agent-steps, `fast`
 /// profile, N = 2 and 4) before the banded convolution made the update about 1.16x faster;
 /// 400 to 490 us on an AVX-512 machine (the `rq4` cells at N = 2, 4 and 10, 800 episodes
-/// each, test episodes included), most of them trained before it too. 450 us sits within 1.3x of both machines
-/// after it, inside the 1.5x that `harness check` promises. A test step of a learned policy is
-/// about 25 us (`harness bench network`'s rollout step over its agents); a baseline's step 1
-/// to 9 us (Random to TSPC, a world step included).
+/// each, test episodes included), most of them trained before it too. 450 us sits within 1.3x
+/// of both machines after it, inside the 1.5x that `harness check` promises. A test step of a
+/// learned policy is about 25 us (`harness bench network`'s rollout step over its agents); a
+/// baseline's step 1 to 9 us (Random to TSPC, a world step included).
 pub(crate) mod work {
     pub const UNIT_SECONDS: f64 = 0.5e-6;
     pub const BASELINE_STEP: u64 = 10;

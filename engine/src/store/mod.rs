@@ -361,9 +361,7 @@ impl Store {
         }
         Ok(records)
     }
-}
 
-impl Store {
     /// Builds the sweep-level tables from the finished cells when the sweep has not written
     /// them (it is still running, or was stopped), so that its report and claims can be read
     /// mid-sweep. Returns how many of the sweep's cells the tables hold, out of how many, or

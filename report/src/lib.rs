@@ -17,7 +17,7 @@ mod training;
 mod transfer;
 pub mod verdicts;
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
@@ -103,7 +103,7 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
         training::section(&mut report, training)?;
     }
     if let Some((maps, motions)) = &motions {
-        motion::section(&mut report, motions, maps)?;
+        motion::section(&mut report, motions, maps, &claims)?;
         behaviour::section(&mut report, motions)?;
     }
     if let (Some(snapshots), Some(trajectories)) = (
@@ -235,6 +235,8 @@ pub struct ReportWriter {
     readme: String,
     tables: usize,
     figures: usize,
+    /// Every file this report wrote, so that `remove_stale` knows the rest.
+    written: HashSet<PathBuf>,
 }
 
 impl ReportWriter {
@@ -248,6 +250,7 @@ impl ReportWriter {
             readme: String::new(),
             tables: 0,
             figures: 0,
+            written: HashSet::new(),
         })
     }
 
@@ -314,13 +317,40 @@ impl ReportWriter {
         Ok(())
     }
 
-    fn write(&self, relative: &str, bytes: &[u8]) -> Result<(), ReportError> {
+    fn write(&mut self, relative: &str, bytes: &[u8]) -> Result<(), ReportError> {
         let path = self.folder.join(relative);
-        write_atomic(&path, bytes).map_err(|source| ReportError::Io { path, source })
+        write_atomic(&path, bytes).map_err(|source| ReportError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        self.written.insert(path);
+        Ok(())
     }
 
-    fn finish(self) -> Result<ReportSummary, ReportError> {
-        self.write("README.md", self.readme.as_bytes())?;
+    /// Removes the tables and figures an earlier report left that this one did not write (a
+    /// figure no longer drawn, an SVG now too large), so the folder holds exactly what the
+    /// README shows. Runs last: a report that fails half way leaves the old one whole.
+    fn remove_stale(&self) -> Result<(), ReportError> {
+        for sub in ["tables", "figures"] {
+            let folder = self.folder.join(sub);
+            let io = |path: &Path, source| ReportError::Io {
+                path: path.to_path_buf(),
+                source,
+            };
+            for entry in std::fs::read_dir(&folder).map_err(|e| io(&folder, e))? {
+                let path = entry.map_err(|e| io(&folder, e))?.path();
+                if path.is_file() && !self.written.contains(&path) {
+                    std::fs::remove_file(&path).map_err(|e| io(&path, e))?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<ReportSummary, ReportError> {
+        let readme = std::mem::take(&mut self.readme);
+        self.write("README.md", readme.as_bytes())?;
+        self.remove_stale()?;
         Ok(ReportSummary {
             folder: self.folder,
             tables: self.tables,

@@ -11,6 +11,7 @@ use super::chart::grid::{GridFigure, GridPanel, Shade};
 use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{GroupKey, f64s, group_rows, strings, u32s};
 use super::{ReportError, ReportWriter, file_stem};
+use engine::claims::{Claim, ClaimTest};
 use engine::store::Store;
 
 /// The maps of a store by name, from its `cells` table and map files.
@@ -58,24 +59,30 @@ pub fn load(
     Ok((maps, motions))
 }
 
+/// Figures for the recorded episodes a reader looks at: every baseline's, a learned policy's
+/// where N_train = N_test, and those a behaviour claim reads. A sweep over every
+/// N_train x N_test pair would otherwise draw dozens of near-identical figures; the table
+/// keeps every episode.
 pub fn section(
     report: &mut ReportWriter,
     motions: &[Motion],
     maps: &HashMap<String, Map>,
+    claims: &[Claim],
 ) -> Result<(), ReportError> {
     report.heading(2, "Trajectories and motion");
     report.paragraph(
-        "The first test episode of the first training run at every N_test. Trails are the \
-         agents' cells over the whole episode (circles: where they end). sin(theta) is the \
-         sine of an agent's angle about the map centre: a steady oscillation is a tour \
-         around the centre.",
+        "The first test episode of the first training run, drawn for every baseline, for \
+         learned policies where N_train = N_test, and wherever a behaviour claim looks (the \
+         table below holds every N_train x N_test pair). Trails are the agents' cells over \
+         the whole episode (circles: where they end). sin(theta) is the sine of an agent's \
+         angle about the map centre: a steady oscillation is a tour around the centre.",
     );
     report.linked_table(
         "motion",
         &frame(motions)?,
         "Every agent's position, y, sin(theta) and the penalty per step",
     )?;
-    for motion in motions {
+    for motion in motions.iter().filter(|m| drawn(&m.group, claims)) {
         let Some(map) = maps.get(&motion.group.map) else {
             continue;
         };
@@ -97,6 +104,19 @@ pub fn section(
         )?;
     }
     Ok(())
+}
+
+fn drawn(group: &GroupKey, claims: &[Claim]) -> bool {
+    let read_by_claim = |claim: &Claim| match &claim.test {
+        ClaimTest::Behaviour { policy, point, .. } => {
+            *policy == group.policy.policy
+                && point.map == group.map
+                && point.n_test == group.n_test
+                && Some(point.n_train) == group.policy.n_train
+        }
+        _ => false,
+    };
+    group.policy.n_train.is_none_or(|n| n == group.n_test) || claims.iter().any(read_by_claim)
 }
 
 fn motions(
@@ -260,7 +280,10 @@ fn signals(motion: &Motion) -> LineChart {
 
 #[cfg(test)]
 mod tests {
+    use engine::claims::{Behaviour, Point};
+
     use super::*;
+    use crate::columns::PolicyKey;
 
     #[test]
     fn angles_are_about_the_centre_of_cells() {
@@ -269,5 +292,50 @@ mod tests {
         assert_eq!(sin_theta(1.5, -0.5, centre), -1.0, "straight below");
         assert_eq!(sin_theta(1.5, 1.5, centre), 0.0, "at the centre");
         assert!((sin_theta(3.5, 3.5, centre) - 0.5f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn figures_are_drawn_on_the_diagonal_for_baselines_and_where_a_behaviour_claim_looks() {
+        let group = |policy: &str, n_train: Option<u32>, n_test| GroupKey {
+            map: "open".into(),
+            policy: PolicyKey {
+                policy: policy.into(),
+                n_train,
+            },
+            n_test,
+        };
+        let claim = Claim {
+            id: "structure-holds".into(),
+            paper: String::new(),
+            test: ClaimTest::Behaviour {
+                policy: "ma-g-ppo@fast".into(),
+                point: Point {
+                    map: "open".into(),
+                    n_test: 6,
+                    n_train: 4,
+                },
+                expected: Behaviour {
+                    stationary: Some(1),
+                    touring: None,
+                    periodic: None,
+                },
+            },
+        };
+        let claims = [claim];
+        assert!(drawn(&group("ma-g-ppo@fast", Some(4), 4), &[]), "diagonal");
+        assert!(drawn(&group("gcs", None, 6), &[]), "baseline");
+        assert!(!drawn(&group("ma-g-ppo@fast", Some(4), 6), &[]));
+        assert!(
+            drawn(&group("ma-g-ppo@fast", Some(4), 6), &claims),
+            "claimed"
+        );
+        assert!(
+            !drawn(&group("ma-ppo@fast", Some(4), 6), &claims),
+            "another policy"
+        );
+        assert!(
+            !drawn(&group("ma-g-ppo@fast", Some(2), 6), &claims),
+            "another N_train"
+        );
     }
 }

@@ -29,7 +29,7 @@ pub fn section(
     summary: &DataFrame,
     comparisons: &[Comparison],
 ) -> Result<(), ReportError> {
-    report.heading(2, "RQ1: cumulative penalty of every policy");
+    report.heading(2, "Cumulative penalty of every policy");
     for rows in map_rows(summary)? {
         report.heading(3, &format!("Map `{}`", rows.map));
         let frame = rows.frame()?;

@@ -1,4 +1,4 @@
-//! RQ4 and RQ5: a learned policy trained with N_train agents and tested with N_test, as the
+//! A learned policy trained with N_train agents and tested with N_test (RQ4, RQ5), as the
 //! N_train x N_test matrix of mean penalty, MA-G-PPO and MA-PPO side by side.
 
 use polars::prelude::*;
@@ -8,10 +8,7 @@ use super::columns::{GroupKey, distinct, f64s};
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 
 pub fn section(report: &mut ReportWriter, summary: &DataFrame) -> Result<(), ReportError> {
-    report.heading(
-        2,
-        "RQ4 and RQ5: trained with N_train agents, tested with N_test",
-    );
+    report.heading(2, "Trained with N_train agents, tested with N_test");
     let groups = GroupKey::of_rows(summary)?;
     let means = f64s(summary, "mean")?;
     let learned: Vec<(GroupKey, f64)> = groups
@@ -37,7 +34,10 @@ pub fn section(report: &mut ReportWriter, summary: &DataFrame) -> Result<(), Rep
         report.figure(
             &file_stem(&["transfer", &map]),
             &heat_maps(&frame)?,
-            &format!("Mean cumulative penalty (10^6) on `{map}`: rows N_train, columns N_test"),
+            &format!(
+                "Mean cumulative penalty (10^6) on `{map}`: rows N_train, columns N_test; colour \
+                 on a log scale shared by the panels, from blue (lowest) to red (highest)"
+            ),
         )?;
         report.table(&file_stem(&["transfer", &map]), &frame)?;
     }

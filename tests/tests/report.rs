@@ -285,7 +285,7 @@ fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
 
     // The claims open the report, and `harness claims` prints the same verdicts.
     assert!(
-        readme.find("## Claims") < readme.find("## RQ1"),
+        readme.find("## Claims") < readme.find("## Cumulative penalty"),
         "claims come first"
     );
     let claims = read_parquet(&report.join("tables/claims.parquet"));
@@ -310,6 +310,18 @@ fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
     for (row, verdict) in rows[1..].iter().zip(&verdicts) {
         assert_eq!(row.last().unwrap(), verdict);
     }
+
+    // Written again into the same folder, the report drops what it no longer draws.
+    let stale = report.join("figures/trajectory_gone.png");
+    std::fs::write(&stale, b"an earlier report's figure").unwrap();
+    succeed(harness(&[
+        "report",
+        store.to_str().unwrap(),
+        "--to",
+        report.parent().unwrap().to_str().unwrap(),
+    ]));
+    assert!(!stale.exists(), "a stale figure is removed");
+    assert_eq!(files_in(&report.join("figures"), "png"), pngs);
 }
 
 /// The key of the first cell of `policy` in a cells table.

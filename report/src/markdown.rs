@@ -23,15 +23,18 @@ pub fn table(frame: &DataFrame) -> PolarsResult<String> {
     Ok(text)
 }
 
+/// A cell's text; a `|` in it (a claim's "|N_train - N_test|") is escaped, or it would end
+/// the cell and shift the rest of the row.
 fn cell(value: &AnyValue) -> String {
-    match value {
+    let text = match value {
         AnyValue::Null => String::new(),
         AnyValue::Float64(v) => number(*v),
         AnyValue::Float32(v) => number(*v as f64),
         AnyValue::String(s) => s.to_string(),
         AnyValue::StringOwned(s) => s.to_string(),
         other => other.to_string(),
-    }
+    };
+    text.replace('|', "\\|")
 }
 
 /// Four significant digits; scientific notation for very large or small magnitudes.
@@ -65,14 +68,14 @@ mod tests {
     #[test]
     fn frames_become_pipe_tables() {
         let frame = df!(
-            "policy" => ["gcs", "random"],
+            "policy" => ["gcs", "a|b"],
             "n_train" => [None, Some(4u32)],
             "mean" => [1.5, 20.25],
         )
         .unwrap();
         assert_eq!(
             table(&frame).unwrap(),
-            "| policy | n_train | mean |\n|---|---|---|\n| gcs |  | 1.500 |\n| random | 4 | 20.25 |\n"
+            "| policy | n_train | mean |\n|---|---|---|\n| gcs |  | 1.500 |\n| a\\|b | 4 | 20.25 |\n"
         );
     }
 }

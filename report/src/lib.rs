@@ -331,12 +331,12 @@ impl ReportWriter {
     /// figure no longer drawn, an SVG now too large), so the folder holds exactly what the
     /// README shows. Runs last: a report that fails half way leaves the old one whole.
     fn remove_stale(&self) -> Result<(), ReportError> {
+        let io = |path: &Path, source| ReportError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
         for sub in ["tables", "figures"] {
             let folder = self.folder.join(sub);
-            let io = |path: &Path, source| ReportError::Io {
-                path: path.to_path_buf(),
-                source,
-            };
             for entry in std::fs::read_dir(&folder).map_err(|e| io(&folder, e))? {
                 let path = entry.map_err(|e| io(&folder, e))?.path();
                 if path.is_file() && !self.written.contains(&path) {

@@ -10,6 +10,7 @@ use world::Map;
 use super::chart::grid::{GridFigure, GridPanel, Shade};
 use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{GroupKey, f64s, group_rows, strings, u32s};
+use super::verdicts::at_point;
 use super::{ReportError, ReportWriter, file_stem};
 use engine::claims::{Claim, ClaimTest};
 use engine::store::Store;
@@ -107,14 +108,9 @@ pub fn section(
 }
 
 fn drawn(group: &GroupKey, claims: &[Claim]) -> bool {
-    let read_by_claim = |claim: &Claim| match &claim.test {
-        ClaimTest::Behaviour { policy, point, .. } => {
-            *policy == group.policy.policy
-                && point.map == group.map
-                && point.n_test == group.n_test
-                && Some(point.n_train) == group.policy.n_train
-        }
-        _ => false,
+    let read_by_claim = |claim: &Claim| {
+        matches!(&claim.test, ClaimTest::Behaviour { policy, point, .. }
+            if at_point(group, policy, point))
     };
     group.policy.n_train.is_none_or(|n| n == group.n_test) || claims.iter().any(read_by_claim)
 }

@@ -170,7 +170,7 @@ fn behaviour(
 
 /// Whether results of `group` are those of `policy` at `point`: a learned policy's at the
 /// point's N_train, a baseline's (which has none) at any.
-fn at_point(group: &GroupKey, policy: &str, point: &Point) -> bool {
+pub(crate) fn at_point(group: &GroupKey, policy: &str, point: &Point) -> bool {
     group.map == point.map
         && group.n_test == point.n_test
         && group.policy.policy == policy

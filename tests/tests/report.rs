@@ -285,7 +285,7 @@ fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
 
     // The claims open the report, and `harness claims` prints the same verdicts.
     assert!(
-        readme.find("## Claims") < readme.find("## Cumulative penalty"),
+        readme.find("## Claims").unwrap() < readme.find("## Cumulative penalty").unwrap(),
         "claims come first"
     );
     let claims = read_parquet(&report.join("tables/claims.parquet"));

@@ -2,8 +2,10 @@
 //! balancing and Slurm time limits. An estimate, never part of a result: recalibrating it moves
 //! no bit, so no key (`results_fingerprint`).
 
+use policies::ppo::ArchitectureName;
+
 use crate::cell::CellConfig;
-use crate::scenario::WorldConfig;
+use crate::scenario::{Learned, WorldConfig};
 
 /// What a cell or a sweep costs, in episodes and environment steps, and as estimated work.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -29,27 +31,37 @@ pub fn work_seconds(work: u64) -> f64 {
 }
 
 /// CPU time per agent and step. A training step of the paper network (rollout plus its share
-/// of the update), as a sweep runs it (one single-thread cell per core): 625 us measured on an
-/// AVX2 machine (the `rq3` sweep: 5,984 s of CPU for 9.6 M training agent-steps, `fast`
-/// profile, N = 2 and 4) before the banded convolution made the update about 1.16x faster;
-/// 400 to 490 us on an AVX-512 machine (the `rq4` cells at N = 2, 4 and 10, 800 episodes
-/// each, test episodes included), most of them trained before it too. 450 us sits within 1.3x
-/// of both machines after it, inside the 1.5x that `harness check` promises. A test step of a
-/// learned policy is about 25 us (`harness bench network`'s rollout step over its agents); a
-/// baseline's step 1 to 9 us (Random to TSPC, a world step included).
+/// of the update), as a sweep runs it (one single-thread cell per core). MA-G-PPO: 625 us
+/// measured on an AVX2 machine (the `rq3` sweep: 5,984 s of CPU for 9.6 M training
+/// agent-steps, `fast` profile, N = 2 and 4) before the banded convolution made the update
+/// about 1.16x faster; 377 to 534 us on an AVX-512 machine (the `rq4` and `rq1` cells at
+/// N = 2 to 10, 800 episodes each, test episodes included). 450 us sits within 1.3x of both
+/// machines. MA-PPO has no attention and no messages to gather: 253 to 331 us on the same
+/// AVX-512 machine (the twelve `rq4` MA-PPO cells), so 280 us; with 450 us its estimates had
+/// been 1.4x to 1.8x too long. A test step of a learned policy is about 25 us (`harness bench
+/// network`'s rollout step over its agents); a baseline's step 1 to 9 us (Random to TSPC, a
+/// world step included).
 pub(crate) mod work {
     pub const UNIT_SECONDS: f64 = 0.5e-6;
     pub const BASELINE_STEP: u64 = 10;
     pub const LEARNED_STEP: u64 = 50;
-    pub const TRAINING_STEP: u64 = 900;
+    pub const GRAPH_TRAINING_STEP: u64 = 900;
+    pub const INDEPENDENT_TRAINING_STEP: u64 = 560;
+
+    /// A training agent-step of `architecture`.
+    pub fn training_step(architecture: super::ArchitectureName) -> u64 {
+        match architecture {
+            super::ArchitectureName::MaGPpo => GRAPH_TRAINING_STEP,
+            super::ArchitectureName::MaPpo => INDEPENDENT_TRAINING_STEP,
+        }
+    }
 }
 
 impl CellConfig {
     pub fn cost(&self) -> Cost {
-        let episodes = self.policy.learned().map(|l| l.episodes);
         Cost::of_cell(
             &self.world,
-            episodes,
+            self.policy.learned(),
             self.n_train,
             &self.n_test,
             self.test_episodes,
@@ -58,30 +70,30 @@ impl CellConfig {
 }
 
 impl Cost {
-    /// A cell's cost from its shape: training `episodes` with `n_train` agents (none for a
-    /// baseline), then `test_episodes` at every N_test. Saturates rather than overflows, so
+    /// A cell's cost from its shape: training `learned` for its episodes with `n_train`
+    /// agents (none for a baseline), then `test_episodes` at every N_test. Saturates rather than overflows, so
     /// that a scenario's size can be checked from any numbers a file holds.
     pub fn of_cell(
         world: &WorldConfig,
-        episodes: Option<u32>,
+        learned: Option<&Learned>,
         n_train: Option<u32>,
         n_test: &[u32],
         test_episodes: u32,
     ) -> Cost {
-        let training_episodes = episodes.map_or(0, u64::from);
+        let training_episodes = learned.map_or(0, |l| u64::from(l.episodes));
         let training_steps = training_episodes * u64::from(world.train_steps);
         let per_count = u64::from(test_episodes) * u64::from(world.test_steps);
         let test_episodes = n_test.len() as u64 * u64::from(test_episodes);
         let test_agent_steps = n_test.iter().fold(0u64, |sum, &n| {
             sum.saturating_add(u64::from(n).saturating_mul(per_count))
         });
-        let test_step = match episodes {
-            Some(_) => work::LEARNED_STEP,
-            None => work::BASELINE_STEP,
+        let (test_step, training_step) = match learned {
+            Some(l) => (work::LEARNED_STEP, work::training_step(l.architecture)),
+            None => (work::BASELINE_STEP, 0),
         };
         let training_work = training_steps
             .saturating_mul(u64::from(n_train.unwrap_or(0)))
-            .saturating_mul(work::TRAINING_STEP);
+            .saturating_mul(training_step);
         Cost {
             training_episodes,
             test_episodes,

@@ -152,10 +152,11 @@ mod tests {
         assert_eq!(cost.training_episodes, 4 * 5);
         assert_eq!(cost.test_episodes, 6 * 2 * 4);
         assert_eq!(cost.env_steps, 4 * 5 * 10 + 6 * 2 * 4 * 20);
-        // Per agent and step: training weighs most, then learned and baseline test steps.
-        use crate::cost::work::{BASELINE_STEP, LEARNED_STEP, TRAINING_STEP};
+        // Per agent and step: training weighs most (MA-PPO's rate), then learned and baseline
+        // test steps.
+        use crate::cost::work::{BASELINE_STEP, INDEPENDENT_TRAINING_STEP, LEARNED_STEP};
         let test_agent_steps = (1 + 2) * 4 * 20;
-        let training = 2 * (5 * 10) * (2 + 3) * TRAINING_STEP;
+        let training = 2 * (5 * 10) * (2 + 3) * INDEPENDENT_TRAINING_STEP;
         let tests = 2 * test_agent_steps * BASELINE_STEP + 4 * test_agent_steps * LEARNED_STEP;
         assert_eq!(cost.work, training + tests);
     }

@@ -65,7 +65,7 @@ impl Scenario {
             let learned = policy.learned();
             let cell = Cost::of_cell(
                 &self.world,
-                learned.map(|l| l.episodes),
+                learned,
                 n_train,
                 &self.test_agents,
                 self.test_episodes,

@@ -11,6 +11,7 @@ pub mod cost;
 pub mod execution;
 pub mod grouping;
 pub mod idleness;
+pub mod marl_eval;
 pub mod merge;
 pub mod palette;
 pub mod probe;

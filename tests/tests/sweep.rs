@@ -695,3 +695,70 @@ fn the_smoke_tables_are_the_pinned_bytes() {
          tests/tests/smoke/tables.blake3:\n{computed}"
     );
 }
+
+/// Where `.ci/run` puts a Python with marl-eval installed; without it the round trip through
+/// marl-eval's own code prints `NOT RUN` and the test checks the export's shape alone.
+const MARL_EVAL_PYTHON: &str = "VPM_MARL_EVAL_PYTHON";
+
+/// The smoke sweep in marl-eval's format: every task holds every algorithm with every run,
+/// each run one evaluation step and the absolute metrics, and the returns are the stored
+/// penalties negated. Then marl-eval's own checks, processing and aggregate scores load it.
+#[test]
+fn the_smoke_sweep_exports_to_marl_eval() {
+    let store = reference_run(SMOKE);
+    let file = scratch("marl-eval").join("smoke.json");
+    let args = ["export", "marl-eval", store.to_str().unwrap()];
+    succeed(harness(
+        &[&args[..], &["--to", file.to_str().unwrap()]].concat(),
+    ));
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&file).unwrap()).unwrap();
+    let tasks = json["vpm"].as_object().unwrap();
+    let episodes = read_table(&store, "episodes");
+    let mut returns = Vec::new();
+    let algorithms = |task: &serde_json::Value| -> Vec<String> {
+        task.as_object().unwrap().keys().cloned().collect()
+    };
+    let first = algorithms(tasks.values().next().unwrap());
+    assert!(first.len() > 1, "{first:?}");
+    for task in tasks.values() {
+        assert_eq!(algorithms(task), first);
+        for runs in task.as_object().unwrap().values() {
+            // smoke.yaml's three repetitions.
+            assert_eq!(runs.as_object().unwrap().len(), 3, "{runs}");
+            for steps in runs.as_object().unwrap().values() {
+                let step = &steps["step_0"];
+                assert!(step["step_count"].is_u64(), "{step}");
+                assert_eq!(step["return"], steps["absolute_metrics"]["return"]);
+                returns.extend(
+                    step["return"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|r| r.as_f64()),
+                );
+            }
+        }
+    }
+    let penalties = episodes
+        .column("cumulative_penalty")
+        .unwrap()
+        .f64()
+        .unwrap();
+    let mut stored: Vec<f64> = penalties.into_no_null_iter().map(|p| -p).collect();
+    let mut exported: Vec<f64> = returns.into_iter().map(Option::unwrap).collect();
+    stored.sort_by(f64::total_cmp);
+    exported.sort_by(f64::total_cmp);
+    assert_eq!(exported, stored);
+    let Some(python) = std::env::var_os(MARL_EVAL_PYTHON) else {
+        eprintln!("NOT RUN: marl-eval's round trip ({MARL_EVAL_PYTHON} is not set)");
+        return;
+    };
+    let out = file.parent().unwrap();
+    let loaded = Command::new(python)
+        .arg(common::repo_file("tests/tests/marl_eval/load.py"))
+        .args([&file, out])
+        .output()
+        .unwrap();
+    let printed = succeed(loaded);
+    assert!(printed.contains("aggregate scores computed"), "{printed}");
+}

@@ -5,6 +5,7 @@ mod bench;
 mod check;
 mod claims;
 mod curve;
+mod export;
 mod fingerprint;
 mod merge;
 mod record;
@@ -55,6 +56,9 @@ enum Command {
     Report(report::ReportArgs),
     /// Print the verdict of every claim of a sweep's scenario, from its store.
     Claims(claims::ClaimsArgs),
+    /// Write a finished sweep's test episodes in another tool's format.
+    #[command(subcommand)]
+    Export(export::ExportCommand),
     /// Save a rerun recording (.rrd) of a stored test episode.
     Record(record::RecordArgs),
     /// Compute the results fingerprint that keys cached cells and compare it with the pinned one.
@@ -102,6 +106,7 @@ impl Command {
             Command::Audit(args) => audit::run(args),
             Command::Report(args) => report::run(args),
             Command::Claims(args) => claims::run(args),
+            Command::Export(command) => export::run(command),
             Command::Record(args) => record::run(args),
             Command::Fingerprint(args) => fingerprint::run(args),
         }

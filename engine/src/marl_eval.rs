@@ -1,0 +1,160 @@
+//! A finished sweep's test episodes in the JSON that marl-eval (`instadeepai/marl-eval`) and
+//! BenchMARL read, so that MARL researchers can set our policies beside theirs with their
+//! tools: environment `vpm` -> task (map and N_test) -> algorithm -> run -> step -> metrics.
+//!
+//! marl-eval takes higher as better, so `return` is the negated cumulative penalty. The
+//! idleness metrics keep their sign (lower is better): marl-eval only normalises and ranks the
+//! metrics it is told to. A cell's test episodes all come from its final policy, so each run
+//! has one evaluation step (`step_0`, at the training's environment steps; 0 for a baseline)
+//! and `absolute_metrics` holding the same episodes.
+
+use std::collections::BTreeMap;
+
+use polars::prelude::*;
+use serde_json::{Value, json};
+
+use crate::store::record::CellRecord;
+use crate::store::{EPISODES_FILE, Store, StoreError};
+
+/// The environment's name in the export.
+pub const ENVIRONMENT: &str = "vpm";
+
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    #[error("{0}")]
+    Store(#[from] StoreError),
+    #[error("{0} holds no sweep (no sweep.json)")]
+    NoSweep(String),
+    #[error(
+        "{missing} of the sweep's {total} cells are not finished; marl-eval needs every \
+         algorithm with the same runs in every task, so export a finished sweep \
+         (`harness status` lists the missing cells)"
+    )]
+    Unfinished { missing: usize, total: usize },
+    #[error(
+        "policy {0:?}: marl-eval does not accept a comma in an algorithm's name; rename the \
+         policy in the scenario (its `name`)"
+    )]
+    CommaInName(String),
+    #[error("cell {key}: {problem}")]
+    Episodes { key: String, problem: String },
+}
+
+/// The marl-eval JSON of every test episode of the sweep in `store`.
+pub fn export(store: &Store) -> Result<Value, ExportError> {
+    let manifest = store
+        .manifest()?
+        .ok_or_else(|| ExportError::NoSweep(store.root().display().to_string()))?;
+    let keys = manifest.selected.as_ref().unwrap_or(&manifest.cells);
+    let records: Vec<CellRecord> = keys.iter().filter_map(|k| store.finished(k)).collect();
+    if records.len() < keys.len() {
+        return Err(ExportError::Unfinished {
+            missing: keys.len() - records.len(),
+            total: keys.len(),
+        });
+    }
+    let mut tasks: BTreeMap<String, BTreeMap<String, BTreeMap<String, Value>>> = BTreeMap::new();
+    for record in &records {
+        let algorithm = algorithm(record)?;
+        let run = format!("seed_{}", record.config.repetition);
+        for (n_test, metrics) in test_metrics(store, record)? {
+            let task = format!("{}_n{n_test}", record.config.map.name);
+            let steps = json!({
+                "step_0": with_step_count(&metrics, training_steps(record)),
+                "absolute_metrics": metrics,
+            });
+            let runs = tasks.entry(task).or_default().entry(algorithm.clone());
+            runs.or_default().insert(run.clone(), steps);
+        }
+    }
+    Ok(json!({ ENVIRONMENT: tasks }))
+}
+
+/// A cell's policy as marl-eval names it: its label, with N_train for a learned policy, since
+/// each training count is a policy of its own at every N_test.
+fn algorithm(record: &CellRecord) -> Result<String, ExportError> {
+    let label = record.config.policy.label();
+    if label.contains(',') {
+        return Err(ExportError::CommaInName(label));
+    }
+    Ok(match record.config.n_train {
+        Some(n) => format!("{label} n_train={n}"),
+        None => label,
+    })
+}
+
+/// Environment steps of the cell's training (0 for a baseline), marl-eval's `step_count`.
+fn training_steps(record: &CellRecord) -> u64 {
+    let episodes = record
+        .config
+        .policy
+        .learned()
+        .map_or(0, |l| u64::from(l.episodes));
+    episodes * u64::from(record.config.world.train_steps)
+}
+
+fn with_step_count(metrics: &Value, step_count: u64) -> Value {
+    let mut step = metrics.clone();
+    step["step_count"] = json!(step_count);
+    step
+}
+
+/// The cell's test episodes as metric lists, one object per N_test in the order stored.
+fn test_metrics(store: &Store, record: &CellRecord) -> Result<Vec<(u32, Value)>, ExportError> {
+    let problem = |problem: String| ExportError::Episodes {
+        key: record.key.clone(),
+        problem,
+    };
+    let frame = store
+        .cell_table(record, EPISODES_FILE)?
+        .ok_or_else(|| problem("has no test episodes".into()))?;
+    let read = || -> PolarsResult<Vec<(u32, Value)>> {
+        let n_test = frame.column("n_test")?.u32()?;
+        let penalty = frame.column("cumulative_penalty")?.f64()?;
+        let average = frame.column("average_idleness")?.f64()?;
+        let worst = frame.column("worst_idleness")?.u32()?;
+        let mut groups: Vec<(u32, [Vec<Value>; 3])> = Vec::new();
+        for row in 0..frame.height() {
+            let (Some(n), Some(p), Some(a), Some(w)) = (
+                n_test.get(row),
+                penalty.get(row),
+                average.get(row),
+                worst.get(row),
+            ) else {
+                polars_bail!(ComputeError: "row {row} has a missing value");
+            };
+            if groups.last().is_none_or(|(last, _)| *last != n) {
+                groups.push((n, Default::default()));
+            }
+            let lists = &mut groups.last_mut().expect("pushed above").1;
+            lists[0].push(json!(-p));
+            lists[1].push(json!(a));
+            lists[2].push(json!(w));
+        }
+        Ok(groups
+            .into_iter()
+            .map(|(n, [ret, average, worst])| {
+                let metrics = json!({
+                    "return": ret,
+                    "average_idleness": average,
+                    "worst_idleness": worst,
+                });
+                (n, metrics)
+            })
+            .collect())
+    };
+    read().map_err(|e| problem(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_step_carries_its_count_beside_the_metrics() {
+        let metrics = json!({"return": [-1.0, -2.0]});
+        let step = with_step_count(&metrics, 800_000);
+        assert_eq!(step, json!({"return": [-1.0, -2.0], "step_count": 800_000}));
+        assert!(metrics.get("step_count").is_none());
+    }
+}

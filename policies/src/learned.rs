@@ -192,11 +192,56 @@ impl Policy for LearnedPolicy {
             episode.positions(),
             &mut self.points,
         );
+        let stopped = episode.stopped();
+        if stopped.contains(&true) {
+            // A lost robot sends nothing; what it would do is ignored by the episode.
+            self.graph
+                .retain_from(0, |_, neighbour| !stopped[neighbour]);
+        }
         self.model
             .forward_policy(&mut self.workspace, &self.observations, &self.graph);
         let policy = self.workspace.policy();
         for (row, (action, stream)) in actions.iter_mut().zip(&mut self.streams).enumerate() {
             *action = Action::ALL[self.choice.pick(policy, row, stream)];
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use world::{Map, WorldParams};
+
+    use super::*;
+    use crate::ppo::Profile;
+
+    /// Who hears agent 2: the two others, until it is lost; then nobody, while the others
+    /// still hear each other.
+    #[test]
+    fn a_lost_robot_sends_no_message() {
+        let rows = vec![".".repeat(30); 30].join("\n");
+        let map = Map::parse_text("open", &rows, Path::new("open.txt")).unwrap();
+        let world = World::new(map, WorldParams::paper());
+        let config = TrainingConfig::profile(Profile::Paper)
+            .with_overrides(&["network=compact"])
+            .unwrap();
+        let side = Observer::new(&world, observation_config(&config)).side();
+        let model_config = config.model_config(side).unwrap();
+        let model = ActorCritic::new(&model_config, &mut Seed::new(1).rng()).unwrap();
+        let mut policy = LearnedPolicy::new(&world, model, &config, ActionChoice::Greedy).unwrap();
+        let mut episode = Episode::new(world, 3).unwrap();
+        episode.reset(Seed::new(2));
+        policy.reset(&episode, Seed::new(3));
+        let mut actions = [Action::Stay; 3];
+        let senders = |policy: &LearnedPolicy| -> Vec<usize> {
+            let edges = policy.attention().unwrap();
+            edges.iter().map(|&(_, neighbour, _)| neighbour).collect()
+        };
+        policy.act(&episode, &mut actions);
+        assert_eq!(senders(&policy), [1, 2, 0, 2, 0, 1]);
+        episode.stop(2);
+        policy.act(&episode, &mut actions);
+        assert_eq!(senders(&policy), [1, 0, 0, 1]);
     }
 }

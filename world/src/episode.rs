@@ -97,6 +97,11 @@ pub struct Episode {
     penalty: PenaltyGrid,
     time: usize,
     reward: f64,
+    /// Agents lost for good this episode (`Episode::stop`): they keep their cell, as a broken
+    /// robot would, and neither move nor see.
+    stopped: Vec<bool>,
+    /// The cells of the agents that still see, refilled each step once one has stopped.
+    seeing: Vec<Cell>,
 }
 
 impl Episode {
@@ -116,6 +121,8 @@ impl Episode {
             penalty,
             time: 0,
             reward: 0.0,
+            stopped: vec![false; agents],
+            seeing: Vec::with_capacity(agents),
         };
         episode.restart();
         Ok(episode)
@@ -154,18 +161,32 @@ impl Episode {
             self.occupied[self.world.map.index(p)] = true;
         }
         self.penalty.clear();
+        self.stopped.fill(false);
         self.time = 0;
         self.reward = self.penalty.update(&self.world.visibility, &self.positions);
         self.reward
     }
 
+    /// Loses `agent` for the rest of the episode, from the next step on: its actions are
+    /// ignored, it stays on its cell (others still cannot enter it) and it no longer sees.
+    /// A reset brings it back.
+    pub fn stop(&mut self, agent: usize) {
+        self.stopped[agent] = true;
+    }
+
+    /// Which agents are lost (`Episode::stop`), by index.
+    pub fn stopped(&self) -> &[bool] {
+        &self.stopped
+    }
+
     /// Moves the agents one at a time in index order, then updates penalties; returns the
     /// step's reward (<= 0). A move off the map, into an obstacle, or onto another agent (as
-    /// moved so far this step) is refused and the agent stays.
+    /// moved so far this step) is refused and the agent stays; a stopped agent stays.
     pub fn step(&mut self, actions: &[Action]) -> f64 {
         debug_assert_eq!(actions.len(), self.positions.len());
         let map = &self.world.map;
-        for (position, action) in self.positions.iter_mut().zip(actions) {
+        let moving = self.positions.iter_mut().zip(actions).zip(&self.stopped);
+        for ((position, action), _) in moving.filter(|(_, stopped)| !**stopped) {
             let (dx, dy) = action.delta();
             let (x, y) = (position.x as i64 + dx, position.y as i64 + dy);
             if map.is_obstacle(x, y) {
@@ -180,7 +201,16 @@ impl Episode {
             }
         }
         self.time += 1;
-        self.reward = self.penalty.update(&self.world.visibility, &self.positions);
+        let seeing = if self.stopped.contains(&true) {
+            let active = self.positions.iter().zip(&self.stopped);
+            self.seeing.clear();
+            self.seeing
+                .extend(active.filter(|(_, stopped)| !**stopped).map(|(p, _)| *p));
+            &self.seeing
+        } else {
+            &self.positions
+        };
+        self.reward = self.penalty.update(&self.world.visibility, seeing);
         self.reward
     }
 
@@ -271,6 +301,26 @@ mod tests {
             "agent 0 took (1,0) before agent 1 moved"
         );
         assert_eq!(e.time(), 3);
+    }
+
+    #[test]
+    fn a_stopped_agent_holds_its_cell_and_sees_nothing_until_the_reset() {
+        let w = world(".....\n", 1);
+        let mut e = Episode::new(w, 2).unwrap();
+        e.reset_at(&[Cell::new(0, 0), Cell::new(2, 0)]).unwrap();
+        e.stop(1);
+        assert_eq!(e.stopped(), &[false, true]);
+        e.step(&[Action::Right, Action::Left]);
+        assert_eq!(e.positions(), &[Cell::new(1, 0), Cell::new(2, 0)]);
+        // Agent 0 cannot enter the lost robot's cell, which nobody sees any more.
+        e.step(&[Action::Right, Action::Stay]);
+        assert_eq!(e.positions(), &[Cell::new(1, 0), Cell::new(2, 0)]);
+        assert_eq!(e.penalty().at(Cell::new(2, 0)), -2.0);
+        assert_eq!(e.penalty().at(Cell::new(1, 0)), 0.0);
+        e.reset_at(&[Cell::new(0, 0), Cell::new(2, 0)]).unwrap();
+        assert_eq!(e.stopped(), &[false, false]);
+        e.step(&[Action::Stay, Action::Stay]);
+        assert_eq!(e.penalty().at(Cell::new(2, 0)), 0.0);
     }
 
     #[test]

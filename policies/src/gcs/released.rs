@@ -17,6 +17,10 @@
 //! 3. It moves along a path searched anew every step ([`CoinWallSearch`]); with no path, it
 //!    takes a random action out of six codes, 0 to 5, of which 0 and 5 both stay.
 //!
+//! A robot lost mid-episode (`Episode::stop`; the code has no such event) takes no hot spot
+//! and draws nothing, and the hot spots are cut at the robots that remain: the others
+//! re-target among them as they finish their targets.
+//!
 //! Where we had to choose: the code's random draws (Python's `random` for the coins, numpy's
 //! global generator for the random action) come from the agent's own stream under the
 //! episode's policy seed. The code snaps a new target to the nearest non-obstacle cell; hot
@@ -113,6 +117,10 @@ impl Policy for ReleasedGcs {
             self.occupied[map.index(at)] = true;
         }
         for (agent, (&at, action)) in episode.positions().iter().zip(actions).enumerate() {
+            if episode.stopped()[agent] {
+                *action = Action::Stay;
+                continue;
+            }
             let target = self.agents[agent].target;
             let finished = target == at || penalty.at(target) >= 0.0;
             *action = if !finished {
@@ -173,7 +181,12 @@ impl HotSpots {
             }
         }
         argsort(&self.badness, &mut self.order);
-        let agents = episode.agents();
+        // A lost robot takes no hot spot, so the list is cut at the robots that remain.
+        let agents = episode
+            .stopped()
+            .iter()
+            .filter(|&&stopped| !stopped)
+            .count();
         self.kept.clear();
         for &index in self.order.iter().rev() {
             if self.badness[index as usize] <= 0.0 {
@@ -316,6 +329,23 @@ mod tests {
         let mut released = ReleasedGcs::new(&world, 1.0);
         released.hot_spots.find(world.map(), &episode);
         assert_eq!(released.hot_spots.kept, [Cell::new(0, 2), Cell::new(1, 2)]);
+    }
+
+    /// A lost robot stays and takes nothing, and the hot spots are cut at the one robot left:
+    /// with r = 2.5, (0, 2) alone instead of (0, 2) and (3, 2).
+    #[test]
+    fn a_lost_robot_takes_no_hot_spot_and_the_list_is_cut_at_the_robots_left() {
+        let (world, mut episode) = two_agents_after_the_walk();
+        episode.stop(1);
+        let mut gcs = ReleasedGcs::new(&world, 2.5);
+        gcs.reset(&episode, Seed::new(1));
+        let mut actions = [Action::Left; 2];
+        gcs.act(&episode, &mut actions);
+        assert_eq!(gcs.hot_spots.kept, [Cell::new(0, 2)]);
+        assert_eq!(gcs.hot_spots.taken, [true]);
+        assert_eq!(actions[1], Action::Stay);
+        let targets: Vec<Cell> = gcs.targets().collect();
+        assert_eq!(targets, [Cell::new(0, 2), Cell::new(6, 1)], "its start");
     }
 
     /// The code counts kept cells only from the second cell it looks at on, so with one

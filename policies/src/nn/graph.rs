@@ -120,6 +120,26 @@ impl AgentGraph {
         }
     }
 
+    /// Keeps, among the edges of the agents from batch row `first` on (the groups pushed
+    /// since), those for which `keep(agent, neighbour)` holds, both as batch rows: the links
+    /// that carry a message this step when robots are lost or links drop.
+    pub fn retain_from(&mut self, first: usize, keep: impl Fn(usize, usize) -> bool) {
+        let (mut write, mut read_start) = (self.offsets[first], self.offsets[first]);
+        for agent in first..self.agents() {
+            let read = read_start..self.offsets[agent + 1];
+            read_start = read.end;
+            for edge in read {
+                let neighbour = self.neighbours[edge];
+                if keep(agent, neighbour) {
+                    self.neighbours[write] = neighbour;
+                    write += 1;
+                }
+            }
+            self.offsets[agent + 1] = write;
+        }
+        self.neighbours.truncate(write);
+    }
+
     /// Appends a group of `agents` agents with a row-major adjacency: `adjacency[i * agents + j]`
     /// says whether agent `i` listens to agent `j`.
     pub fn push_group_adjacency(
@@ -151,6 +171,22 @@ impl AgentGraph {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn retained_edges_are_those_kept_and_earlier_groups_are_untouched() {
+        let mut graph = AgentGraph::new();
+        graph.push_group(Neighbours::AllOthers, &[[0.0, 0.0]; 2]);
+        graph.push_group(Neighbours::AllOthers, &[[0.0, 0.0]; 3]);
+        // Row 3 is silent, and row 2 no longer hears row 4.
+        graph.retain_from(2, |agent, neighbour| {
+            neighbour != 3 && (agent, neighbour) != (2, 4)
+        });
+        let edges: Vec<Vec<usize>> = (0..graph.agents())
+            .map(|a| graph.edges_of(a).map(|(_, n)| n).collect())
+            .collect();
+        assert_eq!(edges, [vec![1], vec![0], vec![], vec![2, 4], vec![2]]);
+        assert_eq!(graph.edges(), 5);
+    }
 
     #[test]
     fn groups_do_not_mix_and_rules_pick_the_right_neighbours() {

@@ -192,11 +192,10 @@ impl Policy for LearnedPolicy {
             episode.positions(),
             &mut self.points,
         );
-        let stopped = episode.stopped();
-        if stopped.contains(&true) {
-            // A lost robot sends nothing; what it would do is ignored by the episode.
+        if episode.messages_disturbed() {
+            // A lost robot sends nothing, a link down carries nothing.
             self.graph
-                .retain_from(0, |_, neighbour| !stopped[neighbour]);
+                .retain_from(0, |agent, neighbour| episode.hears(agent, neighbour));
         }
         self.model
             .forward_policy(&mut self.workspace, &self.observations, &self.graph);
@@ -217,9 +216,9 @@ mod tests {
     use crate::ppo::Profile;
 
     /// Who hears agent 2: the two others, until it is lost; then nobody, while the others
-    /// still hear each other.
+    /// still hear each other; with every link down, nobody hears anybody.
     #[test]
-    fn a_lost_robot_sends_no_message() {
+    fn a_lost_robot_or_a_link_down_carries_no_message() {
         let rows = vec![".".repeat(30); 30].join("\n");
         let map = Map::parse_text("open", &rows, Path::new("open.txt")).unwrap();
         let world = World::new(map, WorldParams::paper());
@@ -243,5 +242,8 @@ mod tests {
         episode.stop(2);
         policy.act(&episode, &mut actions);
         assert_eq!(senders(&policy), [1, 0, 0, 1]);
+        episode.set_links(world::Links::new(None, 1.0, Seed::new(4)).unwrap());
+        policy.act(&episode, &mut actions);
+        assert!(senders(&policy).is_empty());
     }
 }

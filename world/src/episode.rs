@@ -6,6 +6,7 @@ use std::sync::Arc;
 use rand::RngExt;
 
 use crate::error::StartError;
+use crate::links::Links;
 use crate::map::{Cell, Map};
 use crate::params::WorldParams;
 use crate::penalty::PenaltyGrid;
@@ -102,6 +103,8 @@ pub struct Episode {
     stopped: Vec<bool>,
     /// The cells of the agents that still see, refilled each step once one has stopped.
     seeing: Vec<Cell>,
+    /// Disturbed communication this episode (`Episode::set_links`); `None`: all hear all.
+    links: Option<Links>,
 }
 
 impl Episode {
@@ -123,6 +126,7 @@ impl Episode {
             reward: 0.0,
             stopped: vec![false; agents],
             seeing: Vec::with_capacity(agents),
+            links: None,
         };
         episode.restart();
         Ok(episode)
@@ -162,6 +166,7 @@ impl Episode {
         }
         self.penalty.clear();
         self.stopped.fill(false);
+        self.links = None;
         self.time = 0;
         self.reward = self.penalty.update(&self.world.visibility, &self.positions);
         self.reward
@@ -177,6 +182,27 @@ impl Episode {
     /// Which agents are lost (`Episode::stop`), by index.
     pub fn stopped(&self) -> &[bool] {
         &self.stopped
+    }
+
+    /// Disturbs communication for the rest of the episode (a reset restores it).
+    pub fn set_links(&mut self, links: Links) {
+        self.links = Some(links);
+    }
+
+    /// Whether some message may not get through this step: a robot is lost or links are
+    /// disturbed. Policies that send messages check [`Episode::hears`] only then.
+    pub fn messages_disturbed(&self) -> bool {
+        self.links.is_some() || self.stopped.contains(&true)
+    }
+
+    /// Whether `receiver` hears `sender` at this step: a lost robot sends nothing, and a
+    /// disturbed link carries nothing while it is down.
+    pub fn hears(&self, receiver: usize, sender: usize) -> bool {
+        let at = |agent: usize| (agent, self.positions[agent]);
+        !self.stopped[sender]
+            && self
+                .links
+                .is_none_or(|links| links.up(self.time, at(receiver), at(sender)))
     }
 
     /// Moves the agents one at a time in index order, then updates penalties; returns the
@@ -308,8 +334,10 @@ mod tests {
         let w = world(".....\n", 1);
         let mut e = Episode::new(w, 2).unwrap();
         e.reset_at(&[Cell::new(0, 0), Cell::new(2, 0)]).unwrap();
+        assert!(!e.messages_disturbed());
         e.stop(1);
         assert_eq!(e.stopped(), &[false, true]);
+        assert!(e.messages_disturbed() && !e.hears(0, 1) && e.hears(1, 0));
         e.step(&[Action::Right, Action::Left]);
         assert_eq!(e.positions(), &[Cell::new(1, 0), Cell::new(2, 0)]);
         // Agent 0 cannot enter the lost robot's cell, which nobody sees any more.
@@ -317,8 +345,11 @@ mod tests {
         assert_eq!(e.positions(), &[Cell::new(1, 0), Cell::new(2, 0)]);
         assert_eq!(e.penalty().at(Cell::new(2, 0)), -2.0);
         assert_eq!(e.penalty().at(Cell::new(1, 0)), 0.0);
+        e.set_links(Links::new(Some(0.5), 0.0, Seed::new(1)).unwrap());
+        assert!(!e.hears(1, 0), "(1, 0) and (2, 0) are 1 apart, beyond 0.5");
         e.reset_at(&[Cell::new(0, 0), Cell::new(2, 0)]).unwrap();
         assert_eq!(e.stopped(), &[false, false]);
+        assert!(!e.messages_disturbed());
         e.step(&[Action::Stay, Action::Stay]);
         assert_eq!(e.penalty().at(Cell::new(2, 0)), 0.0);
     }

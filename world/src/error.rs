@@ -69,6 +69,10 @@ pub enum ParamError {
     Decay(f32),
     #[error("rmax must be finite and > 0, got {0}")]
     Rmax(f32),
+    #[error("a link radius must be finite and >= 0, got {0}")]
+    LinkRadius(f64),
+    #[error("a link's drop probability must be between 0 and 1, got {0}")]
+    LinkDrop(f64),
 }
 
 /// Start positions that cannot be used on this map.

@@ -7,6 +7,7 @@
 
 pub mod episode;
 pub mod error;
+pub mod links;
 pub mod map;
 pub mod observation;
 pub mod params;
@@ -19,6 +20,7 @@ pub mod visibility;
 
 pub use episode::{Action, Episode, World};
 pub use error::{MapError, MapErrorKind, ParamError, StartError};
+pub use links::Links;
 pub use map::{Cell, Map};
 pub use observation::{Channels, ImageGeometry, ObservationConfig, Observer};
 pub use params::WorldParams;

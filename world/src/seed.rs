@@ -19,6 +19,8 @@ pub mod purpose {
     pub const POLICY: u64 = 2;
     /// The number of agents, where an episode draws it (training over a range of team sizes).
     pub const AGENT_COUNT: u64 = 3;
+    /// Which links between robots are down at each step, when communication is disturbed.
+    pub const LINKS: u64 = 4;
 }
 
 impl Seed {

@@ -172,9 +172,9 @@ impl Episode {
         self.reward
     }
 
-    /// Loses `agent` for the rest of the episode, from the next step on: its actions are
-    /// ignored, it stays on its cell (others still cannot enter it) and it no longer sees.
-    /// A reset brings it back.
+    /// Loses `agent` (below `agents()`, which the scenario checks at load) for the rest of
+    /// the episode, from the next step on: its actions are ignored, it stays on its cell
+    /// (others still cannot enter it) and it no longer sees. A reset brings it back.
     pub fn stop(&mut self, agent: usize) {
         self.stopped[agent] = true;
     }

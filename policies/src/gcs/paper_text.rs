@@ -16,6 +16,9 @@
 //! paper, an agent whose moves keep being refused (another agent in the way) plans a new path
 //! to its target around the cells agents stand on.
 //!
+//! A robot lost mid-episode (`Episode::stop`) gives up its target and takes no other; the
+//! world ignores its moves.
+//!
 //! Cost: targets are found by a breadth-first search from the agent that stops at the nearest
 //! candidate, and the path comes from the same search, so nothing is stored per map cell pair
 //! and one assignment costs about the area of the disc around the agent out to its target.
@@ -69,13 +72,15 @@ impl PaperTextGcs {
         self.agents.iter().map(|agent| agent.target)
     }
 
-    /// Forgets targets that were reached (or seen, if the rule says so).
+    /// Forgets targets that were reached (or seen, if the rule says so), and those of lost
+    /// robots, so that the others may take them.
     fn release_finished(&mut self, episode: &Episode) {
         let penalty = episode.penalty();
         let seen_counts = self.retarget == Retarget::WhenSeen;
-        for (agent, &position) in self.agents.iter_mut().zip(episode.positions()) {
+        let agents = self.agents.iter_mut().zip(episode.positions());
+        for ((agent, &position), &lost) in agents.zip(episode.stopped()) {
             let finished = agent.target.is_some_and(|target| {
-                target == position || (seen_counts && penalty.at(target) == 0.0)
+                lost || target == position || (seen_counts && penalty.at(target) == 0.0)
             });
             if finished {
                 agent.target = None;
@@ -88,8 +93,9 @@ impl PaperTextGcs {
         let held = self.agents.iter().filter_map(|agent| agent.target);
         self.candidates.rebuild(episode, held);
         let map = self.world.map();
-        let idle = self.agents.iter_mut().zip(episode.positions());
-        for (agent, &position) in idle.filter(|(agent, _)| agent.target.is_none()) {
+        let agents = self.agents.iter_mut().zip(episode.positions());
+        let idle = agents.zip(episode.stopped()).filter(|(_, lost)| !**lost);
+        for ((agent, &position), _) in idle.filter(|((agent, _), _)| agent.target.is_none()) {
             if self.candidates.available == 0 {
                 break; // More agents than candidates: searching would find nothing.
             }
@@ -127,7 +133,8 @@ impl Policy for PaperTextGcs {
 
     fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
         self.release_finished(episode);
-        if self.agents.iter().any(|agent| agent.target.is_none()) {
+        let mut agents = self.agents.iter().zip(episode.stopped());
+        if agents.any(|(agent, &lost)| agent.target.is_none() && !lost) {
             self.assign_free_agents(episode);
         }
         let (map, positions) = (self.world.map(), episode.positions());

@@ -348,6 +348,20 @@ mod tests {
         assert_eq!(targets, [Cell::new(0, 2), Cell::new(6, 1)], "its start");
     }
 
+    /// The text's rule: a lost robot gives up its target and takes no other.
+    #[test]
+    fn a_lost_robot_gives_up_its_target_under_the_texts_rule() {
+        let (world, mut episode) = two_agents_after_the_walk();
+        let mut text = PaperTextGcs::new(&world, 2.5, Retarget::OnArrival);
+        text.reset(&episode, Seed::new(1));
+        let mut actions = [Action::Stay; 2];
+        text.act(&episode, &mut actions);
+        assert!(text.targets().next().unwrap().is_some());
+        episode.stop(0);
+        text.act(&episode, &mut actions);
+        assert_eq!(text.targets().next(), Some(None));
+    }
+
     /// The code counts kept cells only from the second cell it looks at on, so with one
     /// agent the list stops at the first cell too close to the worst, or not at all.
     #[test]

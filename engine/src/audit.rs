@@ -15,7 +15,7 @@ use policies::ppo::{ConfigError, TrainError, Trainer};
 
 use crate::cell::CellConfig;
 use crate::execution::{CellError, stored_policy, test_episode};
-use crate::store::tables::EpisodeRow;
+use crate::store::tables::{self, EpisodeRow};
 use crate::store::{CellRecord, Store, StoreError, TRAINING_FILE};
 use crate::training_log;
 
@@ -208,28 +208,14 @@ fn choose(rows: usize, sample: usize, seed: Seed) -> Vec<usize> {
 /// The episodes table as (cell key, row) pairs.
 fn stored_episodes(frame: &DataFrame) -> Result<(Vec<String>, Vec<EpisodeRow>), StoreError> {
     let keys = frame.column("cell_key")?.str()?;
-    let n_test = frame.column("n_test")?.u32()?;
-    let episode = frame.column("episode")?.u32()?;
-    let test_seed = frame.column("test_seed")?.u64()?;
-    let penalty = frame.column("cumulative_penalty")?.f64()?;
-    let average_idleness = frame.column("average_idleness")?.f64()?;
-    let worst_idleness = frame.column("worst_idleness")?.u32()?;
-    let steps = frame.column("steps")?.u32()?;
-    let missing = || PolarsError::NoData("a null in the episodes table".into());
-    let mut out = (Vec::new(), Vec::new());
-    for i in 0..frame.height() {
-        out.0.push(keys.get(i).ok_or_else(missing)?.to_owned());
-        out.1.push(EpisodeRow {
-            n_test: n_test.get(i).ok_or_else(missing)?,
-            episode: episode.get(i).ok_or_else(missing)?,
-            test_seed: test_seed.get(i).ok_or_else(missing)?,
-            cumulative_penalty: penalty.get(i).ok_or_else(missing)?,
-            average_idleness: average_idleness.get(i).ok_or_else(missing)?,
-            worst_idleness: worst_idleness.get(i).ok_or_else(missing)?,
-            steps: steps.get(i).ok_or_else(missing)?,
-        });
-    }
-    Ok(out)
+    let keys = (0..frame.height())
+        .map(|i| {
+            keys.get(i)
+                .map(str::to_owned)
+                .ok_or_else(tables::missing_value)
+        })
+        .collect::<PolarsResult<Vec<_>>>()?;
+    Ok((keys, tables::episode_rows(frame)?))
 }
 
 #[cfg(test)]

@@ -71,8 +71,8 @@ impl CellConfig {
 
 impl Cost {
     /// A cell's cost from its shape: training `learned` for its episodes with `n_train`
-    /// agents (none for a baseline), then `test_episodes` at every N_test. Saturates rather than overflows, so
-    /// that a scenario's size can be checked from any numbers a file holds.
+    /// agents (none for a baseline), then `test_episodes` at every N_test. Saturates rather
+    /// than overflows, so that a scenario's size can be checked from any numbers a file holds.
     pub fn of_cell(
         world: &WorldConfig,
         learned: Option<&Learned>,

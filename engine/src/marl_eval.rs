@@ -10,10 +10,12 @@
 
 use std::collections::BTreeMap;
 
-use polars::prelude::*;
 use serde_json::{Value, json};
 
+use crate::cell::CellConfig;
+use crate::grouping::group_rows;
 use crate::store::record::CellRecord;
+use crate::store::tables::{self, EpisodeRow};
 use crate::store::{EPISODES_FILE, Store, StoreError};
 
 /// The environment's name in the export.
@@ -57,10 +59,11 @@ pub fn export(store: &Store) -> Result<Value, ExportError> {
     for record in &records {
         let algorithm = algorithm(record)?;
         let run = format!("seed_{}", record.config.repetition);
+        let training_steps = training_steps(&record.config);
         for (n_test, metrics) in test_metrics(store, record)? {
             let task = format!("{}_n{n_test}", record.config.map.name);
             let steps = json!({
-                "step_0": with_step_count(&metrics, training_steps(record)),
+                "step_0": with_step_count(&metrics, training_steps),
                 "absolute_metrics": metrics,
             });
             let runs = tasks.entry(task).or_default().entry(algorithm.clone());
@@ -84,13 +87,8 @@ fn algorithm(record: &CellRecord) -> Result<String, ExportError> {
 }
 
 /// Environment steps of the cell's training (0 for a baseline), marl-eval's `step_count`.
-fn training_steps(record: &CellRecord) -> u64 {
-    let episodes = record
-        .config
-        .policy
-        .learned()
-        .map_or(0, |l| u64::from(l.episodes));
-    episodes * u64::from(record.config.world.train_steps)
+fn training_steps(config: &CellConfig) -> u64 {
+    config.cost().training_episodes * u64::from(config.world.train_steps)
 }
 
 fn with_step_count(metrics: &Value, step_count: u64) -> Value {
@@ -99,7 +97,8 @@ fn with_step_count(metrics: &Value, step_count: u64) -> Value {
     step
 }
 
-/// The cell's test episodes as metric lists, one object per N_test in the order stored.
+/// The cell's test episodes as metric lists, one object per N_test in the order the table
+/// first lists it.
 fn test_metrics(store: &Store, record: &CellRecord) -> Result<Vec<(u32, Value)>, ExportError> {
     let problem = |problem: String| ExportError::Episodes {
         key: record.key.clone(),
@@ -108,42 +107,20 @@ fn test_metrics(store: &Store, record: &CellRecord) -> Result<Vec<(u32, Value)>,
     let frame = store
         .cell_table(record, EPISODES_FILE)?
         .ok_or_else(|| problem("has no test episodes".into()))?;
-    let read = || -> PolarsResult<Vec<(u32, Value)>> {
-        let n_test = frame.column("n_test")?.u32()?;
-        let penalty = frame.column("cumulative_penalty")?.f64()?;
-        let average = frame.column("average_idleness")?.f64()?;
-        let worst = frame.column("worst_idleness")?.u32()?;
-        let mut groups: Vec<(u32, [Vec<Value>; 3])> = Vec::new();
-        for row in 0..frame.height() {
-            let (Some(n), Some(p), Some(a), Some(w)) = (
-                n_test.get(row),
-                penalty.get(row),
-                average.get(row),
-                worst.get(row),
-            ) else {
-                polars_bail!(ComputeError: "row {row} has a missing value");
-            };
-            if groups.last().is_none_or(|(last, _)| *last != n) {
-                groups.push((n, Default::default()));
-            }
-            let lists = &mut groups.last_mut().expect("pushed above").1;
-            lists[0].push(json!(-p));
-            lists[1].push(json!(a));
-            lists[2].push(json!(w));
-        }
-        Ok(groups
-            .into_iter()
-            .map(|(n, [ret, average, worst])| {
-                let metrics = json!({
-                    "return": ret,
-                    "average_idleness": average,
-                    "worst_idleness": worst,
-                });
-                (n, metrics)
-            })
-            .collect())
-    };
-    read().map_err(|e| problem(e.to_string()))
+    let rows = tables::episode_rows(&frame).map_err(|e| problem(e.to_string()))?;
+    let counts: Vec<u32> = rows.iter().map(|r| r.n_test).collect();
+    let groups = group_rows(&counts).into_iter().map(|(n, indices)| {
+        let list = |value: fn(&EpisodeRow) -> Value| -> Vec<Value> {
+            indices.iter().map(|&i| value(&rows[i])).collect()
+        };
+        let metrics = json!({
+            "return": list(|r| json!(-r.cumulative_penalty)),
+            "average_idleness": list(|r| json!(r.average_idleness)),
+            "worst_idleness": list(|r| json!(r.worst_idleness)),
+        });
+        (n, metrics)
+    });
+    Ok(groups.collect())
 }
 
 #[cfg(test)]

@@ -729,13 +729,8 @@ fn the_smoke_sweep_exports_to_marl_eval() {
                 let step = &steps["step_0"];
                 assert!(step["step_count"].is_u64(), "{step}");
                 assert_eq!(step["return"], steps["absolute_metrics"]["return"]);
-                returns.extend(
-                    step["return"]
-                        .as_array()
-                        .unwrap()
-                        .iter()
-                        .map(|r| r.as_f64()),
-                );
+                let values = step["return"].as_array().unwrap().iter();
+                returns.extend(values.map(|r| r.as_f64().unwrap()));
             }
         }
     }
@@ -745,10 +740,9 @@ fn the_smoke_sweep_exports_to_marl_eval() {
         .f64()
         .unwrap();
     let mut stored: Vec<f64> = penalties.into_no_null_iter().map(|p| -p).collect();
-    let mut exported: Vec<f64> = returns.into_iter().map(Option::unwrap).collect();
     stored.sort_by(f64::total_cmp);
-    exported.sort_by(f64::total_cmp);
-    assert_eq!(exported, stored);
+    returns.sort_by(f64::total_cmp);
+    assert_eq!(returns, stored);
     let Some(python) = std::env::var_os(MARL_EVAL_PYTHON) else {
         eprintln!("NOT RUN: marl-eval's round trip ({MARL_EVAL_PYTHON} is not set)");
         return;

@@ -62,6 +62,35 @@ pub fn episodes_frame(
     Ok(DataFrame::new(rows.len(), columns)?)
 }
 
+/// The rows of an episodes table (a cell's or the sweep's) as `episodes_frame` wrote them;
+/// a null anywhere is an error.
+pub fn episode_rows(frame: &DataFrame) -> Result<Vec<EpisodeRow>, StoreError> {
+    let n_test = frame.column("n_test")?.u32()?;
+    let episode = frame.column("episode")?.u32()?;
+    let test_seed = frame.column("test_seed")?.u64()?;
+    let penalty = frame.column("cumulative_penalty")?.f64()?;
+    let average_idleness = frame.column("average_idleness")?.f64()?;
+    let worst_idleness = frame.column("worst_idleness")?.u32()?;
+    let steps = frame.column("steps")?.u32()?;
+    let row = |i: usize| -> PolarsResult<EpisodeRow> {
+        Ok(EpisodeRow {
+            n_test: n_test.get(i).ok_or_else(missing_value)?,
+            episode: episode.get(i).ok_or_else(missing_value)?,
+            test_seed: test_seed.get(i).ok_or_else(missing_value)?,
+            cumulative_penalty: penalty.get(i).ok_or_else(missing_value)?,
+            average_idleness: average_idleness.get(i).ok_or_else(missing_value)?,
+            worst_idleness: worst_idleness.get(i).ok_or_else(missing_value)?,
+            steps: steps.get(i).ok_or_else(missing_value)?,
+        })
+    };
+    Ok((0..frame.height()).map(row).collect::<PolarsResult<_>>()?)
+}
+
+/// The error of a null where the episodes table holds none.
+pub fn missing_value() -> PolarsError {
+    PolarsError::NoData("a null in the episodes table".into())
+}
+
 /// A learned cell's training log with the columns that name the cell in front.
 pub fn training_frame(
     key: &str,

@@ -94,8 +94,10 @@ impl PaperTextGcs {
         self.candidates.rebuild(episode, held);
         let map = self.world.map();
         let agents = self.agents.iter_mut().zip(episode.positions());
-        let idle = agents.zip(episode.stopped()).filter(|(_, lost)| !**lost);
-        for ((agent, &position), _) in idle.filter(|((agent, _), _)| agent.target.is_none()) {
+        let idle = agents
+            .zip(episode.stopped())
+            .filter(|((agent, _), lost)| agent.target.is_none() && !**lost);
+        for ((agent, &position), _) in idle {
             if self.candidates.available == 0 {
                 break; // More agents than candidates: searching would find nothing.
             }

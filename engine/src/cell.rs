@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use world::Seed;
 
 use crate::code_version::code_version;
+use crate::disturbance::Disturbance;
 use crate::scenario::{Learned, Scenario, ScenarioPolicy, WorldConfig};
 
 /// Branches of the scenario's seed tree, so training and testing never share a stream.
@@ -29,6 +30,10 @@ pub struct CellConfig {
     /// Root of the test episodes' seeds: episode e with n agents uses `descend([n, e])`.
     pub test_seed: u64,
     pub test_episodes: u32,
+    /// What each test episode is also played under; absent from the key when there is none,
+    /// so scenarios without disturbances keep their cells.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub disturbances: Vec<Disturbance>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -104,6 +109,7 @@ impl Scenario {
                     training_seed: root.descend(&[branch::TRAINING, repetition as u64]).value(),
                     test_seed: root.descend(&[branch::TESTING, repetition as u64]).value(),
                     test_episodes: self.test_episodes,
+                    disturbances: self.disturbances.clone(),
                 };
                 cells.push(SweepCell {
                     index: cells.len(),

@@ -64,9 +64,15 @@ impl CellConfig {
             self.policy.learned(),
             self.n_train,
             &self.n_test,
-            self.test_episodes,
+            test_plays(self.test_episodes, self.disturbances.len()),
         )
     }
+}
+
+/// Test episodes played per N_test: each undisturbed, then once under every disturbance.
+pub fn test_plays(test_episodes: u32, disturbances: usize) -> u32 {
+    let plays = u32::try_from(disturbances).map_or(u32::MAX, |d| d.saturating_add(1));
+    test_episodes.saturating_mul(plays)
 }
 
 impl Cost {

@@ -11,13 +11,19 @@ use policies::ppo::{ConfigError, TrainingConfig, TrainingState};
 use policies::{LearnedPolicy, PlanError, Policy};
 use world::{StartError, World};
 
+use crate::adaptation::{self, Adaptation};
 use crate::cell::{CellConfig, SweepCell};
 use crate::code_version::{code_version, git_commit, sources};
+use crate::disturbance::{Disturbance, UNDISTURBED};
 use crate::provenance::{cpu_description, host_name, utc_timestamp};
-use crate::runner::run_episode;
+use crate::runner::run_disturbed_episode;
 use crate::scenario::{Learned, ScenarioPolicy};
+use crate::store::disturbed::{self, DisturbedRow};
 use crate::store::tables::{self, EpisodeRow};
-use crate::store::{CellRecord, EPISODES_FILE, Store, StoreError, TRAINING_FILE};
+use crate::store::{
+    CellRecord, DISTURBED_FILE, DISTURBED_STEPS_FILE, EPISODES_FILE, Store, StoreError,
+    TRAINING_FILE,
+};
 use crate::training_run::{TrainingRun, TrainingRunError};
 use crate::trajectory::CellRecording;
 
@@ -74,25 +80,52 @@ pub fn run_cell(
         }
     };
     let mut rows = Vec::new();
+    let mut disturbed = Vec::new();
     let mut recording = CellRecording::for_cell(config);
     let last = config.world.test_steps as usize;
+    let mut penalties = Vec::with_capacity(last);
     for &agents in &config.n_test {
         for episode in 0..config.test_episodes {
             let record = recording.records(episode);
-            rows.push(observed_test_episode(
+            penalties.clear();
+            let row = observed_test_episode(
                 world,
                 policy.as_mut(),
                 config,
                 agents,
                 episode,
-                &mut |e, _| {
+                &mut |e, actions, penalty| {
+                    if actions.is_some() {
+                        penalties.push(penalty);
+                    }
                     if record {
                         recording.observe(e, agents, episode, last);
                     }
                 },
-            )?);
+            )?;
             advance(config.world.test_steps as u64);
+            if !config.disturbances.is_empty() {
+                disturbed.push(undisturbed_row(&row, &penalties));
+            }
+            for disturbance in &config.disturbances {
+                disturbed.push(disturbed_test_episode(
+                    world,
+                    policy.as_mut(),
+                    config,
+                    (agents, episode),
+                    disturbance,
+                    &mut penalties,
+                )?);
+                advance(config.world.test_steps as u64);
+            }
+            rows.push(row);
         }
+    }
+    if !disturbed.is_empty() {
+        let frame = disturbed::disturbed_frame(&cell.key, config, &disturbed)?;
+        files.push((DISTURBED_FILE, tables::parquet_bytes(&frame)?));
+        let frame = disturbed::disturbed_steps_frame(&cell.key, config, &disturbed)?;
+        files.push((DISTURBED_STEPS_FILE, tables::parquet_bytes(&frame)?));
     }
     let episodes = tables::episodes_frame(&cell.key, config, &rows)?;
     files.push((EPISODES_FILE, tables::parquet_bytes(&episodes)?));
@@ -176,27 +209,28 @@ pub fn test_episode(
     agents: u32,
     episode: u32,
 ) -> Result<EpisodeRow, StartError> {
-    observed_test_episode(world, policy, config, agents, episode, &mut |_, _| {})
+    observed_test_episode(world, policy, config, agents, episode, &mut |_, _, _| {})
 }
 
-/// [`test_episode`], with `on_step` seeing every step (as `run_episode` calls it).
+/// [`test_episode`], with `on_step` seeing every step (as `run_disturbed_episode` calls it).
 pub fn observed_test_episode(
     world: &Arc<World>,
     policy: &mut dyn Policy,
     config: &CellConfig,
     agents: u32,
     episode: u32,
-    on_step: &mut dyn FnMut(&world::Episode, Option<&[world::Action]>),
+    on_step: &mut dyn FnMut(&world::Episode, Option<&[world::Action]>, f64),
 ) -> Result<EpisodeRow, StartError> {
     let seed = config.episode_seed(agents, episode);
     let steps = config.world.test_steps;
-    let outcome = run_episode(
+    let outcome = run_disturbed_episode(
         world,
         agents as usize,
         policy,
         seed,
         None,
         steps as usize,
+        None,
         on_step,
     )?;
     Ok(EpisodeRow {
@@ -208,4 +242,85 @@ pub fn observed_test_episode(
         worst_idleness: outcome.idleness.worst,
         steps,
     })
+}
+
+/// The disturbed table's row of an undisturbed test episode whose per-step penalties were
+/// `penalties`.
+fn undisturbed_row(row: &EpisodeRow, penalties: &[f64]) -> DisturbedRow {
+    DisturbedRow {
+        n_test: row.n_test,
+        episode: row.episode,
+        test_seed: row.test_seed,
+        disturbance: UNDISTURBED.to_owned(),
+        event: None,
+        lost: String::new(),
+        cumulative_penalty: row.cumulative_penalty,
+        adaptation: Adaptation::measure(penalties, None),
+        at_event: String::new(),
+        at_end: String::new(),
+        curve: adaptation::curve(penalties).collect(),
+    }
+}
+
+/// Test episode `episode` with `agents` agents played again under `disturbance`, from the
+/// same start and seed; `penalties` is scratch space for its per-step penalties.
+pub fn disturbed_test_episode(
+    world: &Arc<World>,
+    policy: &mut dyn Policy,
+    config: &CellConfig,
+    (agents, episode): (u32, u32),
+    disturbance: &Disturbance,
+    penalties: &mut Vec<f64>,
+) -> Result<DisturbedRow, StartError> {
+    let seed = config.episode_seed(agents, episode);
+    let steps = config.world.test_steps as usize;
+    let played = disturbance.in_episode(agents as usize, seed);
+    let event = played.loss.as_ref().map(|(at, _)| *at as usize);
+    let (mut at_event, mut at_end) = (String::new(), String::new());
+    penalties.clear();
+    let outcome = run_disturbed_episode(
+        world,
+        agents as usize,
+        policy,
+        seed,
+        None,
+        steps,
+        Some(&played),
+        &mut |e, actions, penalty| {
+            if actions.is_some() {
+                penalties.push(penalty);
+            }
+            let done = penalties.len();
+            if event == Some(done) {
+                at_event = cells_text(e.positions());
+            }
+            if event.is_some() && done == steps {
+                at_end = cells_text(e.positions());
+            }
+        },
+    )?;
+    let lost = played.loss.as_ref().map_or(&[][..], |(_, lost)| lost);
+    Ok(DisturbedRow {
+        n_test: agents,
+        episode,
+        test_seed: seed.value(),
+        disturbance: disturbance.name.clone(),
+        event: event.map(|e| e as u32),
+        lost: lost
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(" "),
+        cumulative_penalty: outcome.cumulative_penalty,
+        adaptation: Adaptation::measure(penalties, event.map(|e| e as u32)),
+        at_event,
+        at_end,
+        curve: adaptation::curve(penalties).collect(),
+    })
+}
+
+/// Robot cells as `x,y x,y ...`.
+fn cells_text(cells: &[world::Cell]) -> String {
+    let cells: Vec<String> = cells.iter().map(|c| format!("{},{}", c.x, c.y)).collect();
+    cells.join(" ")
 }

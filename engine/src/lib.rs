@@ -1,6 +1,7 @@
 //! The engine: a scenario becomes a checked plan of cells, each cell runs reproducibly into a
 //! results store; sweeps, shards, merges, audits, statistics and Slurm work on that store.
 
+pub mod adaptation;
 pub mod atomic_file;
 pub mod audit;
 pub mod cell;
@@ -8,6 +9,7 @@ pub mod checkpoint_dir;
 pub mod claims;
 pub mod code_version;
 pub mod cost;
+pub mod disturbance;
 pub mod execution;
 pub mod grouping;
 pub mod idleness;

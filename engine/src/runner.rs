@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use crate::disturbance::EpisodeDisturbance;
 use crate::idleness::{Idleness, IdlenessTracker};
 use policies::Policy;
 use world::{Action, Cell, Episode, Seed, StartError, World};
@@ -45,17 +46,42 @@ pub fn run_episode(
     steps: usize,
     on_step: &mut dyn FnMut(&Episode, Option<&[Action]>),
 ) -> Result<EpisodeOutcome, StartError> {
+    let mut plain =
+        |episode: &Episode, actions: Option<&[Action]>, _: f64| on_step(episode, actions);
+    run_disturbed_episode(world, agents, policy, seed, starts, steps, None, &mut plain)
+}
+
+/// [`run_episode`] under `disturbance` (links from the start, robots lost after a step), with
+/// `on_step` also given the step's penalty (0 at the start).
+#[allow(clippy::too_many_arguments)]
+pub fn run_disturbed_episode(
+    world: &Arc<World>,
+    agents: usize,
+    policy: &mut dyn Policy,
+    seed: Seed,
+    starts: Option<&[Cell]>,
+    steps: usize,
+    disturbance: Option<&EpisodeDisturbance>,
+    on_step: &mut dyn FnMut(&Episode, Option<&[Action]>, f64),
+) -> Result<EpisodeOutcome, StartError> {
     let mut episode = Episode::new(world.clone(), agents)?;
     reset_episode(&mut episode, policy, seed, starts)?;
-    on_step(&episode, None);
+    if let Some(disturbance) = disturbance {
+        disturbance.start(&mut episode);
+    }
+    on_step(&episode, None, 0.0);
     let mut actions = vec![Action::Stay; agents];
     let mut cumulative_penalty = 0.0;
     let mut idleness = IdlenessTracker::new(&episode);
-    for _ in 0..steps {
+    for done in 0..steps {
+        if let Some(disturbance) = disturbance {
+            disturbance.after_step(done, &mut episode);
+        }
         policy.act(&episode, &mut actions);
-        cumulative_penalty -= episode.step(&actions);
+        let penalty = -episode.step(&actions);
+        cumulative_penalty += penalty;
         idleness.observe(&episode);
-        on_step(&episode, Some(&actions));
+        on_step(&episode, Some(&actions), penalty);
     }
     Ok(EpisodeOutcome {
         cumulative_penalty,

@@ -105,7 +105,7 @@ pub fn record_episode(
         config,
         choice.n_test,
         choice.episode,
-        &mut |episode, _| {
+        &mut |episode, _, _| {
             if failure.is_none() {
                 let edges = attention.lock().expect("no panics hold the lock").take();
                 failure = logger.log(episode, edges).err();

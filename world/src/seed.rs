@@ -21,6 +21,8 @@ pub mod purpose {
     pub const AGENT_COUNT: u64 = 3;
     /// Which links between robots are down at each step, when communication is disturbed.
     pub const LINKS: u64 = 4;
+    /// Which robots are lost, when a disturbance names how many but not which.
+    pub const LOST_ROBOTS: u64 = 5;
 }
 
 impl Seed {

@@ -7,6 +7,7 @@ use std::path::Path;
 use serde_saphyr::Spanned;
 use world::{Map, MapError, WorldParams};
 
+use super::disturbances::check_disturbances;
 use super::error::ScenarioError;
 use super::format::{MapSpec, PolicySpec, ScenarioFile, WorldSpec};
 use super::size::{Limits, check_size};
@@ -36,6 +37,8 @@ pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenari
     let repetitions = positive(&spec.repetitions, "repetitions", file)?;
     let test_episodes = positive(&spec.test_episodes, "test_episodes", file)?;
     let outputs = non_empty(&spec.outputs, "outputs", file)?.clone();
+    let disturbances =
+        check_disturbances(&spec.disturbances, world.test_steps, &test_agents, file)?;
     let context = ClaimContext {
         policies: policies
             .iter()
@@ -59,6 +62,7 @@ pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenari
         repetitions,
         test_episodes,
         outputs,
+        disturbances,
         claims,
     };
     check_size(&scenario, &spec, limits, file)?;

@@ -31,6 +31,9 @@ pub struct ScenarioFile {
     /// The sweep-level tables to build; the per-cell results are always kept.
     #[serde(default = "Output::all")]
     pub outputs: Spanned<Vec<Output>>,
+    /// Disturbances every cell's test episodes are also played under (`crate::disturbance`).
+    #[serde(default = "nothing")]
+    pub disturbances: Spanned<Vec<Spanned<DisturbanceSpec>>>,
     /// The paper's statements this experiment tests (`claims::format::ClaimSpec`).
     #[serde(default)]
     pub claims: Vec<Spanned<crate::claims::format::ClaimSpec>>,
@@ -83,6 +86,39 @@ pub struct AgentsSpec {
     #[serde(default = "nothing")]
     pub train: Spanned<Vec<Spanned<u32>>>,
     pub test: Spanned<Vec<Spanned<u32>>>,
+}
+
+/// A disturbance by name: robots lost after a step, links cut, or both.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DisturbanceSpec {
+    pub name: Spanned<String>,
+    #[serde(default)]
+    pub lose: Option<Spanned<LoseSpec>>,
+    #[serde(default)]
+    pub links: Option<Spanned<LinksSpec>>,
+}
+
+/// `robots` (how many, drawn per episode) or `which` (by index), lost after step `at`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoseSpec {
+    #[serde(default)]
+    pub robots: Option<Spanned<u32>>,
+    #[serde(default)]
+    pub which: Option<Spanned<Vec<u32>>>,
+    pub at: Spanned<u32>,
+}
+
+/// Messages only within `radius` cells, and/or each link down with probability `drop` per
+/// step.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinksSpec {
+    #[serde(default)]
+    pub radius: Option<Spanned<f64>>,
+    #[serde(default)]
+    pub drop: Option<Spanned<f64>>,
 }
 
 /// One policy of the sweep: a baseline by name, or a learned architecture with its training.
@@ -154,16 +190,21 @@ pub enum Output {
     Summary,
     Trajectories,
     Snapshots,
+    /// Only cells with disturbances have these.
+    Disturbed,
+    DisturbedSteps,
 }
 
 impl Output {
-    pub const ALL: [Output; 6] = [
+    pub const ALL: [Output; 8] = [
         Output::Episodes,
         Output::Training,
         Output::Cells,
         Output::Summary,
         Output::Trajectories,
         Output::Snapshots,
+        Output::Disturbed,
+        Output::DisturbedSteps,
     ];
 
     /// The table's file name, without extension.
@@ -175,6 +216,8 @@ impl Output {
             Output::Summary => "summary",
             Output::Trajectories => "trajectories",
             Output::Snapshots => "snapshots",
+            Output::Disturbed => "disturbed",
+            Output::DisturbedSteps => "disturbed_steps",
         }
     }
 

@@ -2,6 +2,7 @@
 //! into the grid of cells a sweep runs.
 
 mod check;
+mod disturbances;
 pub mod error;
 pub mod format;
 mod policy;
@@ -34,6 +35,8 @@ pub struct Scenario {
     pub repetitions: u32,
     pub test_episodes: u32,
     pub outputs: Vec<Output>,
+    /// What the test episodes are also played under, besides undisturbed.
+    pub disturbances: Vec<crate::disturbance::Disturbance>,
     /// Checked against the scenario's maps, policies and agent counts.
     pub claims: Vec<crate::claims::Claim>,
 }

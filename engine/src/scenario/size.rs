@@ -68,7 +68,7 @@ impl Scenario {
                 learned,
                 n_train,
                 &self.test_agents,
-                self.test_episodes,
+                crate::cost::test_plays(self.test_episodes, self.disturbances.len()),
             );
             size.cost = size.cost + cell.times(u64::from(self.repetitions));
             size.cells = size.cells.saturating_add(u64::from(self.repetitions));

@@ -19,6 +19,7 @@
 //! record exists and every file it lists has the recorded hash. Every file is written whole
 //! (`write_atomic`), so a crash leaves a cell finished or not, never half.
 
+pub mod disturbed;
 pub mod lease;
 pub mod record;
 pub mod tables;
@@ -36,6 +37,8 @@ pub const EPISODES_FILE: &str = "episodes.parquet";
 pub const TRAINING_FILE: &str = "training.parquet";
 pub const TRAJECTORIES_FILE: &str = "trajectories.parquet";
 pub const SNAPSHOTS_FILE: &str = "snapshots.parquet";
+pub const DISTURBED_FILE: &str = "disturbed.parquet";
+pub const DISTURBED_STEPS_FILE: &str = "disturbed_steps.parquet";
 const RECORD_FILE: &str = "cell.json";
 const FAILURE_FILE: &str = "failed.json";
 const MANIFEST_FILE: &str = "sweep.json";
@@ -349,6 +352,8 @@ impl Store {
                 Output::Training => per_cell(TRAINING_FILE)?,
                 Output::Trajectories => per_cell(TRAJECTORIES_FILE)?,
                 Output::Snapshots => per_cell(SNAPSHOTS_FILE)?,
+                Output::Disturbed => per_cell(DISTURBED_FILE)?,
+                Output::DisturbedSteps => per_cell(DISTURBED_STEPS_FILE)?,
                 Output::Cells => Some(tables::cells_frame(&records)?),
                 Output::Summary => episodes
                     .as_ref()

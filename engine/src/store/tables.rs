@@ -168,7 +168,7 @@ pub fn cells_frame(records: &[CellRecord]) -> Result<DataFrame, StoreError> {
     Ok(DataFrame::new(records.len(), columns)?)
 }
 
-fn column<R, T>(rows: &[R], field: impl Fn(&R) -> T) -> Vec<T> {
+pub(crate) fn column<R, T>(rows: &[R], field: impl Fn(&R) -> T) -> Vec<T> {
     rows.iter().map(field).collect()
 }
 

@@ -49,9 +49,10 @@ fn settle_steps(penalties: &[f64], event: usize, level: f64) -> u32 {
     let steps = penalties.len();
     let window = (steps / SETTLE_WINDOW_FRACTION).max(1);
     let tolerance = SETTLE_TOLERANCE * level.abs();
-    let mut first_settled = (event + window).min(steps);
-    let mut sum: f64 = penalties[event..first_settled].iter().sum();
-    for end in first_settled..=steps {
+    let first_window = (event + window).min(steps);
+    let mut first_settled = first_window;
+    let mut sum: f64 = penalties[event..first_window].iter().sum();
+    for end in first_window..=steps {
         if end > event + window {
             sum += penalties[end - 1] - penalties[end - 1 - window];
         }

@@ -119,6 +119,14 @@ pub struct EpisodeDisturbance {
 }
 
 impl Disturbance {
+    /// How many robots every episode loses, when that is fixed (`None` without a loss).
+    pub fn robots_lost(&self) -> Option<u32> {
+        self.lose.as_ref().map(|loss| match &loss.robots {
+            LostRobots::Count(count) => *count,
+            LostRobots::Which(which) => which.len() as u32,
+        })
+    }
+
     /// What this disturbance does in the episode of `seed` with `agents` robots.
     pub fn in_episode(&self, agents: usize, seed: Seed) -> EpisodeDisturbance {
         EpisodeDisturbance {

@@ -16,7 +16,7 @@ use crate::cell::{CellConfig, SweepCell};
 use crate::code_version::{code_version, git_commit, sources};
 use crate::disturbance::{Disturbance, UNDISTURBED};
 use crate::provenance::{cpu_description, host_name, utc_timestamp};
-use crate::runner::run_disturbed_episode;
+use crate::runner::{StepObserver, run_disturbed_episode};
 use crate::scenario::{Learned, ScenarioPolicy};
 use crate::store::disturbed::{self, DisturbedRow};
 use crate::store::tables::{self, EpisodeRow};
@@ -219,7 +219,7 @@ pub fn observed_test_episode(
     config: &CellConfig,
     agents: u32,
     episode: u32,
-    on_step: &mut dyn FnMut(&world::Episode, Option<&[world::Action]>, f64),
+    on_step: &mut StepObserver,
 ) -> Result<EpisodeRow, StartError> {
     let seed = config.episode_seed(agents, episode);
     let steps = config.world.test_steps;

@@ -51,6 +51,10 @@ pub fn run_episode(
     run_disturbed_episode(world, agents, policy, seed, starts, steps, None, &mut plain)
 }
 
+/// What sees every step of an episode: the episode after the step, the actions taken (`None`
+/// at the start) and the step's penalty (0 at the start).
+pub type StepObserver<'a> = dyn FnMut(&Episode, Option<&[Action]>, f64) + 'a;
+
 /// [`run_episode`] under `disturbance` (links from the start, robots lost after a step), with
 /// `on_step` also given the step's penalty (0 at the start).
 #[allow(clippy::too_many_arguments)]
@@ -62,7 +66,7 @@ pub fn run_disturbed_episode(
     starts: Option<&[Cell]>,
     steps: usize,
     disturbance: Option<&EpisodeDisturbance>,
-    on_step: &mut dyn FnMut(&Episode, Option<&[Action]>, f64),
+    on_step: &mut StepObserver,
 ) -> Result<EpisodeOutcome, StartError> {
     let mut episode = Episode::new(world.clone(), agents)?;
     reset_episode(&mut episode, policy, seed, starts)?;

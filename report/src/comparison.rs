@@ -57,21 +57,21 @@ pub fn comparisons(episodes: &DataFrame) -> Result<Vec<Comparison>, ReportError>
 
 /// Every (map, policy, N_train, N_test) of the episodes table, in table order.
 pub fn samples(episodes: &DataFrame) -> Result<Vec<Sample>, ReportError> {
-    let groups = GroupKey::of_rows(episodes)?;
-    let cells = strings(episodes, "cell_key")?;
-    let penalties = f64s(episodes, "cumulative_penalty")?;
+    samples_of(episodes, "cumulative_penalty", PENALTY_UNIT)
+}
+
+/// [`samples`] of any column of a per-episode table, divided by `unit`.
+pub fn samples_of(frame: &DataFrame, column: &str, unit: f64) -> Result<Vec<Sample>, ReportError> {
+    let groups = GroupKey::of_rows(frame)?;
+    let cells = strings(frame, "cell_key")?;
+    let values = f64s(frame, column)?;
     Ok(group_rows(&groups)
         .into_iter()
         .map(|(group, rows)| {
             let keys: Vec<&String> = rows.iter().map(|&r| &cells[r]).collect();
             let strata = group_rows(&keys)
                 .into_iter()
-                .map(|(_, within)| {
-                    within
-                        .iter()
-                        .map(|&i| penalties[rows[i]] / PENALTY_UNIT)
-                        .collect()
-                })
+                .map(|(_, within)| within.iter().map(|&i| values[rows[i]] / unit).collect())
                 .collect();
             Sample { group, strata }
         })

@@ -9,6 +9,7 @@ pub mod behaviour;
 pub mod chart;
 mod columns;
 mod comparison;
+mod disturbance;
 mod illustration;
 pub mod markdown;
 pub mod motion;
@@ -93,12 +94,17 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
         episodes,
         training,
         motions,
+        disturbed,
     } = loaded;
     let summary = store.table("summary")?;
     let comparisons = comparison::comparisons(&episodes)?;
     penalty::section(&mut report, &summary, &comparisons)?;
     comparison::section(&mut report, &comparisons)?;
     transfer::section(&mut report, &summary)?;
+    if let (Some(disturbed), Some(steps)) = (&disturbed, optional_table(store, "disturbed_steps")?)
+    {
+        disturbance::section(&mut report, disturbed, &steps, &motion::maps(store)?)?;
+    }
     if let Some(training) = &training {
         training::section(&mut report, training)?;
     }
@@ -191,6 +197,8 @@ pub struct StoreTables {
     pub training: Option<DataFrame>,
     /// The recorded episodes' motions and their maps, when the sweep kept trajectories.
     pub motions: Option<(HashMap<String, Map>, Vec<motion::Motion>)>,
+    /// The episodes played under disturbances, when the scenario declared any.
+    pub disturbed: Option<DataFrame>,
 }
 
 impl StoreTables {
@@ -203,6 +211,7 @@ impl StoreTables {
             episodes: store.table("episodes")?,
             training: optional_table(store, "training")?,
             motions,
+            disturbed: optional_table(store, "disturbed")?,
         })
     }
 
@@ -216,6 +225,7 @@ impl StoreTables {
             episodes: &self.episodes,
             training: self.training.as_ref(),
             behaviours: behaviours.as_deref(),
+            disturbed: self.disturbed.as_ref(),
         };
         verdicts::evaluate(claims, &recorded)
     }

@@ -196,8 +196,9 @@ fn frame(motions: &[Motion]) -> PolarsResult<DataFrame> {
     )
 }
 
-fn trails(motion: &Motion, map: &Map) -> GridFigure {
-    let cells = (0..map.height())
+/// A map's cells for a grid panel: free or obstacle, row-major from the bottom row.
+pub(crate) fn map_shades(map: &Map) -> Vec<Shade> {
+    (0..map.height())
         .flat_map(|y| (0..map.width()).map(move |x| (x, y)))
         .map(|(x, y)| {
             if map.is_obstacle(x as i64, y as i64) {
@@ -206,7 +207,11 @@ fn trails(motion: &Motion, map: &Map) -> GridFigure {
                 Shade::Free
             }
         })
-        .collect();
+        .collect()
+}
+
+fn trails(motion: &Motion, map: &Map) -> GridFigure {
+    let cells = map_shades(map);
     let centre = |v: f64| v + 0.5;
     GridFigure {
         panels: vec![GridPanel {

@@ -7,6 +7,7 @@ use polars::prelude::*;
 use super::behaviour::EpisodeBehaviour;
 use super::columns::{GroupKey, f64s, group_rows, named_seed, optional_u32s, strings};
 use super::comparison::{Sample, samples};
+use super::disturbance::{DisturbedSamples, ratio};
 use super::markdown::number;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use engine::claims::{Behaviour, Claim, ClaimTest, Pair, Point};
@@ -81,19 +82,45 @@ pub struct Recorded<'a> {
     pub episodes: &'a DataFrame,
     pub training: Option<&'a DataFrame>,
     pub behaviours: Option<&'a [EpisodeBehaviour]>,
+    /// The episodes played under disturbances (`lower` and the like under `a_under`,
+    /// `adapts_better`).
+    pub disturbed: Option<&'a DataFrame>,
 }
 
 /// Every claim's verdict.
 pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult>, ReportError> {
     let samples = samples(recorded.episodes)?;
+    let disturbed = DisturbedSamples::new(recorded.disturbed)?;
+    let side = |under: &Option<String>| -> &[Sample] {
+        match under {
+            None => &samples,
+            Some(name) => disturbed.penalties.get(name).map_or(&[], Vec::as_slice),
+        }
+    };
     claims
         .iter()
         .map(|claim| {
             let seed = named_seed(&format!("claim\0{}", claim.id));
             let (verdict, ours) = match &claim.test {
-                ClaimTest::Lower { pair } => lower(&samples, pair, seed)?,
-                ClaimTest::Within { pair, tolerance } => within(&samples, pair, *tolerance, seed)?,
-                ClaimTest::GapGrows { pair } => gap_grows(&samples, pair, seed)?,
+                ClaimTest::Lower { pair } => {
+                    lower((side(&pair.a_under), side(&pair.b_under)), pair, seed)?
+                }
+                ClaimTest::Within { pair, tolerance } => within(
+                    (side(&pair.a_under), side(&pair.b_under)),
+                    pair,
+                    *tolerance,
+                    seed,
+                )?,
+                ClaimTest::GapGrows { pair } => {
+                    gap_grows((side(&pair.a_under), side(&pair.b_under)), pair, seed)?
+                }
+                ClaimTest::AdaptsBetter {
+                    a,
+                    b,
+                    disturbance,
+                    points,
+                    ..
+                } => adapts_better(&disturbed, (a, b), disturbance, points, seed)?,
                 ClaimTest::DiagonalBest { policy, map, n } => {
                     diagonal_best(&samples, policy, map, n, seed)?
                 }
@@ -185,12 +212,18 @@ fn point_label(point: &Point) -> String {
     format!("{} N={}", point.map, point.n_test)
 }
 
+/// Each side's samples: undisturbed, or under the disturbance the claim names for it.
+type Sides<'a> = (&'a [Sample], &'a [Sample]);
+
 /// Per point: both samples, or the text saying which is missing.
-fn pairs<'a>(samples: &'a [Sample], pair: &Pair) -> Result<Vec<(&'a Sample, &'a Sample)>, String> {
+fn pairs<'a>(
+    (of_a, of_b): Sides<'a>,
+    pair: &Pair,
+) -> Result<Vec<(&'a Sample, &'a Sample)>, String> {
     pair.points
         .iter()
         .map(
-            |point| match (find(samples, &pair.a, point), find(samples, &pair.b, point)) {
+            |point| match (find(of_a, &pair.a, point), find(of_b, &pair.b, point)) {
                 (Some(a), Some(b)) => Ok((a, b)),
                 (None, _) => Err(format!(
                     "no results of {} at {}",
@@ -209,7 +242,7 @@ fn pairs<'a>(samples: &'a [Sample], pair: &Pair) -> Result<Vec<(&'a Sample, &'a 
 
 /// A claim tested point by point: `test` gives each point's verdict and numbers.
 fn per_point(
-    samples: &[Sample],
+    samples: Sides,
     pair: &Pair,
     seed: world::Seed,
     test: impl Fn(&Sample, &Sample, world::Seed) -> Result<(Verdict, String), StatsError>,
@@ -228,11 +261,7 @@ fn per_point(
     Ok((Verdict::all(verdicts), texts.join("; ")))
 }
 
-fn lower(
-    samples: &[Sample],
-    pair: &Pair,
-    seed: world::Seed,
-) -> Result<(Verdict, String), ReportError> {
+fn lower(samples: Sides, pair: &Pair, seed: world::Seed) -> Result<(Verdict, String), ReportError> {
     per_point(samples, pair, seed, |a, b, seed| {
         compare_lower(&a.strata(), &b.strata(), seed)
     })
@@ -264,7 +293,7 @@ fn relative_difference(x: &[f64], y: &[f64]) -> Result<f64, StatsError> {
 }
 
 fn within(
-    samples: &[Sample],
+    samples: Sides,
     pair: &Pair,
     tolerance: f64,
     seed: world::Seed,
@@ -315,7 +344,7 @@ fn gaps(replicates: &[Vec<f64>]) -> Result<Vec<f64>, StatsError> {
 }
 
 fn gap_grows(
-    samples: &[Sample],
+    samples: Sides,
     pair: &Pair,
     seed: world::Seed,
 ) -> Result<(Verdict, String), ReportError> {
@@ -351,6 +380,57 @@ fn gap_grows(
     // Growing: the slope's interval above 0 supports, below 0 contradicts.
     let verdict = Verdict::of_interval((-interval.1, -interval.0), 0.0, 0.0);
     Ok((verdict, text))
+}
+
+/// Per point: `|ratio(a) - 1| - |ratio(b) - 1|` of the adaptation ratios under
+/// `disturbance`, below 0 when `a` adapts better; its interval resamples all four samples.
+fn adapts_better(
+    disturbed: &DisturbedSamples,
+    (a, b): (&str, &str),
+    disturbance: &str,
+    points: &[Point],
+    seed: world::Seed,
+) -> Result<(Verdict, String), ReportError> {
+    let mut verdicts = Vec::new();
+    let mut texts = Vec::new();
+    for (i, point) in points.iter().enumerate() {
+        let found = disturbed
+            .ratio_samples(a, point, disturbance)
+            .and_then(|x| Ok((x, disturbed.ratio_samples(b, point, disturbance)?)));
+        let ((a_hit, a_ref), (b_hit, b_ref)) = match found {
+            Ok(found) => found,
+            Err(missing) => return Ok((Verdict::NoData, missing)),
+        };
+        let distance = |r: &[Vec<f64>]| -> Result<f64, StatsError> {
+            Ok((ratio(&r[0..2])? - 1.0).abs() - (ratio(&r[2..4])? - 1.0).abs())
+        };
+        let all = [
+            a_hit.strata(),
+            a_ref.strata(),
+            b_hit.strata(),
+            b_ref.strata(),
+        ];
+        let all: Vec<&[&[f64]]> = all.iter().map(Vec::as_slice).collect();
+        let interval =
+            samples_interval(&all, &distance, CONFIDENCE, RESAMPLES, seed.child(i as u64))?;
+        let whole = [
+            a_hit.values(),
+            a_ref.values(),
+            b_hit.values(),
+            b_ref.values(),
+        ];
+        texts.push(format!(
+            "{}: ratio {:.3} vs {:.3}, |a - 1| - |b - 1| {:.3} [{:.3}, {:.3}]",
+            point_label(point),
+            ratio(&whole[0..2])?,
+            ratio(&whole[2..4])?,
+            distance(&whole)?,
+            interval.0,
+            interval.1
+        ));
+        verdicts.push(Verdict::of_interval(interval, 0.0, 0.0));
+    }
+    Ok((Verdict::all(verdicts), texts.join("; ")))
 }
 
 fn diagonal_best(

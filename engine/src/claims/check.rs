@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde_saphyr::Spanned;
 
-use super::format::{BehaviourSpec, ClaimSpec, CurveSpec, DiagonalSpec, PairSpec};
+use super::format::{AdaptationSpec, BehaviourSpec, ClaimSpec, CurveSpec, DiagonalSpec, PairSpec};
 use super::{Behaviour, Claim, ClaimTest, Pair, Point};
 use crate::scenario::ScenarioError;
 
@@ -16,6 +16,9 @@ pub struct ClaimContext {
     pub maps: Vec<String>,
     pub train_agents: Vec<u32>,
     pub test_agents: Vec<u32>,
+    /// Every disturbance's name, with the robots it loses (`None`: it loses none, or how many
+    /// is not fixed).
+    pub disturbances: Vec<(String, Option<u32>)>,
 }
 
 /// A failed check: the value it is about, its field, the problem.
@@ -56,10 +59,11 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         spec.diagonal_best.is_some(),
         spec.curve_below.is_some(),
         spec.behaviour.is_some(),
+        spec.adapts_better.is_some(),
     ];
     if kinds.iter().filter(|&&k| k).count() != 1 {
-        let problem =
-            "give exactly one of lower, within, gap_grows, diagonal_best, curve_below, behaviour";
+        let problem = "give exactly one of lower, within, gap_grows, diagonal_best, curve_below, \
+                       behaviour, adapts_better";
         return Err((None, String::new(), problem.into()));
     }
     let checker = Checker { context };
@@ -83,6 +87,8 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         checker.diagonal(diagonal)?
     } else if let Some(behaviour) = &spec.behaviour {
         checker.behaviour(behaviour)?
+    } else if let Some(adaptation) = &spec.adapts_better {
+        checker.adaptation(adaptation)?
     } else {
         checker.curve(spec.curve_below.as_ref().expect("one kind is given"))?
     };
@@ -105,8 +111,10 @@ impl Checker<'_> {
     fn pair(&self, spec: &PairSpec, field: &str, least: usize) -> Result<Pair, Failure> {
         self.policy(&spec.a, format!("{field}.a"), false)?;
         self.policy(&spec.b, format!("{field}.b"), false)?;
-        if spec.a.value == spec.b.value {
-            let problem = "a and b are the same policy".to_owned();
+        let a_under = self.under(spec.a_under.as_ref(), format!("{field}.a_under"))?;
+        let b_under = self.under(spec.b_under.as_ref(), format!("{field}.b_under"))?;
+        if spec.a.value == spec.b.value && a_under == b_under {
+            let problem = "a and b are the same policy under the same conditions".to_owned();
             return Err(fail(&spec.b, format!("{field}.b"), problem));
         }
         let maps = self.names(&spec.maps, &format!("{field}.maps"))?;
@@ -133,6 +141,102 @@ impl Checker<'_> {
         Ok(Pair {
             a: spec.a.value.clone(),
             b: spec.b.value.clone(),
+            a_under,
+            b_under,
+            points,
+        })
+    }
+
+    /// A disturbance of the scenario, by name.
+    fn under(
+        &self,
+        name: Option<&Spanned<String>>,
+        field: String,
+    ) -> Result<Option<String>, Failure> {
+        let Some(name) = name else {
+            return Ok(None);
+        };
+        if let Some(context) = self.context
+            && !context.disturbances.iter().any(|(d, _)| *d == name.value)
+        {
+            let known: Vec<&str> = context
+                .disturbances
+                .iter()
+                .map(|(d, _)| d.as_str())
+                .collect();
+            let problem = format!(
+                "no disturbance {:?} in this scenario (its disturbances: {})",
+                name.value,
+                known.join(", ")
+            );
+            return Err(fail(name, field, problem));
+        }
+        Ok(Some(name.value.clone()))
+    }
+
+    /// Both policies at every (map, N), each beside its reference team of N - k, which must be
+    /// in the scenario's counts too.
+    fn adaptation(&self, spec: &AdaptationSpec) -> Result<ClaimTest, Failure> {
+        let field = ".adapts_better";
+        self.policy(&spec.a, format!("{field}.a"), false)?;
+        self.policy(&spec.b, format!("{field}.b"), false)?;
+        if spec.a.value == spec.b.value {
+            let problem = "a and b are the same policy".to_owned();
+            return Err(fail(&spec.b, format!("{field}.b"), problem));
+        }
+        let maps = self.names(&spec.maps, &format!("{field}.maps"))?;
+        let learned = self.is_learned(&spec.a.value) || self.is_learned(&spec.b.value);
+        let n = self.counts(&spec.n, &format!("{field}.n"), 1, learned)?;
+        self.under(Some(&spec.disturbance), format!("{field}.disturbance"))?;
+        let lost = match self.context {
+            None => 0,
+            Some(context) => {
+                let lost = context
+                    .disturbances
+                    .iter()
+                    .find(|(d, _)| *d == spec.disturbance.value)
+                    .and_then(|(_, lost)| *lost);
+                let Some(lost) = lost else {
+                    let problem = format!(
+                        "{:?} loses no fixed number of robots: an adaptation ratio needs one",
+                        spec.disturbance.value
+                    );
+                    return Err(fail(
+                        &spec.disturbance,
+                        format!("{field}.disturbance"),
+                        problem,
+                    ));
+                };
+                for (i, count) in spec.n.value.iter().enumerate() {
+                    let reference = Spanned::new(
+                        count.value.saturating_sub(lost),
+                        count.referenced,
+                        count.defined,
+                    );
+                    let field = format!("{field}.n[{i}] (its team of survivors)");
+                    self.count(&reference, field.clone(), false)?;
+                    if learned {
+                        self.count(&reference, field, true)?;
+                    }
+                }
+                lost
+            }
+        };
+        let points = maps
+            .iter()
+            .flat_map(|map| {
+                n.iter().map(|&n_test| Point {
+                    map: map.clone(),
+                    n_test,
+                    n_train: n_test,
+                })
+            })
+            .collect();
+        Ok(ClaimTest::AdaptsBetter {
+            a: spec.a.value.clone(),
+            b: spec.b.value.clone(),
+            disturbance: spec.disturbance.value.clone(),
+            lost,
             points,
         })
     }

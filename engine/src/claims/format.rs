@@ -25,6 +25,8 @@ pub struct ClaimSpec {
     pub curve_below: Option<CurveSpec>,
     /// What the recorded test episode of one setting shows (RQ3).
     pub behaviour: Option<BehaviourSpec>,
+    /// `a`'s adaptation ratio under a loss is closer to 1 than `b`'s at every point.
+    pub adapts_better: Option<AdaptationSpec>,
 }
 
 /// Two policies compared at the points (map, N_test = n): a learned policy is taken at
@@ -41,6 +43,24 @@ pub struct PairSpec {
     /// For `within`: the largest relative difference |a - b| / b still called equal.
     #[serde(default)]
     pub tolerance: Option<Spanned<f64>>,
+    /// Take `a`'s (`b`'s) test episodes as played under this disturbance of the scenario.
+    #[serde(default)]
+    pub a_under: Option<Spanned<String>>,
+    #[serde(default)]
+    pub b_under: Option<Spanned<String>>,
+}
+
+/// Two policies' adaptation ratios under a disturbance that loses robots, at (map, N): the
+/// mean last-quarter penalty of the team of N that lost k, over that of an undisturbed team
+/// of N - k (a learned policy trained with N and N - k).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AdaptationSpec {
+    pub a: Spanned<String>,
+    pub b: Spanned<String>,
+    pub disturbance: Spanned<String>,
+    pub maps: Spanned<Vec<Spanned<String>>>,
+    pub n: Spanned<Vec<Spanned<u32>>>,
 }
 
 #[derive(Clone, Debug, Deserialize)]

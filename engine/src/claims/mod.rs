@@ -57,6 +57,14 @@ pub enum ClaimTest {
         point: Point,
         expected: Behaviour,
     },
+    AdaptsBetter {
+        a: String,
+        b: String,
+        disturbance: String,
+        /// Robots the disturbance loses: each point's reference team has `n_test - lost`.
+        lost: u32,
+        points: Vec<Point>,
+    },
 }
 
 /// What a behaviour claim expects; `None` leaves a feature untested.
@@ -76,6 +84,7 @@ impl ClaimTest {
             ClaimTest::DiagonalBest { .. } => "diagonal_best",
             ClaimTest::CurveBelow { .. } => "curve_below",
             ClaimTest::Behaviour { .. } => "behaviour",
+            ClaimTest::AdaptsBetter { .. } => "adapts_better",
         }
     }
 }
@@ -85,6 +94,9 @@ impl ClaimTest {
 pub struct Pair {
     pub a: String,
     pub b: String,
+    /// The disturbance `a`'s (`b`'s) episodes were played under; `None`: undisturbed.
+    pub a_under: Option<String>,
+    pub b_under: Option<String>,
     pub points: Vec<Point>,
 }
 

@@ -47,6 +47,10 @@ pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenari
         maps: maps.iter().map(|m| m.map.name().to_owned()).collect(),
         train_agents: train_agents.clone(),
         test_agents: test_agents.clone(),
+        disturbances: disturbances
+            .iter()
+            .map(|d| (d.name.clone(), d.robots_lost()))
+            .collect(),
     };
     let claims = check_claims(&spec.claims, Some(&context), file)?;
     let scenario = Scenario {

@@ -249,6 +249,88 @@ mod tests {
     }
 
     #[test]
+    fn disturbances_are_checked_against_the_episode_and_the_teams() {
+        let with = |disturbances: &str| {
+            format!(
+                "{}disturbances:\n{disturbances}",
+                scenario("", &inline("a"))
+            )
+        };
+        let good = "  - name: lose\n    lose: {robots: 1, at: 10}\n  \
+                    - name: cut\n    links: {radius: 4.5, drop: 0.5}\n";
+        let teams = |text: String| text.replace("test: [1, 2]", "test: [2, 3]");
+        let s = parse(&teams(with(good))).unwrap();
+        assert_eq!(s.disturbances.len(), 2);
+        assert_eq!(s.disturbances[0].robots_lost(), Some(1));
+        let cells = s.cells();
+        assert_eq!(cells[0].config.disturbances, s.disturbances);
+        let plain = parse(&teams(scenario("", &inline("a")))).unwrap().cells();
+        assert_ne!(
+            cells[0].key, plain[0].key,
+            "a disturbance is part of a cell's key"
+        );
+        assert_eq!(
+            cells[0].config.cost().test_episodes,
+            3 * plain[0].config.cost().test_episodes,
+            "every test episode is played undisturbed and under both"
+        );
+        let cases = [
+            (
+                "  - name: x\n    lose: {robots: 1, at: 20}\n",
+                "unit.yaml:18: disturbances[0].lose.at: step 20 is not inside the test episode (1 to 19",
+            ),
+            (
+                "  - name: x\n    lose: {robots: 1, at: 0}\n",
+                "disturbances[0].lose.at: step 0 is not inside",
+            ),
+            (
+                "  - name: x\n    lose: {robots: 1, at: 5}\n",
+                "disturbances[0].lose.robots: 1 robots: lose at least 1 and fewer than the smallest test team (1)",
+            ),
+            (
+                "  - name: x\n    lose: {which: [0, 0], at: 5}\n",
+                "disturbances[0].lose.which: a robot is listed twice",
+            ),
+            (
+                "  - name: x\n    lose: {robots: 1, which: [0], at: 5}\n",
+                "disturbances[0].lose: give robots (how many) or which (by index), not both",
+            ),
+            (
+                "  - name: x\n    links: {drop: 1.5}\n",
+                "unit.yaml:18: disturbances[0].links.drop: a link's drop probability must be between 0 and 1, got 1.5",
+            ),
+            (
+                "  - name: x\n    links: {radius: -2}\n",
+                "disturbances[0].links.radius: a link radius must be finite and >= 0, got -2",
+            ),
+            (
+                "  - name: x\n    links: {}\n",
+                "disturbances[0].links: give radius, drop or both",
+            ),
+            ("  - name: x\n", "disturbances[0]: give lose, links or both"),
+            (
+                "  - name: none\n    links: {drop: 0.1}\n",
+                "disturbances[0].name: \"none\" is not a usable name",
+            ),
+            (
+                "  - name: x\n    links: {drop: 0.1}\n  - name: x\n    links: {drop: 0.2}\n",
+                "disturbances[1].name: a second disturbance named \"x\"",
+            ),
+            ("  - name: x\n    los: {}\n", "unknown field `los`"),
+        ];
+        for (disturbances, expected) in cases {
+            let text = with(disturbances);
+            let text = if expected.contains("smallest test team (1)") {
+                text
+            } else {
+                teams(text)
+            };
+            let error = parse(&text).unwrap_err().to_string();
+            assert!(error.contains(expected), "{error}\n  expected: {expected}");
+        }
+    }
+
+    #[test]
     fn claims_name_the_scenarios_own_policies_maps_and_counts() {
         let learned = "  - ma-ppo: {profile: fast, episodes: 5, set: {network: compact}}\n";
         let with = |claims: &str| format!("{}claims:\n{claims}", scenario(learned, &inline("a")));
@@ -313,6 +395,18 @@ mod tests {
             (
                 "  - id: x\n    behaviour: {policy: ma-ppo@fast, map: a, n_test: 1, periodic: true}\n",
                 "claims[0].behaviour.n_test: N = 1 is not in agents.train [2, 3]",
+            ),
+            (
+                "  - id: x\n    lower: {a: random, b: random, b_under: cut, maps: [a], n: [2]}\n",
+                "claims[0].lower.b_under: no disturbance \"cut\" in this scenario (its disturbances: )",
+            ),
+            (
+                "  - id: x\n    lower: {a: random, b: random, maps: [a], n: [2]}\n",
+                "claims[0].lower.b: a and b are the same policy under the same conditions",
+            ),
+            (
+                "  - id: x\n    adapts_better: {a: ma-ppo@fast, b: random, disturbance: cut, maps: [a], n: [2]}\n",
+                "claims[0].adapts_better.disturbance: no disturbance \"cut\"",
             ),
             (
                 &good.replace("transfer", "beats"),

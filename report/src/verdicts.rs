@@ -111,6 +111,12 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                     *tolerance,
                     seed,
                 )?,
+                ClaimTest::NotWorse { pair, tolerance } => not_worse(
+                    (side(&pair.a_under), side(&pair.b_under)),
+                    pair,
+                    *tolerance,
+                    seed,
+                )?,
                 ClaimTest::GapGrows { pair } => {
                     gap_grows((side(&pair.a_under), side(&pair.b_under)), pair, seed)?
                 }
@@ -298,17 +304,42 @@ fn within(
     tolerance: f64,
     seed: world::Seed,
 ) -> Result<(Verdict, String), ReportError> {
-    per_point(samples, pair, seed, |a, b, seed| {
-        let (x, y) = (a.strata(), b.strata());
-        let (low, high) =
-            comparison_interval(&x, &y, relative_difference, CONFIDENCE, RESAMPLES, seed)?;
-        let verdict = if -tolerance <= low && high <= tolerance {
+    relative(samples, pair, tolerance, seed, |(low, high)| {
+        if -tolerance <= low && high <= tolerance {
             Verdict::Supported
         } else if low > tolerance || high < -tolerance {
             Verdict::Contradicted
         } else {
             Verdict::Inconclusive
-        };
+        }
+    })
+}
+
+/// "a at most `tolerance` worse than b": the relative difference's interval below the
+/// tolerance supports, above it contradicts.
+fn not_worse(
+    samples: Sides,
+    pair: &Pair,
+    tolerance: f64,
+    seed: world::Seed,
+) -> Result<(Verdict, String), ReportError> {
+    relative(samples, pair, tolerance, seed, |interval| {
+        Verdict::of_interval(interval, tolerance, tolerance)
+    })
+}
+
+/// A claim on the relative difference (a - b) / b at every point, judged from its interval.
+fn relative(
+    samples: Sides,
+    pair: &Pair,
+    tolerance: f64,
+    seed: world::Seed,
+    judge: impl Fn((f64, f64)) -> Verdict,
+) -> Result<(Verdict, String), ReportError> {
+    per_point(samples, pair, seed, |a, b, seed| {
+        let (x, y) = (a.strata(), b.strata());
+        let (low, high) =
+            comparison_interval(&x, &y, relative_difference, CONFIDENCE, RESAMPLES, seed)?;
         let text = format!(
             "{} vs {}, (a - b) / b {:+.3} [{:+.3}, {:+.3}] (tolerance {tolerance})",
             number(mean(&a.values())?),
@@ -317,7 +348,7 @@ fn within(
             low,
             high
         );
-        Ok((verdict, text))
+        Ok((judge((low, high)), text))
     })
 }
 

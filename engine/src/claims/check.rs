@@ -55,6 +55,7 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
     let kinds = [
         spec.lower.is_some(),
         spec.within.is_some(),
+        spec.not_worse.is_some(),
         spec.gap_grows.is_some(),
         spec.diagonal_best.is_some(),
         spec.curve_below.is_some(),
@@ -62,8 +63,8 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         spec.adapts_better.is_some(),
     ];
     if kinds.iter().filter(|&&k| k).count() != 1 {
-        let problem = "give exactly one of lower, within, gap_grows, diagonal_best, curve_below, \
-                       behaviour, adapts_better";
+        let problem = "give exactly one of lower, within, not_worse, gap_grows, diagonal_best, \
+                       curve_below, behaviour, adapts_better";
         return Err((None, String::new(), problem.into()));
     }
     let checker = Checker { context };
@@ -72,9 +73,13 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
             pair: checker.pair(pair, ".lower", 1)?,
         }
     } else if let Some(pair) = &spec.within {
-        let tolerance = checker.tolerance(pair)?;
+        let tolerance = checker.tolerance(pair, ".within")?;
         let pair = checker.pair(pair, ".within", 1)?;
         ClaimTest::Within { pair, tolerance }
+    } else if let Some(pair) = &spec.not_worse {
+        let tolerance = checker.tolerance(pair, ".not_worse")?;
+        let pair = checker.pair(pair, ".not_worse", 1)?;
+        ClaimTest::NotWorse { pair, tolerance }
     } else if let Some(pair) = &spec.gap_grows {
         if pair.maps.value.len() != 1 {
             let problem = "a gap grows along N on one map: write one claim per map".to_owned();
@@ -241,11 +246,11 @@ impl Checker<'_> {
         })
     }
 
-    fn tolerance(&self, spec: &PairSpec) -> Result<f64, Failure> {
+    fn tolerance(&self, spec: &PairSpec, field: &str) -> Result<f64, Failure> {
         match &spec.tolerance {
             Some(t) if t.value > 0.0 && t.value.is_finite() => Ok(t.value),
-            Some(t) => Err(fail(t, ".within.tolerance".into(), "must be > 0".into())),
-            None => Err((None, ".within".into(), "needs a tolerance".into())),
+            Some(t) => Err(fail(t, format!("{field}.tolerance"), "must be > 0".into())),
+            None => Err((None, field.into(), "needs a tolerance".into())),
         }
     }
 

@@ -17,6 +17,8 @@ pub struct ClaimSpec {
     pub lower: Option<PairSpec>,
     /// `a`'s mean penalty is within `tolerance` (relative to `b`'s) of `b`'s at every point.
     pub within: Option<PairSpec>,
+    /// `a`'s mean penalty is at most `tolerance` (relative to `b`'s) above `b`'s at every point.
+    pub not_worse: Option<PairSpec>,
     /// `b`'s penalty minus `a`'s grows along the points in the order `n` lists them (one map).
     pub gap_grows: Option<PairSpec>,
     /// In every N_test column of `n`, the policy trained with N_train = N_test is the best.
@@ -40,7 +42,8 @@ pub struct PairSpec {
     pub n: Spanned<Vec<Spanned<u32>>>,
     #[serde(default)]
     pub n_train: Option<Spanned<u32>>,
-    /// For `within`: the largest relative difference |a - b| / b still called equal.
+    /// For `within`: the largest relative difference |a - b| / b still called equal; for
+    /// `not_worse`: the largest (a - b) / b still called not worse.
     #[serde(default)]
     pub tolerance: Option<Spanned<f64>>,
     /// Take `a`'s (`b`'s) test episodes as played under this disturbance of the scenario.

@@ -37,6 +37,10 @@ pub enum ClaimTest {
         pair: Pair,
         tolerance: f64,
     },
+    NotWorse {
+        pair: Pair,
+        tolerance: f64,
+    },
     GapGrows {
         pair: Pair,
     },
@@ -80,6 +84,7 @@ impl ClaimTest {
         match self {
             ClaimTest::Lower { .. } => "lower",
             ClaimTest::Within { .. } => "within",
+            ClaimTest::NotWorse { .. } => "not_worse",
             ClaimTest::GapGrows { .. } => "gap_grows",
             ClaimTest::DiagonalBest { .. } => "diagonal_best",
             ClaimTest::CurveBelow { .. } => "curve_below",

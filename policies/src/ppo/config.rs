@@ -210,6 +210,15 @@ pub struct TrainingConfig {
     pub attention_entropy_coefficient: f64,
     /// Clip the global gradient norm to this; `null` for no clipping.
     pub max_grad_norm: Option<f64>,
+    /// The chance that a training episode loses one of its robots (drawn from the episode's
+    /// seed, as the step after which it stops), so that the policy meets teams that shrink and
+    /// messages that stop. 0 (the paper, and left out of the file): never.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub loss_probability: f64,
+}
+
+fn is_zero(value: &f64) -> bool {
+    *value == 0.0
 }
 
 /// A configuration that cannot be trained, naming the field.
@@ -272,6 +281,7 @@ impl TrainingConfig {
             value_coefficient: 0.5,
             attention_entropy_coefficient: 0.01,
             max_grad_norm: None,
+            loss_probability: 0.0,
         }
     }
 
@@ -384,6 +394,14 @@ impl TrainingConfig {
             && (norm.is_nan() || norm <= 0.0)
         {
             return Err(invalid("max_grad_norm", format!("{norm} must be > 0")));
+        }
+        if !(0.0..=1.0).contains(&self.loss_probability) {
+            let problem = format!("{} is not in [0, 1]", self.loss_probability);
+            return Err(invalid("loss_probability", problem));
+        }
+        if self.loss_probability > 0.0 && (self.agents.min < 2 || self.steps_per_episode < 2) {
+            let problem = "losing a robot needs at least 2 agents and 2 steps an episode";
+            return Err(invalid("loss_probability", problem));
         }
         if self.mini_map_block == Some(0) {
             return Err(invalid("mini_map_block", "must be at least 1"));

@@ -24,6 +24,8 @@ pub struct EnvironmentRollout {
     streams: Vec<Pcg64Mcg>,
     current: Vec<Action>,
     reward_scale: f32,
+    /// The robot this episode loses and the step after which it stops (`loss_probability`).
+    loss: Option<(usize, usize)>,
     pub agents: usize,
     pub steps: usize,
     /// `steps + 1` observations per agent: the last one bootstraps GAE.
@@ -57,6 +59,13 @@ impl EnvironmentRollout {
         let policy = seed.child(purpose::POLICY);
         let streams = (0..agents as u64).map(|a| policy.child(a).rng()).collect();
         let steps = config.steps_per_episode;
+        let loss = (config.loss_probability > 0.0)
+            .then(|| {
+                let mut rng = seed.child(purpose::LOST_ROBOTS).rng();
+                (rng.random::<f64>() < config.loss_probability)
+                    .then(|| (rng.random_range(0..agents), rng.random_range(1..steps)))
+            })
+            .flatten();
         let reward_scale = match config.reward_scale {
             RewardScale::Raw => 1.0,
             RewardScale::PerCell => {
@@ -75,6 +84,7 @@ impl EnvironmentRollout {
             streams,
             current: vec![Action::Stay; agents],
             reward_scale,
+            loss,
             agents,
             steps,
         };
@@ -108,7 +118,14 @@ impl EnvironmentRollout {
         points: &mut Vec<[f64; 2]>,
     ) {
         observations.extend_from_slice(self.observation(t));
+        let first = graph.agents();
         push_agents(graph, neighbours, self.positions_at(t), points);
+        // As at test time: nobody hears a robot from the step it is lost.
+        if let Some((robot, at)) = self.loss
+            && t >= at
+        {
+            graph.retain_from(first, |_, neighbour| neighbour != first + robot);
+        }
     }
 
     fn observe(&mut self, t: usize) {
@@ -134,6 +151,11 @@ impl EnvironmentRollout {
         let reward = self.episode.step(&self.current);
         self.penalty -= reward;
         self.rewards[t] = reward as f32 * self.reward_scale;
+        if let Some((robot, at)) = self.loss
+            && at == t + 1
+        {
+            self.episode.stop(robot);
+        }
         self.observe(t + 1);
     }
 }
@@ -176,5 +198,72 @@ impl RolloutWorkspace {
             }
             environments.par_iter_mut().for_each(|env| env.advance(t));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use world::{Map, WorldParams};
+
+    use super::*;
+
+    #[test]
+    fn a_training_episode_with_a_loss_stops_the_robot_and_cuts_its_messages() {
+        let text = "########\n#..#...#\n#......#\n#..#...#\n#..#...#\n########\n";
+        let map = Map::parse_text("tiny", text, Path::new("tiny.txt")).unwrap();
+        let world = World::new(map, WorldParams::new(5, 1.0, 40.0).unwrap());
+        let config = TrainingConfig {
+            agents: crate::ppo::AgentCount::fixed(3),
+            steps_per_episode: 10,
+            loss_probability: 1.0,
+            ..TrainingConfig::profile(crate::ppo::Profile::Fast)
+        };
+        let mut rollout = EnvironmentRollout::new(&world, &config, Seed::new(4)).unwrap();
+        let (robot, at) = rollout.loss.expect("a loss with probability 1");
+        assert!(robot < 3 && (1..10).contains(&at), "{robot} after {at}");
+        for t in 0..10 {
+            rollout.current = vec![Action::Right; 3];
+            rollout.advance(t);
+        }
+        assert!(rollout.episode.stopped()[robot]);
+        let (mut observations, mut graph, mut points) = (Vec::new(), AgentGraph::new(), Vec::new());
+        let hearers = |graph: &AgentGraph, first: usize| -> usize {
+            (first..first + 3)
+                .filter(|&a| graph.edges_of(a).any(|(_, n)| n == first + robot))
+                .count()
+        };
+        rollout.push_step(
+            at - 1,
+            Neighbours::AllOthers,
+            &mut observations,
+            &mut graph,
+            &mut points,
+        );
+        assert_eq!(hearers(&graph, 0), 2, "heard before the loss");
+        rollout.push_step(
+            at,
+            Neighbours::AllOthers,
+            &mut observations,
+            &mut graph,
+            &mut points,
+        );
+        assert_eq!(hearers(&graph, 3), 0, "nobody hears it from the loss on");
+        // The others still hear each other (2 edges), and the lost robot them (2; what it
+        // does no longer matters).
+        assert_eq!(graph.edges(), 6 + 4);
+        let again = EnvironmentRollout::new(&world, &config, Seed::new(4)).unwrap();
+        assert_eq!(again.loss, rollout.loss, "drawn from the episode's seed");
+        let never = TrainingConfig {
+            loss_probability: 0.0,
+            ..config
+        };
+        assert_eq!(
+            EnvironmentRollout::new(&world, &never, Seed::new(4))
+                .unwrap()
+                .loss,
+            None
+        );
     }
 }

@@ -325,6 +325,33 @@ mod tests {
     }
 
     #[test]
+    fn training_with_losses_is_seeded_changes_the_run_and_is_kept_in_the_checkpoint() {
+        let run = |loss: &str| {
+            let config = tiny_config(&["agents={\"min\":2,\"max\":3}", loss]);
+            let mut trainer = Trainer::new(tiny_world(), config, 5).unwrap();
+            let records = trainer.train(8, &mut |_| ()).unwrap();
+            (penalties(&records), trainer.into_state())
+        };
+        let (lossy, state) = run("loss_probability=0.5");
+        let (again, _) = run("loss_probability=0.5");
+        let (plain, plain_state) = run("loss_probability=0");
+        assert_eq!(lossy, again);
+        assert_ne!(lossy, plain, "lost robots change the training episodes");
+        let files = checkpoint::save(&state);
+        let metadata = checkpoint::read_metadata(&files.metadata).unwrap();
+        assert_eq!(metadata.config.loss_probability, 0.5);
+        let plain_files = checkpoint::save(&plain_state);
+        assert!(
+            !plain_files.metadata.contains("loss_probability"),
+            "a run without losses writes the metadata it always wrote"
+        );
+        let error = tiny_config(&[])
+            .with_overrides(&["loss_probability=0.5"])
+            .unwrap_err();
+        assert!(error.to_string().contains("at least 2 agents"), "{error}");
+    }
+
+    #[test]
     fn thread_count_does_not_change_the_weights() {
         let run = |threads| {
             let pool = rayon::ThreadPoolBuilder::new()

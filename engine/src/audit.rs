@@ -14,7 +14,8 @@ use policies::checkpoint::{self, WEIGHTS_FILE};
 use policies::ppo::{ConfigError, TrainError, Trainer};
 
 use crate::cell::CellConfig;
-use crate::execution::{CellError, stored_policy, test_episode};
+use crate::execution::{CellError, disturbed_table_row, stored_policy, test_episode};
+use crate::store::disturbed;
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{CellRecord, Store, StoreError, TRAINING_FILE};
 use crate::training_log;
@@ -44,6 +45,10 @@ pub enum AuditError {
     WeightsDiffer,
     #[error("the training log differs")]
     LogDiffers,
+    #[error("the cell has no disturbance named {0:?}")]
+    NoDisturbance(String),
+    #[error("the row differs")]
+    RowDiffers,
 }
 
 /// A stored test episode and what playing it again gave.
@@ -107,6 +112,91 @@ fn replay(
         row.n_test,
         row.episode,
     )?)
+}
+
+/// A stored row of the disturbed table, and whether playing its episode again under its
+/// disturbance gave the same row, every column.
+#[derive(Debug)]
+pub struct DisturbedAuditLine {
+    pub cell_key: String,
+    pub disturbance: String,
+    pub n_test: u32,
+    pub episode: u32,
+    pub outcome: Result<(), AuditError>,
+}
+
+/// Plays `sample` rows of the store's `disturbed` table again (none when the sweep declared
+/// no disturbance), chosen by `seed`, in table order.
+pub fn audit_disturbed(
+    store: &Store,
+    sample: usize,
+    seed: u64,
+) -> Result<Vec<DisturbedAuditLine>, StoreError> {
+    if !store.root().join("disturbed.parquet").exists() {
+        return Ok(Vec::new());
+    }
+    let table = store.table("disturbed")?;
+    let text = |name: &str| -> Result<Vec<String>, StoreError> {
+        let column = table.column(name)?.str()?;
+        let values = column
+            .iter()
+            .map(|v| v.map(str::to_owned).ok_or_else(tables::missing_value));
+        Ok(values.collect::<PolarsResult<_>>()?)
+    };
+    let count = |name: &str| -> Result<Vec<u32>, StoreError> {
+        let column = table.column(name)?.u32()?;
+        Ok(column
+            .iter()
+            .map(|v| v.ok_or_else(tables::missing_value))
+            .collect::<PolarsResult<_>>()?)
+    };
+    let (keys, names) = (text("cell_key")?, text("disturbance")?);
+    let (n_tests, episodes) = (count("n_test")?, count("episode")?);
+    let chosen = choose(table.height(), sample, Seed::new(seed).child(2));
+    let worlds = Mutex::new(HashMap::new());
+    Ok(chosen
+        .into_par_iter()
+        .map(|i| DisturbedAuditLine {
+            cell_key: keys[i].clone(),
+            disturbance: names[i].clone(),
+            n_test: n_tests[i],
+            episode: episodes[i],
+            outcome: replay_disturbed(store, &worlds, &table.slice(i as i64, 1)),
+        })
+        .collect())
+}
+
+/// Plays one stored disturbed row's episode again and compares the whole row.
+fn replay_disturbed(
+    store: &Store,
+    worlds: &Mutex<HashMap<String, Arc<World>>>,
+    stored: &DataFrame,
+) -> Result<(), AuditError> {
+    let value = |name: &str| stored.column(name).ok().and_then(|c| c.get(0).ok());
+    let key = value("cell_key")
+        .and_then(|v| v.get_str().map(str::to_owned))
+        .unwrap_or_default();
+    let name = value("disturbance")
+        .and_then(|v| v.get_str().map(str::to_owned))
+        .unwrap_or_default();
+    let number = |name: &str| {
+        value(name)
+            .and_then(|v| v.extract::<u32>())
+            .unwrap_or(u32::MAX)
+    };
+    let record = store.verified_record(&key)?;
+    let config = &record.config;
+    let world = world_of(store, worlds, config)?;
+    let mut policy = stored_policy(store, &record, &world)?;
+    let row = (number("n_test"), number("episode"));
+    let mut penalties = Vec::new();
+    let again = disturbed_table_row(&world, policy.as_mut(), config, row, &name, &mut penalties)?
+        .ok_or_else(|| AuditError::NoDisturbance(name.clone()))?;
+    let again = disturbed::disturbed_frame(&key, config, &[again])?;
+    if !again.equals_missing(stored) {
+        return Err(AuditError::RowDiffers);
+    }
+    Ok(())
 }
 
 /// A stored training run and what training it again gave.

@@ -244,6 +244,33 @@ pub fn observed_test_episode(
     })
 }
 
+/// The disturbed table's row of test episode `episode` with `agents` agents, played under the
+/// cell's disturbance `name` (or undisturbed for `none`), as the cell made it; `None` when the
+/// cell has no such disturbance. `penalties` is scratch space.
+pub fn disturbed_table_row(
+    world: &Arc<World>,
+    policy: &mut dyn Policy,
+    config: &CellConfig,
+    (agents, episode): (u32, u32),
+    name: &str,
+    penalties: &mut Vec<f64>,
+) -> Result<Option<DisturbedRow>, StartError> {
+    if name == UNDISTURBED {
+        penalties.clear();
+        let row = observed_test_episode(world, policy, config, agents, episode, &mut |_, a, p| {
+            if a.is_some() {
+                penalties.push(p);
+            }
+        })?;
+        return Ok(Some(undisturbed_row(&row, penalties)));
+    }
+    let Some(disturbance) = config.disturbances.iter().find(|d| d.name == name) else {
+        return Ok(None);
+    };
+    let row = (agents, episode);
+    disturbed_test_episode(world, policy, config, row, disturbance, penalties).map(Some)
+}
+
 /// The disturbed table's row of an undisturbed test episode whose per-step penalties were
 /// `penalties`.
 fn undisturbed_row(row: &EpisodeRow, penalties: &[f64]) -> DisturbedRow {

@@ -175,5 +175,26 @@ fn every_policy_meets_the_same_disturbance_and_claims_and_report_read_it() {
     for figure in ["disturbance_corridor_n3.png", "positions_corridor_n3.png"] {
         assert!(report.join("figures").join(figure).is_file(), "{figure}");
     }
+
+    // The audit plays disturbed rows again and finds an altered number.
+    let store_arg = store.to_str().unwrap();
+    let audit = ["audit", store_arg, "--sample", "400", "--training-sample", "0"];
+    let passed = succeed(harness(&audit));
+    assert!(passed.contains("216 disturbed rows"), "{passed}");
+    let mut altered = disturbed.clone();
+    let quarters: Vec<Option<f64>> = numbers::<Float64Type>(&disturbed, "last_quarter")
+        .into_iter()
+        .enumerate()
+        .map(|(i, v)| if i == 7 { v.map(|v| v * 1.5) } else { v })
+        .collect();
+    altered
+        .replace("last_quarter", Column::new("last_quarter".into(), quarters))
+        .unwrap();
+    let file = std::fs::File::create(store.join("disturbed.parquet")).unwrap();
+    ParquetWriter::new(file).finish(&mut altered).unwrap();
+    let failed = harness(&audit);
+    assert!(!failed.status.success());
+    let out = String::from_utf8_lossy(&failed.stdout);
+    assert_eq!(out.matches("the row differs").count(), 1, "{out}");
     let _ = std::fs::remove_dir_all(&dir);
 }

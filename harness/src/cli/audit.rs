@@ -3,7 +3,9 @@
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 
-use engine::audit::{AuditLine, TrainingAuditLine, audit, audit_training};
+use engine::audit::{
+    AuditLine, DisturbedAuditLine, TrainingAuditLine, audit, audit_disturbed, audit_training,
+};
 use engine::provenance;
 use engine::store::Store;
 
@@ -26,8 +28,13 @@ pub fn run(args: AuditArgs) -> anyhow::Result<()> {
     let store = Store::new(&args.store);
     let lines = audit(&store, args.sample, args.seed)?;
     let trained = audit_training(&store, args.training_sample, args.seed)?;
+    let disturbed = audit_disturbed(&store, args.sample, args.seed)?;
     show_platforms(&store, &lines, &trained);
     let mut differing = trained.iter().filter(|line| !show_training(line)).count();
+    differing += disturbed
+        .iter()
+        .filter(|line| !show_disturbed(line))
+        .count();
     for line in &lines {
         let s = &line.stored;
         let row = format!(
@@ -59,14 +66,15 @@ pub fn run(args: AuditArgs) -> anyhow::Result<()> {
             }
         }
     }
-    let checked = lines.len() + trained.len();
+    let checked = lines.len() + disturbed.len() + trained.len();
     anyhow::ensure!(
         differing == 0,
         "audit failed: {differing} of {checked} rows and training runs do not come back bit for bit",
     );
     println!(
-        "audit passed: {} rows and {} training runs came back bit for bit",
+        "audit passed: {} rows, {} disturbed rows and {} training runs came back bit for bit",
         lines.len(),
+        disturbed.len(),
         trained.len()
     );
     Ok(())
@@ -109,6 +117,19 @@ fn show_platforms(store: &Store, lines: &[AuditLine], trained: &[TrainingAuditLi
             );
         }
     }
+}
+
+/// Prints a disturbed row's line; returns whether it came back bit for bit.
+fn show_disturbed(line: &DisturbedAuditLine) -> bool {
+    let row = format!(
+        "cell {} N_test {} episode {} under {}",
+        line.cell_key, line.n_test, line.episode, line.disturbance
+    );
+    match &line.outcome {
+        Ok(()) => println!("same       {row}: every column of the disturbed table"),
+        Err(why) => println!("DIFFERENT  {row}: {why}"),
+    }
+    line.outcome.is_ok()
 }
 
 /// Prints a training run's line; returns whether it came back bit for bit.

@@ -14,7 +14,8 @@ use policies::checkpoint::{self, WEIGHTS_FILE};
 use policies::ppo::{ConfigError, TrainError, Trainer};
 
 use crate::cell::CellConfig;
-use crate::execution::{CellError, disturbed_table_row, stored_policy, test_episode};
+use crate::disturbance::UNDISTURBED;
+use crate::execution::{CellError, disturbed_test_episode, stored_policy, test_episode};
 use crate::store::disturbed;
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{CellRecord, Store, StoreError, TRAINING_FILE};
@@ -190,8 +191,21 @@ fn replay_disturbed(
     let mut policy = stored_policy(store, &record, &world)?;
     let row = (number("n_test"), number("episode"));
     let mut penalties = Vec::new();
-    let again = disturbed_table_row(&world, policy.as_mut(), config, row, &name, &mut penalties)?
-        .ok_or_else(|| AuditError::NoDisturbance(name.clone()))?;
+    let disturbance = match name.as_str() {
+        UNDISTURBED => None,
+        name => Some(
+            (config.disturbances.iter().find(|d| d.name == name))
+                .ok_or_else(|| AuditError::NoDisturbance(name.to_owned()))?,
+        ),
+    };
+    let again = disturbed_test_episode(
+        &world,
+        policy.as_mut(),
+        config,
+        row,
+        disturbance,
+        &mut penalties,
+    )?;
     let again = disturbed::disturbed_frame(&key, config, &[again])?;
     if !again.equals_missing(stored) {
         return Err(AuditError::RowDiffers);

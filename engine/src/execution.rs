@@ -113,7 +113,7 @@ pub fn run_cell(
                     policy.as_mut(),
                     config,
                     (agents, episode),
-                    disturbance,
+                    Some(disturbance),
                     &mut penalties,
                 )?);
                 advance(config.world.test_steps as u64);
@@ -244,33 +244,6 @@ pub fn observed_test_episode(
     })
 }
 
-/// The disturbed table's row of test episode `episode` with `agents` agents, played under the
-/// cell's disturbance `name` (or undisturbed for `none`), as the cell made it; `None` when the
-/// cell has no such disturbance. `penalties` is scratch space.
-pub fn disturbed_table_row(
-    world: &Arc<World>,
-    policy: &mut dyn Policy,
-    config: &CellConfig,
-    (agents, episode): (u32, u32),
-    name: &str,
-    penalties: &mut Vec<f64>,
-) -> Result<Option<DisturbedRow>, StartError> {
-    if name == UNDISTURBED {
-        penalties.clear();
-        let row = observed_test_episode(world, policy, config, agents, episode, &mut |_, a, p| {
-            if a.is_some() {
-                penalties.push(p);
-            }
-        })?;
-        return Ok(Some(undisturbed_row(&row, penalties)));
-    }
-    let Some(disturbance) = config.disturbances.iter().find(|d| d.name == name) else {
-        return Ok(None);
-    };
-    let row = (agents, episode);
-    disturbed_test_episode(world, policy, config, row, disturbance, penalties).map(Some)
-}
-
 /// The disturbed table's row of an undisturbed test episode whose per-step penalties were
 /// `penalties`.
 fn undisturbed_row(row: &EpisodeRow, penalties: &[f64]) -> DisturbedRow {
@@ -289,22 +262,31 @@ fn undisturbed_row(row: &EpisodeRow, penalties: &[f64]) -> DisturbedRow {
     }
 }
 
-/// Test episode `episode` with `agents` agents played again under `disturbance`, from the
-/// same start and seed; `penalties` is scratch space for its per-step penalties.
+/// The disturbed table's row of test episode `episode` with `agents` agents played under
+/// `disturbance` (undisturbed for `None`), from the same start and seed as the episodes
+/// table's; `penalties` is scratch space for its per-step penalties.
 pub fn disturbed_test_episode(
     world: &Arc<World>,
     policy: &mut dyn Policy,
     config: &CellConfig,
     (agents, episode): (u32, u32),
-    disturbance: &Disturbance,
+    disturbance: Option<&Disturbance>,
     penalties: &mut Vec<f64>,
 ) -> Result<DisturbedRow, StartError> {
+    penalties.clear();
+    let Some(disturbance) = disturbance else {
+        let row = observed_test_episode(world, policy, config, agents, episode, &mut |_, a, p| {
+            if a.is_some() {
+                penalties.push(p);
+            }
+        })?;
+        return Ok(undisturbed_row(&row, penalties));
+    };
     let seed = config.episode_seed(agents, episode);
     let steps = config.world.test_steps as usize;
     let played = disturbance.in_episode(agents as usize, seed);
     let event = played.loss.as_ref().map(|(at, _)| *at as usize);
     let (mut at_event, mut at_end) = (String::new(), String::new());
-    penalties.clear();
     let outcome = run_disturbed_episode(
         world,
         agents as usize,

@@ -178,7 +178,14 @@ fn every_policy_meets_the_same_disturbance_and_claims_and_report_read_it() {
 
     // The audit plays disturbed rows again and finds an altered number.
     let store_arg = store.to_str().unwrap();
-    let audit = ["audit", store_arg, "--sample", "400", "--training-sample", "0"];
+    let audit = [
+        "audit",
+        store_arg,
+        "--sample",
+        "400",
+        "--training-sample",
+        "0",
+    ];
     let passed = succeed(harness(&audit));
     assert!(passed.contains("216 disturbed rows"), "{passed}");
     let mut altered = disturbed.clone();

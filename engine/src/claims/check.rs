@@ -108,6 +108,18 @@ struct Checker<'a> {
     context: Option<&'a ClaimContext>,
 }
 
+/// Every (map, N_test) in the order written, maps first, with the N_train `n_train` gives.
+fn points(maps: &[String], n: &[u32], n_train: impl Fn(u32) -> u32) -> Vec<Point> {
+    let point = |map: &String, n_test: u32| Point {
+        map: map.clone(),
+        n_test,
+        n_train: n_train(n_test),
+    };
+    maps.iter()
+        .flat_map(|map| n.iter().map(|&n_test| point(map, n_test)))
+        .collect()
+}
+
 fn fail<T>(value: &Spanned<T>, field: String, problem: String) -> Failure {
     (Some(value.referenced), field, problem)
 }
@@ -133,16 +145,9 @@ impl Checker<'_> {
                 }
             }
         }
-        let points = maps
-            .iter()
-            .flat_map(|map| {
-                n.iter().map(|&n_test| Point {
-                    map: map.clone(),
-                    n_test,
-                    n_train: spec.n_train.as_ref().map_or(n_test, |n| n.value),
-                })
-            })
-            .collect();
+        let points = points(&maps, &n, |n_test| {
+            spec.n_train.as_ref().map_or(n_test, |n| n.value)
+        });
         Ok(Pair {
             a: spec.a.value.clone(),
             b: spec.b.value.clone(),
@@ -227,16 +232,7 @@ impl Checker<'_> {
                 lost
             }
         };
-        let points = maps
-            .iter()
-            .flat_map(|map| {
-                n.iter().map(|&n_test| Point {
-                    map: map.clone(),
-                    n_test,
-                    n_train: n_test,
-                })
-            })
-            .collect();
+        let points = points(&maps, &n, |n_test| n_test);
         Ok(ClaimTest::AdaptsBetter {
             a: spec.a.value.clone(),
             b: spec.b.value.clone(),

@@ -71,10 +71,13 @@ pub fn run(args: AuditArgs) -> anyhow::Result<()> {
         differing == 0,
         "audit failed: {differing} of {checked} rows and training runs do not come back bit for bit",
     );
+    let disturbed = match disturbed.len() {
+        0 => String::new(),
+        count => format!(", {count} disturbed rows"),
+    };
     println!(
-        "audit passed: {} rows, {} disturbed rows and {} training runs came back bit for bit",
+        "audit passed: {} rows{disturbed} and {} training runs came back bit for bit",
         lines.len(),
-        disturbed.len(),
         trained.len()
     );
     Ok(())

@@ -63,6 +63,22 @@ impl CellConfig {
         hasher.finalize().to_hex()[..20].to_owned()
     }
 
+    /// What a learned cell's training run depends on, hashed: the code version, the map, the
+    /// world's parameters, the resolved training configuration and the training seed. Cells
+    /// with the same identity (two scenarios' cells that differ in their tests only) train the
+    /// same weights bit for bit, so one run serves them all. `None` for a baseline.
+    pub fn training_identity(&self) -> Option<String> {
+        let training = self.training_config()?.ok()?;
+        let world = (self.world.fov, self.world.decay, self.world.rmax);
+        let what = (&self.map.hash, world, &training, self.training_seed);
+        let json = serde_json::to_string(&what).expect("a training identity serialises");
+        let mut hasher = blake3::Hasher::new();
+        hasher.update(code_version().as_bytes());
+        hasher.update(b"\ntraining\n");
+        hasher.update(json.as_bytes());
+        Some(hasher.finalize().to_hex()[..20].to_owned())
+    }
+
     /// The seed of test episode `episode` with `agents` agents.
     pub fn episode_seed(&self, agents: u32, episode: u32) -> Seed {
         Seed::new(self.test_seed).descend(&[agents as u64, episode as u64])

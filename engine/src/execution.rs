@@ -54,9 +54,12 @@ pub struct CellOrigin<'a> {
 /// Training episodes between saves of a learned cell's run.
 const SAVE_EVERY: u64 = 100;
 
-/// Runs `cell` in `world` and saves it; `advance` hears of every finished episode's steps.
+/// Runs `cell` in `world` and saves it; `advance` hears of every finished episode's steps. A
+/// learned cell takes the training run of a finished cell with the same training identity in
+/// `store` or `cache` when there is one, else trains.
 pub fn run_cell(
     store: &Store,
+    cache: Option<&Store>,
     origin: &CellOrigin,
     world: &Arc<World>,
     cell: &SweepCell,
@@ -69,14 +72,24 @@ pub fn run_cell(
     let mut policy = match &config.policy {
         ScenarioPolicy::Baseline(baseline) => baseline.build(world)?,
         ScenarioPolicy::Learned(learned) => {
-            let training = config.training_config_of(learned)?;
-            let (state, log) = train_cell(store, cell, world, training, advance)?;
-            let checkpoint = checkpoint::save(&state);
-            let log = tables::training_frame(&cell.key, config, &log)?;
-            files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
-            files.push((WEIGHTS_FILE, checkpoint.weights));
-            files.push((METADATA_FILE, checkpoint.metadata.into_bytes()));
-            learned_policy(world, state.model, &state.config, learned)?
+            let (model, training) = match shared_training(store, cache, cell, &mut files)? {
+                Some(shared) => {
+                    let steps = u64::from(config.world.train_steps);
+                    advance(config.cost().training_episodes * steps);
+                    shared
+                }
+                None => {
+                    let training = config.training_config_of(learned)?;
+                    let (state, log) = train_cell(store, cell, world, training, advance)?;
+                    let checkpoint = checkpoint::save(&state);
+                    let log = tables::training_frame(&cell.key, config, &log)?;
+                    files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
+                    files.push((WEIGHTS_FILE, checkpoint.weights));
+                    files.push((METADATA_FILE, checkpoint.metadata.into_bytes()));
+                    (state.model, state.config)
+                }
+            };
+            learned_policy(world, model, &training, learned)?
         }
     };
     let mut rows = Vec::new();
@@ -151,6 +164,39 @@ pub fn run_cell(
     // The finished cell no longer needs its run in progress; a leftover is only disk space.
     let _ = std::fs::remove_dir_all(store.partial_training_folder(&cell.key));
     Ok(record)
+}
+
+/// The model and training configuration of a finished cell in `store` or `cache` whose
+/// training run is `cell`'s (`CellConfig::training_identity`), its files pushed onto `files`
+/// (the training log under `cell`'s own columns); `None` when there is none.
+fn shared_training(
+    store: &Store,
+    cache: Option<&Store>,
+    cell: &SweepCell,
+    files: &mut Vec<(&'static str, Vec<u8>)>,
+) -> Result<Option<(ActorCritic<f32>, TrainingConfig)>, CellError> {
+    let Some(identity) = cell.config.training_identity() else {
+        return Ok(None);
+    };
+    let found = [Some(store), cache]
+        .into_iter()
+        .flatten()
+        .find_map(|source| Some((source, source.trained_run(&identity, &cell.key)?)));
+    let Some((source, record)) = found else {
+        return Ok(None);
+    };
+    let weights = source.cell_file(&record, WEIGHTS_FILE)?;
+    let metadata_bytes = source.cell_file(&record, METADATA_FILE)?;
+    let metadata = checkpoint::read_metadata(&String::from_utf8_lossy(&metadata_bytes))?;
+    let model = checkpoint::load_model(&metadata, &weights)?;
+    let log = source.cell_table(&record, TRAINING_FILE)?;
+    let log = log.ok_or_else(|| StoreError::corrupt(source.root(), "a training log is gone"))?;
+    let log = log.drop_many(tables::CELL_COLUMNS);
+    let log = tables::training_frame(&cell.key, &cell.config, &log)?;
+    files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
+    files.push((WEIGHTS_FILE, weights));
+    files.push((METADATA_FILE, metadata_bytes));
+    Ok(Some((model, metadata.config)))
 }
 
 /// Trains a learned cell's policy, continuing the run an interrupted sweep saved.

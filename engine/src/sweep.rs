@@ -215,7 +215,9 @@ fn run_cells(
             return Ok(());
         }
         let bar = progress.start_cell(cell_label(cell), cell.config.cost().env_steps);
-        run_cell(store, &origin, world, cell, &|steps| bar.advance(steps))?;
+        run_cell(store, cache, &origin, world, cell, &|steps| {
+            bar.advance(steps)
+        })?;
         if let Some(cache) = cache {
             cache.import_cell(store, &cell.key)?;
         }

@@ -348,6 +348,41 @@ fn two_shards_merged_equal_one_unsharded_run() {
 }
 
 #[test]
+fn a_training_run_serves_every_cell_that_differs_only_in_its_tests() {
+    let dir = scratch("shared-training");
+    let cache = dir.join("cache");
+    let cache_arg = cache.to_str().unwrap();
+    let a = dir.join("a");
+    sweep(TINY, &a, &["--jobs", "2", "--cache", cache_arg]);
+    // The same training runs, other tests: a cell key of its own, the training of tiny's.
+    let tiny = std::fs::read_to_string(common::repo_file(TINY)).unwrap();
+    let other_tests = tiny
+        .replace("name: tiny", "name: tiny-tests")
+        .replace("test: [2, 3]", "test: [3]")
+        .replace("test_episodes: 2", "test_episodes: 3");
+    assert_ne!(other_tests, tiny);
+    let file = dir.join("other-tests.yaml");
+    std::fs::write(&file, other_tests).unwrap();
+    let run = |out: &Path, extra: &[&str]| {
+        let args = ["sweep", file.to_str().unwrap(), "--out", out.to_str().unwrap(), "--no-report"];
+        succeed(harness(&[&args[..], extra].concat()))
+    };
+    let (shared, fresh) = (dir.join("shared"), dir.join("fresh"));
+    let summary = run(&shared, &["--jobs", "2", "--cache", cache_arg]);
+    assert!(summary.contains("0 from the cache"), "{summary}");
+    run(&fresh, &["--jobs", "2"]);
+    assert_same_tables(&shared, &fresh);
+    // The shared run's training log is tiny's, timings and all: it was taken, not redone.
+    let timings = |store: &Path| {
+        let training = read_table(store, "training");
+        let column = training.column("wall_seconds").unwrap().f64().unwrap().clone();
+        column.into_no_null_iter().map(f64::to_bits).collect::<Vec<_>>()
+    };
+    assert_eq!(timings(&shared), timings(&a));
+    assert_ne!(timings(&fresh), timings(&a), "a run trained again has its own timings");
+}
+
+#[test]
 fn audit_passes_and_fails_when_a_stored_number_is_altered() {
     // A copy of the reference run, since this test alters it.
     let store = scratch("audit").join("store");

@@ -31,6 +31,7 @@ use polars::prelude::{DataFrame, PolarsError};
 use crate::atomic_file::write_atomic;
 use crate::scenario::Output;
 pub use lease::{Lease, LeaseHolder, Liveness};
+use policies::checkpoint::WEIGHTS_FILE;
 pub use record::{CellFailure, CellRecord, Manifest};
 
 pub const EPISODES_FILE: &str = "episodes.parquet";
@@ -73,7 +74,7 @@ impl StoreError {
         }
     }
 
-    fn corrupt(path: &Path, problem: impl ToString) -> Self {
+    pub(crate) fn corrupt(path: &Path, problem: impl ToString) -> Self {
         Self::Corrupt {
             path: path.to_owned(),
             problem: problem.to_string(),
@@ -170,6 +171,24 @@ impl Store {
             }
         };
         record.files.keys().all(intact).then_some(record)
+    }
+
+    /// A finished learned cell other than `except` whose training run has `identity`
+    /// (`CellConfig::training_identity`), with its files verified.
+    pub fn trained_run(&self, identity: &str, except: &str) -> Option<CellRecord> {
+        let entries = std::fs::read_dir(self.root.join("cells")).ok()?;
+        let mut keys: Vec<String> = entries
+            .flatten()
+            .filter_map(|e| e.file_name().into_string().ok())
+            .filter(|key| key != except)
+            .collect();
+        keys.sort_unstable();
+        keys.into_iter()
+            .filter_map(|key| self.finished(&key))
+            .filter(|r| r.files.contains_key(TRAINING_FILE) && r.files.contains_key(WEIGHTS_FILE))
+            .filter(|r| r.code_version == crate::code_version::code_version())
+            .filter(|r| r.config.training_identity().as_deref() == Some(identity))
+            .find_map(|r| self.verified_record(&r.key).ok())
     }
 
     /// The record of cell `key`, with a reason when it is missing or a file does not match

@@ -26,14 +26,17 @@ pub struct EpisodeRow {
     pub steps: u32,
 }
 
+/// The names of [`cell_columns`].
+pub const CELL_COLUMNS: [&str; 5] = ["cell_key", "map", "policy", "n_train", "training_seed"];
+
 /// The columns that name a cell in every per-cell table.
 pub fn cell_columns(key: &str, config: &CellConfig, rows: usize) -> Vec<Column> {
     vec![
-        Column::new("cell_key".into(), vec![key; rows]),
-        Column::new("map".into(), vec![config.map.name.as_str(); rows]),
-        Column::new("policy".into(), vec![config.policy.label(); rows]),
-        Column::new("n_train".into(), vec![config.n_train; rows]),
-        Column::new("training_seed".into(), vec![config.training_seed; rows]),
+        Column::new(CELL_COLUMNS[0].into(), vec![key; rows]),
+        Column::new(CELL_COLUMNS[1].into(), vec![config.map.name.as_str(); rows]),
+        Column::new(CELL_COLUMNS[2].into(), vec![config.policy.label(); rows]),
+        Column::new(CELL_COLUMNS[3].into(), vec![config.n_train; rows]),
+        Column::new(CELL_COLUMNS[4].into(), vec![config.training_seed; rows]),
     ]
 }
 

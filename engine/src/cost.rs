@@ -59,13 +59,18 @@ pub(crate) mod work {
 
 impl CellConfig {
     pub fn cost(&self) -> Cost {
-        Cost::of_cell(
-            &self.world,
-            self.policy.learned(),
-            self.n_train,
-            &self.n_test,
-            test_plays(self.test_episodes, self.disturbances.len()),
-        )
+        self.training_cost() + self.test_cost()
+    }
+
+    /// The cost of the cell's training run alone (nothing for a baseline).
+    pub fn training_cost(&self) -> Cost {
+        Cost::of_training(&self.world, self.policy.learned(), self.n_train)
+    }
+
+    /// The cost of the cell's test episodes alone.
+    pub fn test_cost(&self) -> Cost {
+        let plays = test_plays(self.test_episodes, self.disturbances.len());
+        Cost::of_tests(&self.world, self.policy.learned(), &self.n_test, plays)
     }
 }
 
@@ -86,26 +91,44 @@ impl Cost {
         n_test: &[u32],
         test_episodes: u32,
     ) -> Cost {
+        Self::of_training(world, learned, n_train)
+            + Self::of_tests(world, learned, n_test, test_episodes)
+    }
+
+    fn of_training(world: &WorldConfig, learned: Option<&Learned>, n_train: Option<u32>) -> Cost {
         let training_episodes = learned.map_or(0, |l| u64::from(l.episodes));
         let training_steps = training_episodes * u64::from(world.train_steps);
+        let training_step = learned.map_or(0, |l| work::training_step(l.architecture));
+        Cost {
+            training_episodes,
+            test_episodes: 0,
+            env_steps: training_steps,
+            work: training_steps
+                .saturating_mul(u64::from(n_train.unwrap_or(0)))
+                .saturating_mul(training_step),
+        }
+    }
+
+    fn of_tests(
+        world: &WorldConfig,
+        learned: Option<&Learned>,
+        n_test: &[u32],
+        test_episodes: u32,
+    ) -> Cost {
         let per_count = u64::from(test_episodes) * u64::from(world.test_steps);
         let test_episodes = n_test.len() as u64 * u64::from(test_episodes);
         let test_agent_steps = n_test.iter().fold(0u64, |sum, &n| {
             sum.saturating_add(u64::from(n).saturating_mul(per_count))
         });
-        let (test_step, training_step) = match learned {
-            Some(l) => (work::LEARNED_STEP, work::training_step(l.architecture)),
-            None => (work::BASELINE_STEP, 0),
+        let test_step = match learned {
+            Some(_) => work::LEARNED_STEP,
+            None => work::BASELINE_STEP,
         };
-        let training_work = training_steps
-            .saturating_mul(u64::from(n_train.unwrap_or(0)))
-            .saturating_mul(training_step);
         Cost {
-            training_episodes,
+            training_episodes: 0,
             test_episodes,
-            env_steps: training_steps
-                .saturating_add(test_episodes.saturating_mul(u64::from(world.test_steps))),
-            work: training_work.saturating_add(test_agent_steps.saturating_mul(test_step)),
+            env_steps: test_episodes.saturating_mul(u64::from(world.test_steps)),
+            work: test_agent_steps.saturating_mul(test_step),
         }
     }
 

@@ -364,9 +364,18 @@ fn a_training_run_serves_every_cell_that_differs_only_in_its_tests() {
     let file = dir.join("other-tests.yaml");
     std::fs::write(&file, other_tests).unwrap();
     let run = |out: &Path, extra: &[&str]| {
-        let args = ["sweep", file.to_str().unwrap(), "--out", out.to_str().unwrap(), "--no-report"];
+        let args = [
+            "sweep",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--no-report",
+        ];
         succeed(harness(&[&args[..], extra].concat()))
     };
+    let check = succeed(harness(&["check", file.to_str().unwrap(), "--cache", cache_arg]));
+    assert_eq!(check.matches("(trained)").count(), 2, "{check}");
+    assert!(check.contains("2 more take a cached training run"), "{check}");
     let (shared, fresh) = (dir.join("shared"), dir.join("fresh"));
     let summary = run(&shared, &["--jobs", "2", "--cache", cache_arg]);
     assert!(summary.contains("0 from the cache"), "{summary}");
@@ -375,11 +384,23 @@ fn a_training_run_serves_every_cell_that_differs_only_in_its_tests() {
     // The shared run's training log is tiny's, timings and all: it was taken, not redone.
     let timings = |store: &Path| {
         let training = read_table(store, "training");
-        let column = training.column("wall_seconds").unwrap().f64().unwrap().clone();
-        column.into_no_null_iter().map(f64::to_bits).collect::<Vec<_>>()
+        let column = training
+            .column("wall_seconds")
+            .unwrap()
+            .f64()
+            .unwrap()
+            .clone();
+        column
+            .into_no_null_iter()
+            .map(f64::to_bits)
+            .collect::<Vec<_>>()
     };
     assert_eq!(timings(&shared), timings(&a));
-    assert_ne!(timings(&fresh), timings(&a), "a run trained again has its own timings");
+    assert_ne!(
+        timings(&fresh),
+        timings(&a),
+        "a run trained again has its own timings"
+    );
 }
 
 #[test]

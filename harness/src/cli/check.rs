@@ -49,14 +49,26 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
     );
     let cache = args.cache.as_deref().map(Store::new);
     let cached = |key: &str| cache.as_ref().is_some_and(|c| c.finished(key).is_some());
+    // A learned cell whose training run the cache holds (it differs in its tests) only tests.
+    let trained = |cell: &engine::cell::SweepCell| {
+        let identity = cell.config.training_identity();
+        (cache.as_ref().zip(identity))
+            .is_some_and(|(c, id)| c.trained_run(&id, &cell.key).is_some())
+    };
     let mut total = Cost::default();
-    let mut cached_cells = 0;
+    let (mut cached_cells, mut shared_runs) = (0, 0);
     let mut longest = 0.0f64;
     for cell in &cells {
         let c = &cell.config;
         let in_cache = cached(&cell.key);
         cached_cells += usize::from(in_cache);
-        let cost = if in_cache { Cost::default() } else { c.cost() };
+        let shared = !in_cache && trained(cell);
+        shared_runs += usize::from(shared);
+        let cost = match (in_cache, shared) {
+            (true, _) => Cost::default(),
+            (false, true) => c.test_cost(),
+            (false, false) => c.cost(),
+        };
         total = total + cost;
         longest = longest.max(cost.cpu_seconds());
         println!(
@@ -69,10 +81,10 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
             c.repetition,
             cost.training_episodes,
             cost.env_steps,
-            if in_cache {
-                "cached".to_owned()
-            } else {
-                duration(cost.cpu_seconds())
+            match (in_cache, shared) {
+                (true, _) => "cached".to_owned(),
+                (false, true) => format!("{} (trained)", duration(cost.cpu_seconds())),
+                (false, false) => duration(cost.cpu_seconds()),
             }
         );
     }
@@ -96,7 +108,8 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
     // Cells run one per core; the longest cell bounds the wall time from below.
     let wall = (total.cpu_seconds() / jobs as f64).max(longest);
     println!(
-        "cached: {cached_cells} of {} cells; the rest take about {} on {jobs} cores (`--jobs {jobs}`)",
+        "cached: {cached_cells} of {} cells, and {shared_runs} more take a cached training run; \
+         the rest take about {} on {jobs} cores (`--jobs {jobs}`)",
         cells.len(),
         duration(wall)
     );

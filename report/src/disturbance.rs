@@ -147,7 +147,7 @@ pub fn section(
          the survivors' size (`reference`, a learned policy trained for that size); the \
          adaptation `ratio` is last quarter over reference with its 95 % interval (1: the \
          survivors do as well as a team trained for their number), and `settle_steps` the \
-         mean steps until the per-step penalty, averaged over T/40 steps, stays within 10 % of \
+         mean steps until the per-step penalty, averaged over T/10 steps, stays within 10 % of \
          its last-quarter level (the rest of the episode: it did not settle). Learned policies \
          are shown with N_train = N_test."
     ));

@@ -373,9 +373,17 @@ fn a_training_run_serves_every_cell_that_differs_only_in_its_tests() {
         ];
         succeed(harness(&[&args[..], extra].concat()))
     };
-    let check = succeed(harness(&["check", file.to_str().unwrap(), "--cache", cache_arg]));
+    let check = succeed(harness(&[
+        "check",
+        file.to_str().unwrap(),
+        "--cache",
+        cache_arg,
+    ]));
     assert_eq!(check.matches("(trained)").count(), 2, "{check}");
-    assert!(check.contains("2 more take a cached training run"), "{check}");
+    assert!(
+        check.contains("2 more take a cached training run"),
+        "{check}"
+    );
     let (shared, fresh) = (dir.join("shared"), dir.join("fresh"));
     let summary = run(&shared, &["--jobs", "2", "--cache", cache_arg]);
     assert!(summary.contains("0 from the cache"), "{summary}");

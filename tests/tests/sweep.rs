@@ -204,6 +204,41 @@ fn assert_stopped_sweep_reports(out: &Path, done: usize) {
     assert!(readme.contains("cells are missing**"), "{readme}");
 }
 
+/// Tables built mid-sweep are built again once they no longer hold exactly the finished
+/// cells, and left alone while they do.
+#[test]
+fn tables_that_miss_or_hold_extra_cells_are_built_again_for_a_report() {
+    let store = scratch("stale-tables").join("store");
+    copy_folder(&reference_run(TINY), &store);
+    let cells = finished_cells(&store);
+    let gone = std::fs::read_dir(store.join("cells"))
+        .unwrap()
+        .flatten()
+        .next()
+        .unwrap();
+    std::fs::remove_dir_all(gone.path()).unwrap();
+    let reports = store.with_file_name("reports");
+    let report = |store: &Path| {
+        let to = reports.to_str().unwrap();
+        harness(&["report", store.to_str().unwrap(), "--to", to])
+    };
+    let stderr = String::from_utf8_lossy(&report(&store).stderr).into_owned();
+    let expected = format!("built from the {} of {cells} cells", cells - 1);
+    assert!(stderr.contains(&expected), "{stderr}");
+    let episodes = read_table(&store, "episodes");
+    let key = gone.file_name().into_string().unwrap();
+    let keys = episodes.column("cell_key").unwrap().str().unwrap().clone();
+    assert!(
+        keys.iter().flatten().all(|k| k != key),
+        "{key} left the tables"
+    );
+    let again = String::from_utf8_lossy(&report(&store).stderr).into_owned();
+    assert!(
+        !again.contains("built from"),
+        "current tables are kept: {again}"
+    );
+}
+
 /// Two rooms with no door: Random runs there, a patrol tour cannot be planned.
 const TWO_ROOMS: &str = "\
 name: failing

@@ -24,6 +24,7 @@ pub mod lease;
 pub mod record;
 pub mod tables;
 
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use polars::prelude::{DataFrame, PolarsError};
@@ -386,24 +387,37 @@ impl Store {
         Ok(records)
     }
 
-    /// Builds the sweep-level tables from the finished cells when the sweep has not written
-    /// them (it is still running, or was stopped), so that its report and claims can be read
-    /// mid-sweep. Returns how many of the sweep's cells the tables hold, out of how many, or
-    /// `None` when there is no sweep or its tables were there.
+    /// Builds the sweep-level tables from the finished cells when the tables there do not
+    /// hold exactly those cells (the sweep is still running, or was stopped, or an earlier
+    /// look built them from fewer), so that its report and claims can be read mid-sweep.
+    /// Returns how many of the sweep's cells the tables hold, out of how many, or `None` when
+    /// there is no sweep or its tables were current.
     pub fn build_missing_tables(&self) -> Result<Option<(usize, usize)>, StoreError> {
         let Some(manifest) = self.manifest()? else {
             return Ok(None);
         };
-        if self
-            .root
-            .join(format!("{}.parquet", Output::Episodes.name()))
-            .exists()
-        {
+        let keys = manifest.selected.as_ref().unwrap_or(&manifest.cells);
+        let finished: BTreeSet<&str> = (keys.iter())
+            .filter(|k| self.finished(k).is_some())
+            .map(String::as_str)
+            .collect();
+        if self.tables_hold(&finished)? {
             return Ok(None);
         }
-        let keys = manifest.selected.as_ref().unwrap_or(&manifest.cells);
         let records = self.build_tables(keys, &manifest.outputs)?;
         Ok(Some((records.len(), keys.len())))
+    }
+
+    /// Whether the episodes table is there and holds the episodes of exactly `cells`.
+    fn tables_hold(&self, cells: &BTreeSet<&str>) -> Result<bool, StoreError> {
+        let name = Output::Episodes.name();
+        if !self.root.join(format!("{name}.parquet")).exists() {
+            return Ok(false);
+        }
+        let episodes = self.table(name)?;
+        let keys = episodes.column("cell_key")?.str()?;
+        let held: BTreeSet<&str> = keys.iter().flatten().collect();
+        Ok(held == *cells)
     }
 }
 

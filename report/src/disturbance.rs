@@ -367,6 +367,9 @@ fn curves(report: &mut ReportWriter, steps: &DataFrame) -> Result<(), ReportErro
             .push(row);
     }
     for ((map, n), panels) in figures {
+        // The undisturbed panel first, as the reference the others are read against.
+        let mut panels: Vec<_> = panels.into_iter().collect();
+        panels.sort_by_key(|(name, _)| name != UNDISTURBED);
         let panels = panels
             .into_iter()
             .map(|(name, lines)| Panel {

@@ -6,7 +6,6 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use polars::prelude::*;
-use rand::RngExt;
 use rayon::prelude::*;
 use world::{ParamError, Seed, StartError, World};
 
@@ -16,6 +15,7 @@ use policies::ppo::{ConfigError, TrainError, Trainer};
 use crate::cell::CellConfig;
 use crate::disturbance::UNDISTURBED;
 use crate::execution::{CellError, disturbed_test_episode, stored_policy, test_episode};
+use crate::store::columns::{strings, u32s};
 use crate::store::disturbed;
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{CellRecord, Store, StoreError, TRAINING_FILE};
@@ -83,7 +83,7 @@ fn same_bits(a: &EpisodeRow, b: &EpisodeRow) -> bool {
 /// chosen by `seed`, and returns one line per row in table order.
 pub fn audit(store: &Store, sample: usize, seed: u64) -> Result<Vec<AuditLine>, StoreError> {
     let (keys, rows) = stored_episodes(&store.table("episodes")?)?;
-    let chosen = choose(rows.len(), sample, Seed::new(seed));
+    let chosen = Seed::new(seed).choose(rows.len(), sample);
     let worlds = Mutex::new(HashMap::new());
     Ok(chosen
         .into_par_iter()
@@ -137,67 +137,50 @@ pub fn audit_disturbed(
         return Ok(Vec::new());
     }
     let table = store.table("disturbed")?;
-    let text = |name: &str| -> Result<Vec<String>, StoreError> {
-        let column = table.column(name)?.str()?;
-        let values = column
-            .iter()
-            .map(|v| v.map(str::to_owned).ok_or_else(tables::missing_value));
-        Ok(values.collect::<PolarsResult<_>>()?)
-    };
-    let count = |name: &str| -> Result<Vec<u32>, StoreError> {
-        let column = table.column(name)?.u32()?;
-        Ok(column
-            .iter()
-            .map(|v| v.ok_or_else(tables::missing_value))
-            .collect::<PolarsResult<_>>()?)
-    };
-    let (keys, names) = (text("cell_key")?, text("disturbance")?);
-    let (n_tests, episodes) = (count("n_test")?, count("episode")?);
-    let chosen = choose(table.height(), sample, Seed::new(seed).child(2));
+    let (keys, names) = (
+        strings(&table, "cell_key")?,
+        strings(&table, "disturbance")?,
+    );
+    let (n_tests, episodes) = (u32s(&table, "n_test")?, u32s(&table, "episode")?);
+    let chosen = Seed::new(seed).child(2).choose(table.height(), sample);
     let worlds = Mutex::new(HashMap::new());
     Ok(chosen
         .into_par_iter()
-        .map(|i| DisturbedAuditLine {
-            cell_key: keys[i].clone(),
-            disturbance: names[i].clone(),
-            n_test: n_tests[i],
-            episode: episodes[i],
-            outcome: replay_disturbed(store, &worlds, &table.slice(i as i64, 1)),
+        .map(|i| {
+            let row = (n_tests[i], episodes[i]);
+            let stored = table.slice(i as i64, 1);
+            DisturbedAuditLine {
+                outcome: replay_disturbed(store, &worlds, (&keys[i], &names[i]), row, &stored),
+                cell_key: keys[i].clone(),
+                disturbance: names[i].clone(),
+                n_test: row.0,
+                episode: row.1,
+            }
         })
         .collect())
 }
 
-/// Plays one stored disturbed row's episode again and compares the whole row.
+/// Plays episode `row` (N_test, episode) of cell `key` again under disturbance `name` and
+/// compares the whole row with `stored`.
 fn replay_disturbed(
     store: &Store,
     worlds: &Mutex<HashMap<String, Arc<World>>>,
+    (key, name): (&str, &str),
+    row: (u32, u32),
     stored: &DataFrame,
 ) -> Result<(), AuditError> {
-    let value = |name: &str| stored.column(name).ok().and_then(|c| c.get(0).ok());
-    let key = value("cell_key")
-        .and_then(|v| v.get_str().map(str::to_owned))
-        .unwrap_or_default();
-    let name = value("disturbance")
-        .and_then(|v| v.get_str().map(str::to_owned))
-        .unwrap_or_default();
-    let number = |name: &str| {
-        value(name)
-            .and_then(|v| v.extract::<u32>())
-            .unwrap_or(u32::MAX)
-    };
-    let record = store.verified_record(&key)?;
+    let record = store.verified_record(key)?;
     let config = &record.config;
     let world = world_of(store, worlds, config)?;
     let mut policy = stored_policy(store, &record, &world)?;
-    let row = (number("n_test"), number("episode"));
-    let mut penalties = Vec::new();
-    let disturbance = match name.as_str() {
+    let disturbance = match name {
         UNDISTURBED => None,
         name => Some(
             (config.disturbances.iter().find(|d| d.name == name))
                 .ok_or_else(|| AuditError::NoDisturbance(name.to_owned()))?,
         ),
     };
+    let mut penalties = Vec::new();
     let again = disturbed_test_episode(
         &world,
         policy.as_mut(),
@@ -206,7 +189,7 @@ fn replay_disturbed(
         disturbance,
         &mut penalties,
     )?;
-    let again = disturbed::disturbed_frame(&key, config, &[again])?;
+    let again = disturbed::disturbed_frame(key, config, &[again])?;
     if !again.equals_missing(stored) {
         return Err(AuditError::RowDiffers);
     }
@@ -237,7 +220,7 @@ pub fn audit_training(
         .filter_map(|key| store.verified_record(key).ok())
         .filter(|record| record.files.contains_key(TRAINING_FILE))
         .collect();
-    let chosen = choose(trained.len(), sample, Seed::new(seed).child(1));
+    let chosen = Seed::new(seed).child(1).choose(trained.len(), sample);
     let worlds = Mutex::new(HashMap::new());
     Ok(chosen
         .into_par_iter()
@@ -295,44 +278,7 @@ fn world_of(
     Ok(world)
 }
 
-/// `sample` distinct row indices out of `rows` (partial Fisher-Yates), in ascending order.
-fn choose(rows: usize, sample: usize, seed: Seed) -> Vec<usize> {
-    let mut indices: Vec<usize> = (0..rows).collect();
-    let mut rng = seed.rng();
-    let sample = sample.min(rows);
-    for i in 0..sample {
-        let j = rng.random_range(i..rows);
-        indices.swap(i, j);
-    }
-    indices.truncate(sample);
-    indices.sort_unstable();
-    indices
-}
-
 /// The episodes table as (cell key, row) pairs.
 fn stored_episodes(frame: &DataFrame) -> Result<(Vec<String>, Vec<EpisodeRow>), StoreError> {
-    let keys = frame.column("cell_key")?.str()?;
-    let keys = (0..frame.height())
-        .map(|i| {
-            keys.get(i)
-                .map(str::to_owned)
-                .ok_or_else(tables::missing_value)
-        })
-        .collect::<PolarsResult<Vec<_>>>()?;
-    Ok((keys, tables::episode_rows(frame)?))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn chooses_distinct_rows_reproducibly() {
-        let a = choose(100, 10, Seed::new(3));
-        assert_eq!(a.len(), 10);
-        assert!(a.windows(2).all(|w| w[0] < w[1]));
-        assert_eq!(a, choose(100, 10, Seed::new(3)));
-        assert_ne!(a, choose(100, 10, Seed::new(4)));
-        assert_eq!(choose(5, 10, Seed::new(3)), vec![0, 1, 2, 3, 4]);
-    }
+    Ok((strings(frame, "cell_key")?, tables::episode_rows(frame)?))
 }

@@ -6,7 +6,6 @@
 //! Values are checked when a disturbance is made (scenario load, or a config read back from a
 //! store), so running one cannot fail.
 
-use rand::RngExt;
 use serde::{Deserialize, Serialize};
 use world::seed::purpose;
 use world::{Episode, Links, Seed};
@@ -73,10 +72,6 @@ impl From<LinkRule> for LinkValues {
 }
 
 impl LinkRule {
-    pub fn values(&self) -> LinkValues {
-        self.0
-    }
-
     fn links(&self, seed: Seed) -> Links {
         Links::new(self.0.radius, self.0.drop, seed).expect("a link rule is checked when made")
     }
@@ -86,27 +81,18 @@ impl Loss {
     /// The robots of a team of `agents` that this loss stops, in increasing order: the named
     /// ones that exist, or `Count` of them drawn from `seed` (the episode's).
     pub fn robots(&self, agents: usize, seed: Seed) -> Vec<usize> {
-        let mut lost: Vec<usize> = match &self.robots {
-            LostRobots::Which(which) => which
-                .iter()
-                .map(|&r| r as usize)
-                .filter(|&r| r < agents)
-                .collect(),
-            LostRobots::Count(count) => {
-                let mut rng = seed.child(purpose::LOST_ROBOTS).rng();
-                let mut all: Vec<usize> = (0..agents).collect();
-                let count = (*count as usize).min(agents);
-                for i in 0..count {
-                    let j = rng.random_range(i..agents);
-                    all.swap(i, j);
-                }
-                all.truncate(count);
-                all
+        match &self.robots {
+            LostRobots::Which(which) => {
+                let mut lost: Vec<usize> = which.iter().map(|&r| r as usize).collect();
+                lost.retain(|&r| r < agents);
+                lost.sort_unstable();
+                lost.dedup();
+                lost
             }
-        };
-        lost.sort_unstable();
-        lost.dedup();
-        lost
+            LostRobots::Count(count) => seed
+                .child(purpose::LOST_ROBOTS)
+                .choose(agents, *count as usize),
+        }
     }
 }
 

@@ -74,8 +74,7 @@ pub fn run_cell(
         ScenarioPolicy::Learned(learned) => {
             let (model, training) = match shared_training(store, cache, cell, &mut files)? {
                 Some(shared) => {
-                    let steps = u64::from(config.world.train_steps);
-                    advance(config.cost().training_episodes * steps);
+                    advance(config.training_cost().env_steps);
                     shared
                 }
                 None => {

@@ -2,38 +2,7 @@
 
 use polars::prelude::*;
 
-fn missing(name: &str) -> PolarsError {
-    PolarsError::NoData(format!("a null in column {name}").into())
-}
-
-pub fn strings(frame: &DataFrame, name: &str) -> PolarsResult<Vec<String>> {
-    frame
-        .column(name)?
-        .str()?
-        .iter()
-        .map(|v| v.map(str::to_owned).ok_or_else(|| missing(name)))
-        .collect()
-}
-
-pub fn optional_u32s(frame: &DataFrame, name: &str) -> PolarsResult<Vec<Option<u32>>> {
-    Ok(frame.column(name)?.u32()?.iter().collect())
-}
-
-pub fn u32s(frame: &DataFrame, name: &str) -> PolarsResult<Vec<u32>> {
-    optional_u32s(frame, name)?
-        .into_iter()
-        .map(|v| v.ok_or_else(|| missing(name)))
-        .collect()
-}
-
-pub fn f64s(frame: &DataFrame, name: &str) -> PolarsResult<Vec<f64>> {
-    let column = frame.column(name)?.cast(&DataType::Float64)?;
-    column
-        .f64()?
-        .iter()
-        .map(|v| v.ok_or_else(|| missing(name)))
-        .collect()
-}
+pub use engine::store::columns::{f64s, optional_u32s, strings, u32s};
 
 /// A policy as the tables name it: its label and, for a learned one, its N_train.
 #[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

@@ -11,7 +11,7 @@ use polars::prelude::*;
 use super::chart::grid::{GridFigure, GridPanel};
 use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{GroupKey, distinct, f64s, optional_u32s, strings, u32s};
-use super::comparison::{Sample, samples as samples_fn, samples_of};
+use super::comparison::{Sample, samples, samples_of};
 use super::motion::map_shades;
 use super::{ReportError, ReportWriter, file_stem};
 use engine::claims::Point;
@@ -34,24 +34,24 @@ pub struct DisturbedSamples {
 
 impl DisturbedSamples {
     pub fn new(disturbed: Option<&DataFrame>) -> Result<Self, ReportError> {
-        let mut samples = Self {
+        let mut found = Self {
             penalties: BTreeMap::new(),
             last_quarters: BTreeMap::new(),
             lost: BTreeMap::new(),
         };
         let Some(disturbed) = disturbed else {
-            return Ok(samples);
+            return Ok(found);
         };
         for name in distinct(strings(disturbed, "disturbance")?) {
             let frame = of_disturbance(disturbed, &name)?;
             let lost = strings(&frame, "lost")?;
             let count = lost.first().map_or(0, |l| l.split_whitespace().count());
-            samples.lost.insert(name.clone(), count as u32);
+            found.lost.insert(name.clone(), count as u32);
             let quarters = samples_of(&frame, "last_quarter", PER_STEP_UNIT)?;
-            samples.penalties.insert(name.clone(), samples_fn(&frame)?);
-            samples.last_quarters.insert(name, quarters);
+            found.penalties.insert(name.clone(), samples(&frame)?);
+            found.last_quarters.insert(name, quarters);
         }
-        Ok(samples)
+        Ok(found)
     }
 
     /// The samples of `policy` at `point` (a learned policy at the point's N_train).
@@ -61,10 +61,7 @@ impl DisturbedSamples {
         policy: &str,
         point: &Point,
     ) -> Option<&'a Sample> {
-        let samples = table.get(disturbance)?;
-        samples
-            .iter()
-            .find(|s| super::verdicts::at_point(&s.group, policy, point))
+        super::verdicts::find(table.get(disturbance)?, policy, point)
     }
 
     /// `policy`'s last-quarter samples at `point` under `disturbance`, and those of its

@@ -210,7 +210,7 @@ pub(crate) fn at_point(group: &GroupKey, policy: &str, point: &Point) -> bool {
         && group.policy.n_train.is_none_or(|n| n == point.n_train)
 }
 
-fn find<'a>(samples: &'a [Sample], policy: &str, point: &Point) -> Option<&'a Sample> {
+pub(crate) fn find<'a>(samples: &'a [Sample], policy: &str, point: &Point) -> Option<&'a Sample> {
     samples.iter().find(|s| at_point(&s.group, policy, point))
 }
 

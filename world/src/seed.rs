@@ -52,6 +52,22 @@ impl Seed {
         let low = splitmix64(self.0 ^ 0x9e37_79b9_7f4a_7c15) as u128;
         Pcg64Mcg::new(high << 64 | low)
     }
+
+    /// `count` distinct indices below `from` (all of them if there are fewer), drawn from this
+    /// node's stream by a partial Fisher-Yates shuffle, in ascending order.
+    pub fn choose(self, from: usize, count: usize) -> Vec<usize> {
+        use rand::RngExt;
+        let mut indices: Vec<usize> = (0..from).collect();
+        let mut rng = self.rng();
+        let count = count.min(from);
+        for i in 0..count {
+            let j = rng.random_range(i..from);
+            indices.swap(i, j);
+        }
+        indices.truncate(count);
+        indices.sort_unstable();
+        indices
+    }
 }
 
 /// Sebastiano Vigna's SplitMix64 finaliser: a bijection that scatters nearby inputs.
@@ -77,5 +93,15 @@ mod tests {
         let draw = |s: Seed| s.rng().random::<u64>();
         assert_eq!(draw(root.child(5)), draw(Seed::new(7).child(5)));
         assert_ne!(draw(root.child(5)), draw(root.child(6)));
+    }
+
+    #[test]
+    fn chooses_distinct_indices_reproducibly() {
+        let a = Seed::new(3).choose(100, 10);
+        assert_eq!(a.len(), 10);
+        assert!(a.windows(2).all(|w| w[0] < w[1]));
+        assert_eq!(a, Seed::new(3).choose(100, 10));
+        assert_ne!(a, Seed::new(4).choose(100, 10));
+        assert_eq!(Seed::new(3).choose(5, 10), vec![0, 1, 2, 3, 4]);
     }
 }

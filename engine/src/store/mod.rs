@@ -19,6 +19,7 @@
 //! record exists and every file it lists has the recorded hash. Every file is written whole
 //! (`write_atomic`), so a crash leaves a cell finished or not, never half.
 
+pub mod columns;
 pub mod disturbed;
 pub mod lease;
 pub mod record;

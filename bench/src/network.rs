@@ -239,7 +239,7 @@ impl Batch {
             values,
             attention_entropy: 0.01,
         };
-        model.backward(ws, &self.graph, &output_grads);
+        model.backward(ws, &self.observations, &self.graph, &output_grads);
         black_box(model.params().grads());
     }
 }

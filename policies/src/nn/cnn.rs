@@ -118,7 +118,7 @@ impl CnnEncoder {
             };
             let out = conv.output_shape();
             let mut y = rest[0].matrix_mut(batch * out.height * out.width, out.channels);
-            conv.forward(params, input, batch, &mut ws.convs[k], y.view_mut());
+            conv.forward(params, input, &mut ws.convs[k], y.view_mut());
             RELU.forward_in_place(y.as_slice_mut().expect("buffer views are contiguous"));
         }
         self.output(ws)
@@ -130,11 +130,12 @@ impl CnnEncoder {
     }
 
     /// Accumulates parameter gradients for the feature gradient `d_features`, and writes the
-    /// input gradient to `dx` when given. Consumes the workspace's patch matrices.
+    /// input gradient to `dx` when given. `x` is the input of the last forward pass.
     pub fn backward<T: Real>(
         &self,
         grads: &mut [T],
         ws: &mut CnnWorkspace<T>,
+        x: &[T],
         d_features: ArrayView2<T>,
         mut dx: Option<&mut [T]>,
     ) {
@@ -156,12 +157,14 @@ impl CnnEncoder {
             let out = conv.output_shape();
             let d_output = current.matrix(batch * out.height * out.width, out.channels);
             let conv_ws = &mut ws.convs[k];
+            let input_len = batch * conv.input_shape().len();
             let Some(below) = k.checked_sub(1) else {
-                conv.backward(grads, batch, conv_ws, d_output, dx.take());
+                conv.backward(grads, conv_ws, x, d_output, dx.take());
                 continue;
             };
-            let d_input = previous.slice_mut(batch * conv.input_shape().len());
-            conv.backward(grads, batch, conv_ws, d_output, Some(&mut *d_input));
+            let d_input = previous.slice_mut(input_len);
+            let input = ws.outputs[below].slice(input_len);
+            conv.backward(grads, conv_ws, input, d_output, Some(&mut *d_input));
             RELU.backward_in_place(ws.outputs[below].slice(d_input.len()), d_input);
         }
     }
@@ -238,7 +241,7 @@ mod tests {
         cnn.forward(&params, &mut ws, &x, batch);
         let mut dx = vec![0.0; x.len()];
         let dy = ArrayView2::from_shape((batch, features), &upstream[..]).unwrap();
-        cnn.backward(store.grads_mut(), &mut ws, dy, Some(&mut dx));
+        cnn.backward(store.grads_mut(), &mut ws, &x, dy, Some(&mut dx));
         assert_gradients_match(&params, store.grads(), |p| loss(p, &x));
         assert_gradients_match(&x, &dx, |x| loss(&params, x));
     }

@@ -1,8 +1,9 @@
 //! 2-D convolution as im2col + one GEMM for the whole batch, the patch matrix written band by
-//! band just before its band is multiplied, while it is in the caches. Outputs are channels-last
-//! (`[batch, out_h, out_w, channels]`, which is the GEMM's natural `[batch * positions,
-//! channels]` result); inputs may be either order, so observations can arrive as channel
-//! planes. The weight keeps PyTorch's `[out, in, kh, kw]` layout.
+//! band just before its band is multiplied, while it is in the caches, and written again in
+//! the backward pass rather than kept. Outputs are channels-last (`[batch, out_h, out_w,
+//! channels]`, which is the GEMM's natural `[batch * positions, channels]` result); inputs may
+//! be either order, so observations can arrive as channel planes. The weight keeps PyTorch's
+//! `[out, in, kh, kw]` layout.
 //!
 //! A patch's columns follow the input's memory order, `(channel, ky, kx)` for channel planes
 //! and `(ky, kx, channel)` for channels-last inputs, so that im2col copies long contiguous runs
@@ -10,7 +11,7 @@
 //! The GEMM reads a copy of the weight permuted to that order, and the weight gradient is
 //! permuted back; both copies are a few thousand values per batch.
 
-use ndarray::{ArrayView2, ArrayViewMut2};
+use ndarray::{ArrayView2, ArrayViewMut2, s};
 use rand::Rng;
 use rayon::prelude::*;
 
@@ -18,16 +19,16 @@ use super::buffer::ReusableBuffer;
 use super::error::NnError;
 use super::init::Init;
 use super::linear::Linear;
-use super::matmul::{matmul, matmul_add_banded};
+use super::matmul::{matmul_add_banded, matmul_transposed_banded, row_band_product};
 use super::params::ParamStore;
 use super::real::Real;
 
 /// Samples per rayon task when scattering patches.
 const SAMPLES_PER_TASK: usize = 32;
 
-/// Patch values written and multiplied as one band of the forward product (256 KiB of `f32`):
-/// a band stays in L2 between im2col and the GEMM, where the whole patch matrix (51 MB for the
-/// paper's first layer at 4000 samples) would go out to memory and back.
+/// Patch values written and multiplied as one band (256 KiB of `f32`): a band stays in L2
+/// between im2col and the GEMM. The whole patch matrix (51 MB for the paper's first layer at
+/// 4000 samples) is never kept: the backward pass writes each band again from the input.
 const PATCH_BAND_VALUES: usize = 1 << 16;
 
 /// Where the channel index sits in one sample's memory.
@@ -92,11 +93,11 @@ pub struct Conv2d {
     dense: Linear,
 }
 
-/// One convolution's activations: the patch matrix of the last forward pass, and the weight
-/// and its gradient in the GEMM's order.
+/// One convolution's scratch: bands of patches (or of their gradients), and the weight and its
+/// gradient in the GEMM's order.
 #[derive(Debug, Clone, Default)]
 pub struct ConvWorkspace<T> {
-    patches: ReusableBuffer<T>,
+    patch_bands: ReusableBuffer<T>,
     weight: ReusableBuffer<T>,
     weight_grad: ReusableBuffer<T>,
 }
@@ -150,13 +151,13 @@ impl Conv2d {
         self.positions() as u64 * self.dense.forward_flops_per_row()
     }
 
-    /// `y [batch * positions, out_channels]` from `x` (`batch` samples of the input shape).
-    /// Keeps the patch matrix and the weight in `ws` for the backward pass.
+    /// `y [batch * positions, out_channels]` from `x` (`batch` samples of the input shape, as
+    /// many as `y`'s rows say). Keeps the weight in the GEMM's order in `ws` for the backward
+    /// pass.
     pub fn forward<T: Real>(
         &self,
         params: &[T],
         x: &[T],
-        batch: usize,
         ws: &mut ConvWorkspace<T>,
         mut y: ArrayViewMut2<T>,
     ) {
@@ -166,57 +167,72 @@ impl Conv2d {
             .iter_mut()
             .zip(&self.weight_order)
             .for_each(|(w, &source)| *w = stored[source]);
-        let (per_sample, positions) = (self.patch_len_per_sample, self.positions());
-        let band_samples = (PATCH_BAND_VALUES / per_sample).max(1);
         self.dense.fill_with_bias(params, y.view_mut());
         let weight = ws.weight.matrix(self.dense.inputs(), self.dense.outputs());
         matmul_add_banded(
-            ws.patches.slice_mut(batch * per_sample),
+            &mut ws.patch_bands,
             self.dense.inputs(),
-            band_samples * positions,
+            self.band_rows(),
             weight,
             y,
-            |first_row, band| {
-                let samples =
-                    x[first_row / positions * self.input.len()..].chunks(self.input.len());
-                for (patches, sample) in band.chunks_mut(per_sample).zip(samples) {
-                    self.write_patches(sample, patches);
-                }
-            },
+            |first_row, band| self.write_patch_rows(x, first_row, band),
         );
     }
 
-    /// im2col of one sample: its patch matrix, as runs copied from the input or zeroed.
-    fn write_patches<T: Real>(&self, sample: &[T], patches: &mut [T]) {
-        let mut rest = patches;
-        for run in &self.patch_runs {
-            let (target, tail) = rest.split_at_mut(run.len);
-            match run.source {
-                Some(start) => target.copy_from_slice(&sample[start..start + run.len]),
-                None => target.fill(T::zero()),
+    /// Rows of the patch matrix per band: whole samples, about `PATCH_BAND_VALUES` values.
+    fn band_rows(&self) -> usize {
+        (PATCH_BAND_VALUES / self.patch_len_per_sample).max(1) * self.positions()
+    }
+
+    /// im2col of the samples of `x` whose patch rows start at `first_row`, into `band`.
+    fn write_patch_rows<T: Real>(&self, x: &[T], first_row: usize, band: &mut [T]) {
+        let samples = x[first_row / self.positions() * self.input.len()..].chunks(self.input.len());
+        for (patches, sample) in band.chunks_mut(self.patch_len_per_sample).zip(samples) {
+            let mut rest = patches;
+            for run in &self.patch_runs {
+                write_run(rest, *run, sample);
+                rest = &mut rest[run.len..];
             }
-            rest = tail;
         }
     }
 
     /// Accumulates the parameter gradients from `dy` (as `y`) and, when `dx` is given, writes
-    /// the input gradient there. Consumes the patches: the input gradient overwrites them.
+    /// the input gradient there. `x` is the input of the forward pass, whose patches are
+    /// written again band by band.
     pub fn backward<T: Real>(
         &self,
         grads: &mut [T],
-        batch: usize,
         ws: &mut ConvWorkspace<T>,
+        x: &[T],
         dy: ArrayView2<T>,
-        dx: Option<&mut [T]>,
+        mut dx: Option<&mut [T]>,
     ) {
         let (patch_len, outputs) = (self.dense.inputs(), self.dense.outputs());
+        let rows = dy.nrows();
+        let weight = ws.weight.matrix(patch_len, outputs);
         // Computed as `[out, patch columns]`, then added to the stored weight's gradient in
         // its own order.
         let mut weight_grad = ws.weight_grad.matrix_mut(outputs, patch_len);
-        matmul(
-            dy.t(),
-            ws.patches.matrix(batch * self.positions(), patch_len),
+        matmul_transposed_banded(
+            &mut ws.patch_bands,
+            dy,
+            (self.band_rows(), self.positions()),
             weight_grad.view_mut(),
+            |first_row, band| self.write_patch_rows(x, first_row, band),
+            |first_row, band| {
+                let Some(dx) = dx.as_deref_mut() else { return };
+                let band_rows = band.len() / patch_len.max(1);
+                let dy = dy.slice(s![first_row..first_row + band_rows, ..]);
+                let patch_grads = ArrayViewMut2::from_shape((band_rows, patch_len), &mut *band)
+                    .expect("band shape");
+                row_band_product(dy, weight.t(), patch_grads, false, rows);
+                let first_sample = first_row / self.positions();
+                let samples = band_rows / self.positions();
+                self.add_patch_grads(
+                    band,
+                    &mut dx[first_sample * self.input.len()..][..samples * self.input.len()],
+                );
+            },
         );
         let stored = self.dense.weight_slot().of_mut(grads);
         weight_grad
@@ -225,13 +241,12 @@ impl Conv2d {
             .zip(&self.weight_order)
             .for_each(|(&g, &target)| stored[target] += g);
         self.dense.accumulate_bias_grad(grads, dy);
-        let Some(dx) = dx else { return };
-        let rows = batch * self.positions();
-        let weight = ws.weight.matrix(patch_len, outputs);
-        matmul(dy, weight.t(), ws.patches.matrix_mut(rows, patch_len));
-        let per_sample = self.patch_len_per_sample;
+    }
+
+    /// col2im: the input gradient of whole samples from the gradients of their patches.
+    fn add_patch_grads<T: Real>(&self, patch_grads: &[T], dx: &mut [T]) {
         dx.par_chunks_mut(self.input.len())
-            .zip(ws.patches.slice(rows * patch_len).par_chunks(per_sample))
+            .zip(patch_grads.par_chunks(self.patch_len_per_sample))
             .with_min_len(SAMPLES_PER_TASK)
             .for_each(|(sample_dx, sample_patches)| {
                 sample_dx.fill(T::zero());
@@ -268,6 +283,32 @@ fn output_shape(name: &str, input: ImageShape, spec: ConvSpec) -> Result<ImageSh
             order: ChannelOrder::Last,
         }),
         _ => Err(NnError::shape(name, "kernel larger than the padded input")),
+    }
+}
+
+/// Runs of at most this many values are written as one fixed-size block, whose spill past the
+/// run is overwritten by the runs after it. A `memcpy` call per run (16 runs of a kernel row of
+/// 8 values per patch row in the paper's first layer) took longer than the layer's product.
+const SHORT_RUN: usize = 8;
+
+/// Writes `run` at the front of `target`, which holds the rest of its sample's patches.
+fn write_run<T: Real>(target: &mut [T], run: PatchRun, sample: &[T]) {
+    if run.len <= SHORT_RUN
+        && let Some(block) = target.first_chunk_mut::<SHORT_RUN>()
+    {
+        match run
+            .source
+            .map(|start| sample[start..].first_chunk::<SHORT_RUN>())
+        {
+            Some(Some(values)) => return *block = *values,
+            None => return *block = [T::zero(); SHORT_RUN],
+            Some(None) => {}
+        }
+    }
+    let target = &mut target[..run.len];
+    match run.source {
+        Some(start) => target.copy_from_slice(&sample[start..start + run.len]),
+        None => target.fill(T::zero()),
     }
 }
 
@@ -361,7 +402,7 @@ fn extend_runs(runs: &mut Vec<PatchRun>, source: Option<usize>) {
 mod tests {
     use super::*;
     use crate::nn::gradient_check::{assert_gradients_match, dot, values_away_from_zero};
-    use rand::SeedableRng;
+    use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64Mcg;
 
     const SPEC: ConvSpec = ConvSpec {
@@ -385,13 +426,7 @@ mod tests {
         let out = conv.output_shape();
         let mut y = vec![0.0; batch * out.len()];
         let view = ArrayViewMut2::from_shape((batch * out.height * out.width, 3), &mut y[..]);
-        conv.forward(
-            params,
-            x,
-            batch,
-            &mut ConvWorkspace::default(),
-            view.unwrap(),
-        );
+        conv.forward(params, x, &mut ConvWorkspace::default(), view.unwrap());
         y
     }
 
@@ -425,6 +460,65 @@ mod tests {
         }
     }
 
+    /// The paper's first two layers at a batch of many bands: the backward pass, which writes
+    /// the patches again band by band, gives the bits of products over the whole patch matrix.
+    #[test]
+    fn a_backward_pass_by_bands_has_the_bits_of_the_whole_patch_matrix() {
+        let mut rng = Pcg64Mcg::seed_from_u64(22);
+        let mut store = ParamStore::<f32>::new();
+        let input = ImageShape {
+            channels: 2,
+            height: 25,
+            width: 25,
+            order: ChannelOrder::First,
+        };
+        let init = Init::PyTorchDefault;
+        let [first, second, ..] = crate::nn::cnn::PAPER_CONVOLUTIONS;
+        let conv = Conv2d::new(&mut store, "c0", input, first, init, &mut rng).unwrap();
+        let next = conv.output_shape();
+        let conv_last = Conv2d::new(&mut store, "c1", next, second, init, &mut rng).unwrap();
+        for (conv, batch) in [(&conv, 47), (&conv_last, 301)] {
+            assert!(
+                batch * conv.positions() > 2 * conv.band_rows(),
+                "several bands"
+            );
+            let mut draw =
+                |len: usize| -> Vec<f32> { (0..len).map(|_| rng.random::<f32>() - 0.5).collect() };
+            let x = draw(batch * conv.input.len());
+            let rows = batch * conv.positions();
+            let outputs = conv.dense.outputs();
+            let dy_values = draw(rows * outputs);
+            let dy = ArrayView2::from_shape((rows, outputs), &dy_values[..]).unwrap();
+            let params = store.values().to_vec();
+            let mut ws = ConvWorkspace::default();
+            let mut y = vec![0.0; rows * outputs];
+            let y_view = ArrayViewMut2::from_shape((rows, outputs), &mut y[..]).unwrap();
+            conv.forward(&params, &x, &mut ws, y_view);
+            store.zero_grads();
+            let mut dx = vec![f32::NAN; x.len()];
+            conv.backward(store.grads_mut(), &mut ws, &x, dy, Some(&mut dx));
+
+            let patch_len = conv.dense.inputs();
+            let mut patches = vec![0.0; rows * patch_len];
+            conv.write_patch_rows(&x, 0, &mut patches);
+            let patches = ndarray::Array2::from_shape_vec((rows, patch_len), patches).unwrap();
+            let mut weight_grad = ndarray::Array2::zeros((outputs, patch_len));
+            crate::nn::matmul::matmul(dy.t(), patches.view(), weight_grad.view_mut());
+            let weight = ws.weight.matrix(patch_len, outputs);
+            let mut patch_grads = ndarray::Array2::zeros((rows, patch_len));
+            crate::nn::matmul::matmul(dy, weight.t(), patch_grads.view_mut());
+            let mut whole_dx = vec![0.0; x.len()];
+            conv.add_patch_grads(patch_grads.as_slice().unwrap(), &mut whole_dx);
+
+            let stored = conv.dense.weight_slot().of(store.grads());
+            let same = |a: f32, b: f32| a.to_bits() == b.to_bits();
+            let by_order = weight_grad.t();
+            let mut by_order = by_order.iter().zip(&conv.weight_order);
+            assert!(by_order.all(|(&g, &at)| same(g, stored[at])));
+            assert!(dx.iter().zip(&whole_dx).all(|(&a, &b)| same(a, b)));
+        }
+    }
+
     #[test]
     fn gradients_match_finite_differences_in_both_channel_orders() {
         for order in [ChannelOrder::First, ChannelOrder::Last] {
@@ -438,10 +532,10 @@ mod tests {
             let mut ws = ConvWorkspace::default();
             let mut y = vec![0.0; batch * 27];
             let y_view = ArrayViewMut2::from_shape((batch * 9, 3), &mut y[..]).unwrap();
-            conv.forward(&params, &x, batch, &mut ws, y_view);
+            conv.forward(&params, &x, &mut ws, y_view);
             let dy = ArrayView2::from_shape((batch * 9, 3), &upstream[..]).unwrap();
             let mut dx = vec![0.0; x.len()];
-            conv.backward(store.grads_mut(), batch, &mut ws, dy, Some(&mut dx));
+            conv.backward(store.grads_mut(), &mut ws, &x, dy, Some(&mut dx));
             let loss = |p: &[f64], x: &[f64]| dot(&forward(&conv, p, x, batch), &upstream);
             assert_gradients_match(&params, store.grads(), |p| loss(p, &x));
             assert_gradients_match(&x, &dx, |x| loss(&params, x));

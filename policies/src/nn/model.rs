@@ -344,11 +344,12 @@ impl<T: Real> ActorCritic<T> {
     }
 
     /// Accumulates the parameter gradients of a loss into the store's gradient buffer, after
-    /// [`ActorCritic::forward`] on the same workspace and graph. Consumes the workspace's
-    /// activations.
+    /// [`ActorCritic::forward`] on the same workspace, observations and graph. Consumes the
+    /// workspace's activations.
     pub fn backward(
         &mut self,
         ws: &mut ModelWorkspace<T>,
+        observations: &[T],
         graph: &AgentGraph,
         output_grads: &OutputGradients<T>,
     ) {
@@ -395,7 +396,7 @@ impl<T: Real> ActorCritic<T> {
         }
         let d_features = ws.d_features.matrix(batch, f);
         self.actor_cnn
-            .backward(grads, &mut ws.actor_cnn, d_features, None);
+            .backward(grads, &mut ws.actor_cnn, observations, d_features, None);
         let critic_features = self.critic_cnn.output(&ws.critic_cnn);
         let d_values =
             ArrayView2::from_shape((batch, 1), output_grads.values).expect("one value per sample");
@@ -411,7 +412,7 @@ impl<T: Real> ActorCritic<T> {
         );
         let d_features = ws.d_features.matrix(batch, critic_f);
         self.critic_cnn
-            .backward(grads, &mut ws.critic_cnn, d_features, None);
+            .backward(grads, &mut ws.critic_cnn, observations, d_features, None);
     }
 }
 
@@ -502,7 +503,12 @@ mod tests {
         let projection = Projection::new(batch, config.actions, &mut rng);
         let mut ws = ModelWorkspace::default();
         model.forward(&mut ws, &observations, &graph);
-        model.backward(&mut ws, &graph, &projection.gradients(config.actions));
+        model.backward(
+            &mut ws,
+            &observations,
+            &graph,
+            &projection.gradients(config.actions),
+        );
         let params = model.params().values().to_vec();
         let analytic = model.params().grads().to_vec();
         let indices: Vec<usize> = match per_tensor {
@@ -597,7 +603,7 @@ mod tests {
             values,
             attention_entropy: 0.01,
         };
-        model.backward(ws, graph, &output_grads);
+        model.backward(ws, observations, graph, &output_grads);
         let mut result: Vec<f32> = ws.policy().log_probs().iter().copied().collect();
         result.extend_from_slice(ws.values());
         result.extend_from_slice(model.params().grads());

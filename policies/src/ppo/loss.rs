@@ -232,7 +232,7 @@ mod tests {
         let terms = ppo_loss(&ws, &samples, &coefficients, &mut grads);
         assert!(terms.clip_fraction > 0.5 && terms.clip_fraction < 1.0);
         model.params_mut().zero_grads();
-        model.backward(&mut ws, &graph, &grads.outputs());
+        model.backward(&mut ws, &observations, &graph, &grads.outputs());
         let params = model.params().values().to_vec();
         let analytic = model.params().grads().to_vec();
         let mut probe = model.clone();

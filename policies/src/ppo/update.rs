@@ -223,7 +223,12 @@ impl UpdateWorkspace {
         };
         let terms = ppo_loss(&self.model, &samples, coefficients, &mut self.grads);
         model.params_mut().zero_grads();
-        model.backward(&mut self.model, &self.graph, &self.grads.outputs());
+        model.backward(
+            &mut self.model,
+            &self.observations,
+            &self.graph,
+            &self.grads.outputs(),
+        );
         let norm = match config.max_grad_norm {
             Some(max) => model.params_mut().clip_grad_norm(max),
             None => model.params().grad_norm(),

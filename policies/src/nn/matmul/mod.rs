@@ -22,6 +22,7 @@ use rayon::prelude::*;
 pub use kernel::{INSTRUCTIONS, TileKernel};
 pub use packed::PackingBuffers;
 
+use super::buffer::ReusableBuffer;
 use super::real::{LANES, LaneSums, Real};
 
 /// Products with fewer multiply-adds than this run on the calling thread: below it, handing
@@ -43,59 +44,128 @@ fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>, add
     let ((m, k), (k_b, n)) = (a.dim(), b.dim());
     assert_eq!(k, k_b, "inner dimensions differ");
     assert_eq!(c.dim(), (m, n), "output shape differs");
-    let multiply_adds = m * n * k;
-    if rows_are_contiguous(a) && !takes_packed_path(m, k, b) {
-        few_rows_product(a, b, c, add);
-        return;
-    }
-    let threads = if multiply_adds < PARALLEL_MULTIPLY_ADDS {
-        1
-    } else {
-        rayon::current_num_threads()
-    };
-    packed::product(a, b, c, add, threads);
+    row_band_product(a, b, c, add, m);
 }
 
-/// `c += a b`, where `a` (`a_values` row-major, `k` columns) is written band by band: `fill`
-/// gets a band's first row and its values just before the band is multiplied, so that an `a`
-/// far larger than the caches (a convolution's patch matrix) is read while its band is still
-/// in them. Bands of `band_rows` rows run in parallel. The bits are those of `matmul_add` on
-/// the filled `a`: each band takes the path that the whole product would, and the packed path
-/// computes every row of the output independently of the others.
+/// `c += a b`, where `a` (`c.nrows()` rows of `k` values, row-major) exists only band by
+/// band: `fill` writes a band's rows into its slice, given the band's first row, just before
+/// the band is multiplied. An `a` far larger than the caches (a convolution's patch matrix:
+/// 51 MB for the paper's first layer at 4000 samples) then never goes out to memory and back,
+/// which took longer than its product. `scratch` holds the bands in flight, one per thread.
+/// The bits are those of `matmul_add` on the whole `a`: every band takes the whole product's
+/// path, and both paths compute each row of the output independently of the others.
 pub fn matmul_add_banded<T: Real>(
-    a_values: &mut [T],
+    scratch: &mut ReusableBuffer<T>,
     k: usize,
     band_rows: usize,
     b: ArrayView2<T>,
     mut c: ArrayViewMut2<T>,
     fill: impl Fn(usize, &mut [T]) + Sync,
 ) {
-    let m = c.nrows();
-    assert_eq!(a_values.len(), m * k, "a holds the output's rows");
-    let band_rows = band_rows.max(1);
-    let bands = a_values.par_chunks_mut(band_rows * k.max(1));
-    if !takes_packed_path(m, k, b) || k == 0 {
-        bands
-            .enumerate()
-            .for_each(|(band, values)| fill(band * band_rows, values));
-        let a = ArrayView2::from_shape((m, k), &*a_values).expect("length checked");
-        matmul_add(a, b, c);
-        return;
-    }
-    bands
-        .zip(c.axis_chunks_iter_mut(Axis(0), band_rows))
+    let (m, band_rows) = (c.nrows(), band_rows.max(1));
+    let in_flight = rayon::current_num_threads().clamp(1, m.div_ceil(band_rows).max(1));
+    let band_len = band_rows * k;
+    let scratch = scratch.slice_mut(in_flight * band_len.max(1));
+    for (round, mut c_round) in c
+        .axis_chunks_iter_mut(Axis(0), band_rows * in_flight)
         .enumerate()
-        .for_each(|(band, (values, c_band))| {
-            fill(band * band_rows, values);
-            let a = ArrayView2::from_shape((c_band.nrows(), k), &*values).expect("band shape");
-            packed::product(a, b, c_band, true, 1);
-        });
+    {
+        scratch
+            .par_chunks_mut(band_len.max(1))
+            .zip(c_round.axis_chunks_iter_mut(Axis(0), band_rows))
+            .enumerate()
+            .for_each(|(i, (values, c_band))| {
+                let values = &mut values[..c_band.nrows() * k];
+                fill((round * in_flight + i) * band_rows, values);
+                let a = ArrayView2::from_shape((c_band.nrows(), k), &*values).expect("band");
+                row_band_product(a, b, c_band, true, m);
+            });
+    }
+}
+
+/// `c = aᵀ p`, where `p` (`a.nrows()` rows of `c.ncols()` values, row-major) exists only band
+/// by band, as in [`matmul_add_banded`]: a weight gradient, whose reduction runs over a whole
+/// batch of patches. After a band's product, `after` gets its first row and its values to
+/// reuse (a convolution turns them into the band's input gradient). The bands run in order,
+/// and the packed path continues each output element's chain of multiply-adds through `c`
+/// from one band to the next, so the bits are those of `matmul(a.t(), p, c)`; where that
+/// product would not run packed, `p` is written whole and multiplied as one band. Bands are
+/// whole units of `unit_rows` rows (a sample's patches), at most `band_rows` but one unit, and
+/// are written by all threads at once, each given whole units.
+pub fn matmul_transposed_banded<T: Real>(
+    scratch: &mut ReusableBuffer<T>,
+    a: ArrayView2<T>,
+    (band_rows, unit_rows): (usize, usize),
+    mut c: ArrayViewMut2<T>,
+    fill: impl Fn(usize, &mut [T]) + Sync,
+    mut after: impl FnMut(usize, &mut [T]),
+) {
+    let ((rows, m), n) = (a.dim(), c.ncols());
+    let p_columns_contiguous = rows <= 1 || n == 1;
+    let packed = !rows_are_contiguous(a.t()) || packed_by_shape(m, rows, n, p_columns_contiguous);
+    let unit_rows = unit_rows.max(1);
+    let band_rows = if packed {
+        (band_rows / unit_rows).max(1) * unit_rows
+    } else {
+        rows.max(1)
+    };
+    let threads = threads_for(m * rows * n);
+    let values = scratch.slice_mut(band_rows.min(rows.max(1)) * n);
+    for first in (0..rows.max(1)).step_by(band_rows) {
+        let band = band_rows.min(rows - first.min(rows));
+        let values = &mut values[..band * n];
+        let part_rows = band.div_ceil(unit_rows).div_ceil(threads).max(1) * unit_rows;
+        values
+            .par_chunks_mut((part_rows * n).max(1))
+            .enumerate()
+            .for_each(|(part, values)| fill(first + part * part_rows, values));
+        let p = ArrayView2::from_shape((band, n), &*values).expect("band shape");
+        let a_band = a.slice(ndarray::s![first..first + band, ..]);
+        if packed {
+            packed::product(a_band.t(), p, c.view_mut(), first > 0, threads);
+        } else {
+            matmul(a_band.t(), p, c.view_mut());
+        }
+        after(first, values);
+    }
+}
+
+/// `c (+)= a b` for `a`, a band of rows of a product of `whole_rows` rows: the band takes the
+/// path the whole product would, so its rows get the bits they have in the whole product, and
+/// as many threads.
+pub fn row_band_product<T: Real>(
+    a: ArrayView2<T>,
+    b: ArrayView2<T>,
+    c: ArrayViewMut2<T>,
+    add: bool,
+    whole_rows: usize,
+) {
+    let k = a.ncols();
+    if rows_are_contiguous(a) && !takes_packed_path(whole_rows, k, b) {
+        few_rows_product(a, b, c, add);
+    } else {
+        packed::product(a, b, c, add, threads_for(whole_rows * k * b.ncols()));
+    }
+}
+
+/// Threads for a product of `multiply_adds`.
+fn threads_for(multiply_adds: usize) -> usize {
+    if multiply_adds < PARALLEL_MULTIPLY_ADDS {
+        1
+    } else {
+        rayon::current_num_threads()
+    }
 }
 
 /// Whether a product of `m` rows of contiguous `a` rows by `b` runs on the packed kernels.
 fn takes_packed_path<T: Real>(m: usize, k: usize, b: ArrayView2<T>) -> bool {
-    let small = m * k * b.ncols() < PARALLEL_MULTIPLY_ADDS;
-    !(m <= FEW_ROWS && small && rows_are_contiguous(b.t()))
+    packed_by_shape(m, k, b.ncols(), rows_are_contiguous(b.t()))
+}
+
+/// As [`takes_packed_path`], from the shape and whether each column of `b` is contiguous.
+fn packed_by_shape(m: usize, k: usize, n: usize, b_columns_contiguous: bool) -> bool {
+    let small = m * k * n < PARALLEL_MULTIPLY_ADDS;
+    !(m <= FEW_ROWS && small && b_columns_contiguous)
 }
 
 /// Products of at most this many rows (a rollout step's agents times a weight matrix) are
@@ -262,6 +332,15 @@ mod tests {
         }
     }
 
+    fn same_bits(x: &Array2<f32>, y: &Array2<f32>) -> bool {
+        x.iter().zip(y).all(|(x, y)| x.to_bits() == y.to_bits())
+    }
+
+    fn in_pool<R: Send>(threads: usize, work: impl FnOnce() -> R + Send) -> R {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads);
+        pool.build().unwrap().install(work)
+    }
+
     #[test]
     fn a_banded_product_has_the_bits_of_the_whole_product() {
         let mut rng = Pcg64Mcg::seed_from_u64(5);
@@ -272,26 +351,68 @@ mod tests {
             let start = random((m, n), false, &mut rng);
             let mut whole = start.clone();
             matmul_add(a.view(), b.view(), whole.view_mut());
-            let mut banded = start;
-            let mut values = vec![f32::NAN; m * k];
             let source = a.as_slice().unwrap();
-            matmul_add_banded(
-                &mut values,
-                k,
-                band_rows,
-                b.view(),
-                banded.view_mut(),
-                |row, band| {
-                    band.copy_from_slice(&source[row * k..row * k + band.len()]);
-                },
-            );
-            assert_eq!(values, source, "every band was filled");
-            assert!(
-                whole
-                    .iter()
-                    .zip(&banded)
-                    .all(|(x, y)| x.to_bits() == y.to_bits())
-            );
+            for threads in [1, 2] {
+                let mut banded = start.clone();
+                let filled = std::sync::Mutex::new(vec![false; m]);
+                in_pool(threads, || {
+                    matmul_add_banded(
+                        &mut ReusableBuffer::default(),
+                        k,
+                        band_rows,
+                        b.view(),
+                        banded.view_mut(),
+                        |row, band| {
+                            band.copy_from_slice(&source[row * k..row * k + band.len()]);
+                            let mut filled = filled.lock().unwrap();
+                            filled[row..row + band.len() / k].fill(true);
+                        },
+                    )
+                });
+                assert!(filled.into_inner().unwrap().iter().all(|&f| f), "every row");
+                assert!(same_bits(&whole, &banded), "{m}x{k}x{n} on {threads}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_product_by_bands_of_its_reduction_has_the_bits_of_the_whole_product() {
+        let mut rng = Pcg64Mcg::seed_from_u64(6);
+        // (rows of the reduction, m, n, band rows, unit rows): the packed path, with bands
+        // that do not divide the rows and units that do not divide the bands; then products
+        // that would not run packed (one output row of a one-column `a`) in one band.
+        let shapes = [
+            (2000, 16, 128, 500, 25),
+            (301, 7, 33, 40, 6),
+            (9, 1, 1, 2, 1),
+        ];
+        for (rows, m, n, band_rows, unit_rows) in shapes {
+            let a = random((rows, m), false, &mut rng);
+            let p = random((rows, n), false, &mut rng);
+            let mut whole = random((m, n), false, &mut rng);
+            matmul(a.t(), p.view(), whole.view_mut());
+            let source = p.as_slice().unwrap();
+            for threads in [1, 2] {
+                let mut banded = random((m, n), false, &mut rng);
+                let mut after = Vec::new();
+                in_pool(threads, || {
+                    matmul_transposed_banded(
+                        &mut ReusableBuffer::default(),
+                        a.view(),
+                        (band_rows, unit_rows),
+                        banded.view_mut(),
+                        |row, band| {
+                            assert_eq!(row % unit_rows, 0, "whole units");
+                            band.copy_from_slice(&source[row * n..row * n + band.len()]);
+                        },
+                        |row, band| after.push((row, band.to_vec())),
+                    )
+                });
+                assert!(same_bits(&whole, &banded), "{rows}x{m}x{n} on {threads}");
+                let given: Vec<f32> = after.iter().flat_map(|(_, b)| b.clone()).collect();
+                assert_eq!(given, source, "after gets every band, in order");
+                assert_eq!(after[0].0, 0);
+            }
         }
     }
 }

@@ -466,12 +466,8 @@ mod tests {
     fn a_backward_pass_by_bands_has_the_bits_of_the_whole_patch_matrix() {
         let mut rng = Pcg64Mcg::seed_from_u64(22);
         let mut store = ParamStore::<f32>::new();
-        let input = ImageShape {
-            channels: 2,
-            height: 25,
-            width: 25,
-            order: ChannelOrder::First,
-        };
+        let paper = crate::nn::model::ModelConfig::paper(crate::nn::model::Architecture::MaPpo, 2);
+        let input = paper.observation_shape();
         let init = Init::PyTorchDefault;
         let [first, second, ..] = crate::nn::cnn::PAPER_CONVOLUTIONS;
         let conv = Conv2d::new(&mut store, "c0", input, first, init, &mut rng).unwrap();

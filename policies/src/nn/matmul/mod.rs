@@ -51,7 +51,8 @@ fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>, add
 /// band: `fill` writes a band's rows into its slice, given the band's first row, just before
 /// the band is multiplied. An `a` far larger than the caches (a convolution's patch matrix:
 /// 51 MB for the paper's first layer at 4000 samples) then never goes out to memory and back,
-/// which took longer than its product. `scratch` holds the bands in flight, one per thread.
+/// which took longer than its product. `scratch` holds the bands in flight, one per thread,
+/// each multiplied on its own thread.
 /// The bits are those of `matmul_add` on the whole `a`: every band takes the whole product's
 /// path, and both paths compute each row of the output independently of the others.
 pub fn matmul_add_banded<T: Real>(
@@ -78,7 +79,7 @@ pub fn matmul_add_banded<T: Real>(
                 let values = &mut values[..c_band.nrows() * k];
                 fill((round * in_flight + i) * band_rows, values);
                 let a = ArrayView2::from_shape((c_band.nrows(), k), &*values).expect("band");
-                row_band_product(a, b, c_band, true, m);
+                band_product(a, b, c_band, true, m, 1);
             });
     }
 }
@@ -112,7 +113,7 @@ pub fn matmul_transposed_banded<T: Real>(
     let threads = threads_for(m * rows * n);
     let values = scratch.slice_mut(band_rows.min(rows.max(1)) * n);
     for first in (0..rows.max(1)).step_by(band_rows) {
-        let band = band_rows.min(rows - first.min(rows));
+        let band = band_rows.min(rows - first);
         let values = &mut values[..band * n];
         let part_rows = band.div_ceil(unit_rows).div_ceil(threads).max(1) * unit_rows;
         values
@@ -142,11 +143,24 @@ pub fn row_band_product<T: Real>(
     add: bool,
     whole_rows: usize,
 ) {
-    let k = a.ncols();
-    if rows_are_contiguous(a) && !takes_packed_path(whole_rows, k, b) {
+    let threads = threads_for(whole_rows * a.ncols() * b.ncols());
+    band_product(a, b, c, add, whole_rows, threads);
+}
+
+/// [`row_band_product`] on at most `threads` threads.
+#[inline]
+fn band_product<T: Real>(
+    a: ArrayView2<T>,
+    b: ArrayView2<T>,
+    c: ArrayViewMut2<T>,
+    add: bool,
+    whole_rows: usize,
+    threads: usize,
+) {
+    if rows_are_contiguous(a) && !takes_packed_path(whole_rows, a.ncols(), b) {
         few_rows_product(a, b, c, add);
     } else {
-        packed::product(a, b, c, add, threads_for(whole_rows * k * b.ncols()));
+        packed::product(a, b, c, add, threads);
     }
 }
 

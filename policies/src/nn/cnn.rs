@@ -6,7 +6,7 @@ use rand::Rng;
 
 use super::activation::RELU;
 use super::buffer::{AlternatingBuffers, ReusableBuffer};
-use super::conv::{Conv2d, ConvSpec, ConvWorkspace, ImageShape};
+use super::conv::{self, Conv2d, ConvSpec, ConvWorkspace, ImageShape};
 use super::error::NnError;
 use super::init::Init;
 use super::params::ParamStore;
@@ -107,21 +107,51 @@ impl CnnEncoder {
         x: &[T],
         batch: usize,
     ) -> ArrayView2<'w, T> {
-        ws.batch = batch;
-        ws.convs.resize_with(self.convs.len(), Default::default);
-        ws.outputs.resize_with(self.convs.len(), Default::default);
-        for (k, conv) in self.convs.iter().enumerate() {
-            let (done, rest) = ws.outputs.split_at_mut(k);
-            let input = match done.last() {
-                Some(previous) => previous.slice(batch * conv.input_shape().len()),
-                None => x,
-            };
-            let out = conv.output_shape();
-            let mut y = rest[0].matrix_mut(batch * out.height * out.width, out.channels);
-            conv.forward(params, input, &mut ws.convs[k], y.view_mut());
-            RELU.forward_in_place(y.as_slice_mut().expect("buffer views are contiguous"));
-        }
+        Self::forward_sharing_input(params, x, batch, [(self, &mut *ws)]);
         self.output(ws)
+    }
+
+    /// Encoders of one input shape and first convolution on the same `x` (the actor's and the
+    /// critic's, on the observations): their first layers write the patches of `x` once
+    /// ([`conv::forward_sharing_input`]), every other layer runs on its own. Each encoder's
+    /// features, read with [`CnnEncoder::output`], have the bits of its own forward pass.
+    pub fn forward_sharing_input<T: Real, const N: usize>(
+        params: &[T],
+        x: &[T],
+        batch: usize,
+        mut encoders: [(&CnnEncoder, &mut CnnWorkspace<T>); N],
+    ) {
+        for (encoder, ws) in &mut encoders {
+            ws.batch = batch;
+            ws.convs.resize_with(encoder.convs.len(), Default::default);
+            ws.outputs
+                .resize_with(encoder.convs.len(), Default::default);
+        }
+        let first_layers = encoders.each_mut().map(|(encoder, ws)| {
+            let out = encoder.convs[0].output_shape();
+            let y = ws.outputs[0].matrix_mut(batch * out.height * out.width, out.channels);
+            (&encoder.convs[0], &mut ws.convs[0], y)
+        });
+        conv::forward_sharing_input(params, x, first_layers);
+        for (encoder, ws) in &mut encoders {
+            for k in 0..encoder.convs.len() {
+                encoder.forward_layer(params, ws, k);
+            }
+        }
+    }
+
+    /// Layer `k` on the output of the layer below (its product already made for `k = 0`),
+    /// then its ReLU.
+    fn forward_layer<T: Real>(&self, params: &[T], ws: &mut CnnWorkspace<T>, k: usize) {
+        let (conv, batch) = (&self.convs[k], ws.batch);
+        let out = conv.output_shape();
+        let (done, rest) = ws.outputs.split_at_mut(k);
+        let mut y = rest[0].matrix_mut(batch * out.height * out.width, out.channels);
+        if let Some(previous) = done.last() {
+            let input = previous.slice(batch * conv.input_shape().len());
+            conv.forward(params, input, &mut ws.convs[k], y.view_mut());
+        }
+        RELU.forward_in_place(y.as_slice_mut().expect("buffer views are contiguous"));
     }
 
     /// The features of the last forward pass.
@@ -137,7 +167,39 @@ impl CnnEncoder {
         ws: &mut CnnWorkspace<T>,
         x: &[T],
         d_features: ArrayView2<T>,
-        mut dx: Option<&mut [T]>,
+        dx: Option<&mut [T]>,
+    ) {
+        Self::backward_sharing_input(grads, x, [(self, ws, d_features)], dx);
+    }
+
+    /// The backward pass of [`CnnEncoder::forward_sharing_input`], each encoder with its
+    /// feature gradient; `dx`, when given, gets the input gradient through every encoder.
+    pub fn backward_sharing_input<T: Real, const N: usize>(
+        grads: &mut [T],
+        x: &[T],
+        mut encoders: [(&CnnEncoder, &mut CnnWorkspace<T>, ArrayView2<T>); N],
+        dx: Option<&mut [T]>,
+    ) {
+        for (encoder, ws, d_features) in &mut encoders {
+            encoder.backward_above_first(grads, ws, *d_features);
+        }
+        let first_layers = encoders.each_mut().map(|(encoder, ws, _)| {
+            let conv = &encoder.convs[0];
+            let out = conv.output_shape();
+            let rows = ws.batch * out.height * out.width;
+            let (d_output, _) = ws.grads.output_and_input_grads(0);
+            (conv, &mut ws.convs[0], d_output.matrix(rows, out.channels))
+        });
+        conv::backward_sharing_input(grads, x, first_layers, dx);
+    }
+
+    /// Every layer's backward pass but the first's, whose output gradient (through its ReLU)
+    /// it leaves in the gradient buffers.
+    fn backward_above_first<T: Real>(
+        &self,
+        grads: &mut [T],
+        ws: &mut CnnWorkspace<T>,
+        d_features: ArrayView2<T>,
     ) {
         let batch = ws.batch;
         let last = self.convs.len() - 1;
@@ -151,20 +213,22 @@ impl CnnEncoder {
                 .expect("feature gradients are contiguous"),
         );
         RELU.backward_in_place(ws.outputs[last].slice(d_top.len()), d_top);
-        for (k, conv) in self.convs.iter().enumerate().rev() {
+        for (k, conv) in self.convs.iter().enumerate().skip(1).rev() {
             // `current`: the gradient of conv k's output, already through its ReLU.
             let (current, previous) = ws.grads.output_and_input_grads(k);
             let out = conv.output_shape();
             let d_output = current.matrix(batch * out.height * out.width, out.channels);
-            let conv_ws = &mut ws.convs[k];
             let input_len = batch * conv.input_shape().len();
-            let Some(below) = k.checked_sub(1) else {
-                conv.backward(grads, conv_ws, x, d_output, dx.take());
-                continue;
-            };
             let d_input = previous.slice_mut(input_len);
+            let below = k - 1;
             let input = ws.outputs[below].slice(input_len);
-            conv.backward(grads, conv_ws, input, d_output, Some(&mut *d_input));
+            conv.backward(
+                grads,
+                &mut ws.convs[k],
+                input,
+                d_output,
+                Some(&mut *d_input),
+            );
             RELU.backward_in_place(ws.outputs[below].slice(d_input.len()), d_input);
         }
     }

@@ -159,24 +159,24 @@ impl Conv2d {
         params: &[T],
         x: &[T],
         ws: &mut ConvWorkspace<T>,
-        mut y: ArrayViewMut2<T>,
+        y: ArrayViewMut2<T>,
     ) {
+        forward_sharing_input(params, x, [(self, ws, y)]);
+    }
+
+    /// Copies the stored weight into `ws` in the GEMM's order.
+    fn stage_weight<T: Real>(&self, params: &[T], ws: &mut ConvWorkspace<T>) {
         let stored = self.dense.weight_slot().of(params);
         let weight = ws.weight.slice_mut(self.weight_order.len());
         weight
             .iter_mut()
             .zip(&self.weight_order)
             .for_each(|(w, &source)| *w = stored[source]);
-        self.dense.fill_with_bias(params, y.view_mut());
-        let weight = ws.weight.matrix(self.dense.inputs(), self.dense.outputs());
-        matmul_add_banded(
-            &mut ws.patch_bands,
-            self.dense.inputs(),
-            self.band_rows(),
-            weight,
-            y,
-            |first_row, band| self.write_patch_rows(x, first_row, band),
-        );
+    }
+
+    /// Whether this layer's patches of an input are `other`'s: one input shape and kernel.
+    fn shares_patches_with(&self, other: &Conv2d) -> bool {
+        self.input == other.input && self.patch_runs == other.patch_runs
     }
 
     /// Rows of the patch matrix per band: whole samples, about `PATCH_BAND_VALUES` values.
@@ -205,35 +205,17 @@ impl Conv2d {
         ws: &mut ConvWorkspace<T>,
         x: &[T],
         dy: ArrayView2<T>,
-        mut dx: Option<&mut [T]>,
+        dx: Option<&mut [T]>,
     ) {
-        let (patch_len, outputs) = (self.dense.inputs(), self.dense.outputs());
-        let rows = dy.nrows();
-        let weight = ws.weight.matrix(patch_len, outputs);
-        // Computed as `[out, patch columns]`, then added to the stored weight's gradient in
-        // its own order.
-        let mut weight_grad = ws.weight_grad.matrix_mut(outputs, patch_len);
-        matmul_transposed_banded(
-            &mut ws.patch_bands,
-            dy,
-            (self.band_rows(), self.positions()),
-            weight_grad.view_mut(),
-            |first_row, band| self.write_patch_rows(x, first_row, band),
-            |first_row, band| {
-                let Some(dx) = dx.as_deref_mut() else { return };
-                let band_rows = band.len() / patch_len.max(1);
-                let dy = dy.slice(s![first_row..first_row + band_rows, ..]);
-                let patch_grads = ArrayViewMut2::from_shape((band_rows, patch_len), &mut *band)
-                    .expect("band shape");
-                row_band_product(dy, weight.t(), patch_grads, false, rows);
-                let first_sample = first_row / self.positions();
-                let samples = band_rows / self.positions();
-                self.add_patch_grads(
-                    band,
-                    &mut dx[first_sample * self.input.len()..][..samples * self.input.len()],
-                );
-            },
-        );
+        backward_sharing_input(grads, x, [(self, ws, dy)], dx);
+    }
+
+    /// Adds the gradient of the weight in the GEMM's order, `[out, patch columns]` in `ws`,
+    /// to the stored weight's gradient in its own order, and the bias gradient from `dy`.
+    fn accumulate_grads<T: Real>(&self, grads: &mut [T], ws: &ConvWorkspace<T>, dy: ArrayView2<T>) {
+        let weight_grad = ws
+            .weight_grad
+            .matrix(self.dense.outputs(), self.dense.inputs());
         let stored = self.dense.weight_slot().of_mut(grads);
         weight_grad
             .t()
@@ -260,6 +242,107 @@ impl Conv2d {
                     rest = tail;
                 }
             });
+    }
+}
+
+/// Convolutions of one input shape and kernel on the same `x`, each `(layer, workspace,
+/// output)` as [`Conv2d::forward`]: the actor's and the critic's first layers read the same
+/// observations, so each band of patches is written once and multiplied by every layer's
+/// weight. Each output gets the bits of its layer's own forward pass.
+pub fn forward_sharing_input<T: Real, const N: usize>(
+    params: &[T],
+    x: &[T],
+    mut layers: [(&Conv2d, &mut ConvWorkspace<T>, ArrayViewMut2<T>); N],
+) {
+    let Some(first) = layers.first().map(|layer| layer.0) else {
+        return;
+    };
+    debug_assert!(
+        layers
+            .iter()
+            .all(|layer| layer.0.shares_patches_with(first))
+    );
+    for (layer, ws, y) in &mut layers {
+        layer.stage_weight(params, ws);
+        layer.dense.fill_with_bias(params, y.view_mut());
+    }
+    let mut scratch = std::mem::take(&mut layers[0].1.patch_bands);
+    let products = layers.each_mut().map(|(layer, ws, y)| {
+        let weight = ws
+            .weight
+            .matrix(layer.dense.inputs(), layer.dense.outputs());
+        (weight, y.view_mut())
+    });
+    matmul_add_banded(
+        &mut scratch,
+        first.dense.inputs(),
+        first.band_rows(),
+        products,
+        |first_row, band| first.write_patch_rows(x, first_row, band),
+    );
+    layers[0].1.patch_bands = scratch;
+}
+
+/// The backward pass of [`forward_sharing_input`], each `(layer, workspace, dy)` as
+/// [`Conv2d::backward`]: the patches of `x` are written again once per band for every layer's
+/// weight gradient, and `dx`, when given, gets the input gradient through every layer.
+pub fn backward_sharing_input<T: Real, const N: usize>(
+    grads: &mut [T],
+    x: &[T],
+    mut layers: [(&Conv2d, &mut ConvWorkspace<T>, ArrayView2<T>); N],
+    mut dx: Option<&mut [T]>,
+) {
+    let Some(first) = layers.first().map(|layer| layer.0) else {
+        return;
+    };
+    debug_assert!(
+        layers
+            .iter()
+            .all(|layer| layer.0.shares_patches_with(first))
+    );
+    let (patch_len, positions) = (first.dense.inputs(), first.positions());
+    let rows = layers[0].2.nrows();
+    let mut scratch = std::mem::take(&mut layers[0].1.patch_bands);
+    let staged = layers
+        .each_mut()
+        .map(|(_, ws, _)| std::mem::take(&mut ws.weight));
+    let weights: [ArrayView2<T>; N] =
+        std::array::from_fn(|i| staged[i].matrix(patch_len, layers[i].0.dense.outputs()));
+    let dys = layers.each_ref().map(|layer| layer.2);
+    // Computed as `[out, patch columns]`, then added to each stored weight's gradient in its
+    // own order.
+    let products = layers.each_mut().map(|(layer, ws, dy)| {
+        let weight_grad = ws.weight_grad.matrix_mut(layer.dense.outputs(), patch_len);
+        (dy.view(), weight_grad)
+    });
+    matmul_transposed_banded(
+        &mut scratch,
+        products,
+        (first.band_rows(), positions),
+        |first_row, band| first.write_patch_rows(x, first_row, band),
+        |first_row, band| {
+            let Some(dx) = dx.as_deref_mut() else { return };
+            let band_rows = band.len() / patch_len.max(1);
+            let mut patch_grads =
+                ArrayViewMut2::from_shape((band_rows, patch_len), &mut *band).expect("band shape");
+            for (k, (dy, weight)) in dys.iter().zip(&weights).enumerate() {
+                let dy = dy.slice(s![first_row..first_row + band_rows, ..]);
+                row_band_product(dy, weight.t(), patch_grads.view_mut(), k > 0, rows);
+            }
+            let (first_sample, samples) = (first_row / positions, band_rows / positions);
+            let sample_len = first.input.len();
+            first.add_patch_grads(
+                band,
+                &mut dx[first_sample * sample_len..][..samples * sample_len],
+            );
+        },
+    );
+    for ((_, ws, _), weight) in layers.iter_mut().zip(staged) {
+        ws.weight = weight;
+    }
+    layers[0].1.patch_bands = scratch;
+    for (layer, ws, dy) in &layers {
+        layer.accumulate_grads(grads, ws, *dy);
     }
 }
 
@@ -513,6 +596,86 @@ mod tests {
             assert!(by_order.all(|(&g, &at)| same(g, stored[at])));
             assert!(dx.iter().zip(&whole_dx).all(|(&a, &b)| same(a, b)));
         }
+    }
+
+    /// The actor's and the critic's first layers, each band of patches shared: every output
+    /// and weight gradient has the bits of the layer's own pass, and the input gradient those
+    /// of the products over the whole patch matrix.
+    #[test]
+    fn layers_sharing_their_input_have_the_bits_of_their_own_passes() {
+        let mut rng = Pcg64Mcg::seed_from_u64(23);
+        let mut store = ParamStore::<f32>::new();
+        let paper = crate::nn::model::ModelConfig::paper(crate::nn::model::Architecture::MaPpo, 2);
+        let (input, spec) = (
+            paper.observation_shape(),
+            crate::nn::cnn::PAPER_CONVOLUTIONS[0],
+        );
+        let init = Init::PyTorchDefault;
+        let layers = ["actor", "critic"]
+            .map(|name| Conv2d::new(&mut store, name, input, spec, init, &mut rng).unwrap());
+        let batch = 47;
+        let rows = batch * layers[0].positions();
+        let (patch_len, outputs) = (layers[0].dense.inputs(), layers[0].dense.outputs());
+        let mut draw =
+            |len: usize| -> Vec<f32> { (0..len).map(|_| rng.random::<f32>() - 0.5).collect() };
+        let x = draw(batch * input.len());
+        let dy_values = [draw(rows * outputs), draw(rows * outputs)];
+        let dy = dy_values
+            .each_ref()
+            .map(|d| ArrayView2::from_shape((rows, outputs), &d[..]).unwrap());
+        let params = store.values().to_vec();
+        let same = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits());
+        fn matrix(values: &mut [f32], outputs: usize) -> ArrayViewMut2<'_, f32> {
+            ArrayViewMut2::from_shape((values.len() / outputs, outputs), values).unwrap()
+        }
+
+        let mut alone = [vec![0.0; rows * outputs], vec![0.0; rows * outputs]];
+        let mut alone_ws = [ConvWorkspace::default(), ConvWorkspace::default()];
+        store.zero_grads();
+        for ((layer, ws), (y, dy)) in layers
+            .iter()
+            .zip(&mut alone_ws)
+            .zip(alone.iter_mut().zip(dy))
+        {
+            layer.forward(&params, &x, ws, matrix(y, outputs));
+            layer.backward(store.grads_mut(), ws, &x, dy, None);
+        }
+        let alone_grads = store.grads().to_vec();
+
+        let mut shared = [vec![0.0; rows * outputs], vec![0.0; rows * outputs]];
+        let mut ws = [ConvWorkspace::default(), ConvWorkspace::default()];
+        let [y0, y1] = shared.each_mut().map(|y| matrix(y, outputs));
+        let [ws0, ws1] = ws.each_mut();
+        forward_sharing_input(
+            &params,
+            &x,
+            [(&layers[0], &mut *ws0, y0), (&layers[1], &mut *ws1, y1)],
+        );
+        store.zero_grads();
+        let mut dx = vec![f32::NAN; x.len()];
+        let pairs = [(&layers[0], ws0, dy[0]), (&layers[1], ws1, dy[1])];
+        backward_sharing_input(store.grads_mut(), &x, pairs, Some(&mut dx));
+        assert!(
+            alone.iter().zip(&shared).all(|(a, b)| same(a, b)),
+            "outputs"
+        );
+        assert!(
+            same(&alone_grads, store.grads()),
+            "weight and bias gradients"
+        );
+
+        let mut patch_grads = ndarray::Array2::zeros((rows, patch_len));
+        for (k, (dy, ws)) in dy.iter().zip(&ws).enumerate() {
+            let weight = ws.weight.matrix(patch_len, outputs);
+            if k == 0 {
+                crate::nn::matmul::matmul(*dy, weight.t(), patch_grads.view_mut());
+            } else {
+                crate::nn::matmul::matmul_add(*dy, weight.t(), patch_grads.view_mut());
+            }
+        }
+        let mut whole_dx = vec![0.0; x.len()];
+        layers[0].add_patch_grads(patch_grads.as_slice().unwrap(), &mut whole_dx);
+        assert!(same(&dx, &whole_dx), "input gradient");
     }
 
     #[test]

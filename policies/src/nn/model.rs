@@ -169,7 +169,10 @@ pub struct ModelWorkspace<T> {
     critic_mlp: MlpWorkspace<T>,
     values: ReusableBuffer<T>,
     d_actor_input: ReusableBuffer<T>,
+    /// The actor's and the critic's feature gradients, both kept for their encoders' shared
+    /// first layer.
     d_features: ReusableBuffer<T>,
+    d_critic_features: ReusableBuffer<T>,
 }
 
 impl<T: Real> ModelWorkspace<T> {
@@ -307,12 +310,17 @@ impl<T: Real> ActorCritic<T> {
         observations: &[T],
         graph: &AgentGraph,
     ) {
-        let params = self.params.values();
         let batch = observations.len() / self.actor_cnn.input_len();
         ws.batch = batch;
-        let features = self
-            .actor_cnn
-            .forward(params, &mut ws.actor_cnn, observations, batch);
+        self.actor_cnn
+            .forward(self.params.values(), &mut ws.actor_cnn, observations, batch);
+        self.policy_from_features(ws, graph);
+    }
+
+    /// The policy from the actor's features of the last forward pass.
+    fn policy_from_features(&self, ws: &mut ModelWorkspace<T>, graph: &AgentGraph) {
+        let (params, batch) = (self.params.values(), ws.batch);
+        let features = self.actor_cnn.output(&ws.actor_cnn);
         let mlp_input = match &self.attention {
             None => features,
             Some(attention) => {
@@ -328,18 +336,24 @@ impl<T: Real> ActorCritic<T> {
         ws.policy.forward(logits);
     }
 
-    /// Policy and values of a batch (see [`ActorCritic::forward_policy`]).
+    /// Policy and values of a batch (see [`ActorCritic::forward_policy`]). Actor and critic
+    /// read the same observations: their first convolutions share each band of patches.
     pub fn forward(&self, ws: &mut ModelWorkspace<T>, observations: &[T], graph: &AgentGraph) {
-        self.forward_policy(ws, observations, graph);
         let params = self.params.values();
-        let features = self
-            .critic_cnn
-            .forward(params, &mut ws.critic_cnn, observations, ws.batch);
+        let batch = observations.len() / self.actor_cnn.input_len();
+        ws.batch = batch;
+        let encoders = [
+            (&self.actor_cnn, &mut ws.actor_cnn),
+            (&self.critic_cnn, &mut ws.critic_cnn),
+        ];
+        CnnEncoder::forward_sharing_input(params, observations, batch, encoders);
+        self.policy_from_features(ws, graph);
+        let features = self.critic_cnn.output(&ws.critic_cnn);
         let values = self
             .critic_mlp
             .forward(params, &mut ws.critic_mlp, features);
         ws.values
-            .slice_mut(ws.batch)
+            .slice_mut(batch)
             .copy_from_slice(values.as_slice().expect("buffer views are contiguous"));
     }
 
@@ -394,25 +408,32 @@ impl<T: Real> ActorCritic<T> {
                     .for_each(|d, &direct| *d += direct);
             }
         }
-        let d_features = ws.d_features.matrix(batch, f);
-        self.actor_cnn
-            .backward(grads, &mut ws.actor_cnn, observations, d_features, None);
         let critic_features = self.critic_cnn.output(&ws.critic_cnn);
         let d_values =
             ArrayView2::from_shape((batch, 1), output_grads.values).expect("one value per sample");
         let critic_f = self.critic_cnn.features();
-        let d_features = Some(ws.d_features.matrix_mut(batch, critic_f));
+        let d_critic_features = Some(ws.d_critic_features.matrix_mut(batch, critic_f));
         self.critic_mlp.backward(
             params,
             grads,
             &mut ws.critic_mlp,
             critic_features,
             d_values,
-            d_features,
+            d_critic_features,
         );
-        let d_features = ws.d_features.matrix(batch, critic_f);
-        self.critic_cnn
-            .backward(grads, &mut ws.critic_cnn, observations, d_features, None);
+        let encoders = [
+            (
+                &self.actor_cnn,
+                &mut ws.actor_cnn,
+                ws.d_features.matrix(batch, f),
+            ),
+            (
+                &self.critic_cnn,
+                &mut ws.critic_cnn,
+                ws.d_critic_features.matrix(batch, critic_f),
+            ),
+        ];
+        CnnEncoder::backward_sharing_input(grads, observations, encoders, None);
     }
 }
 

@@ -47,85 +47,154 @@ fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>, add
     row_band_product(a, b, c, add, m);
 }
 
-/// `c += a b`, where `a` (`c.nrows()` rows of `k` values, row-major) exists only band by
-/// band: `fill` writes a band's rows into its slice, given the band's first row, just before
-/// the band is multiplied. An `a` far larger than the caches (a convolution's patch matrix:
-/// 51 MB for the paper's first layer at 4000 samples) then never goes out to memory and back,
-/// which took longer than its product. `scratch` holds the bands in flight, one per thread,
-/// each multiplied on its own thread.
+/// `c += a b` for every `(b, c)` of `products` (all `c` of one row count), where `a`
+/// (`c.nrows()` rows of `k` values, row-major) exists only band by band: `fill` writes a band's
+/// rows into its slice, given the band's first row, just before the band is multiplied by
+/// every `b`. An `a` far larger than the caches (a convolution's patch matrix: 51 MB for the
+/// paper's first layer at 4000 samples) then never goes out to memory and back, which took
+/// longer than its product; and layers that read the same input (the actor's and the critic's
+/// first convolutions) write its patches once. `scratch` holds one band per thread; each
+/// thread multiplies a run of consecutive bands.
 /// The bits are those of `matmul_add` on the whole `a`: every band takes the whole product's
 /// path, and both paths compute each row of the output independently of the others.
-pub fn matmul_add_banded<T: Real>(
+pub fn matmul_add_banded<T: Real, const N: usize>(
     scratch: &mut ReusableBuffer<T>,
     k: usize,
     band_rows: usize,
-    b: ArrayView2<T>,
-    mut c: ArrayViewMut2<T>,
+    products: Products<'_, T, N>,
     fill: impl Fn(usize, &mut [T]) + Sync,
 ) {
-    let (m, band_rows) = (c.nrows(), band_rows.max(1));
-    let in_flight = rayon::current_num_threads().clamp(1, m.div_ceil(band_rows).max(1));
-    let band_len = band_rows * k;
-    let scratch = scratch.slice_mut(in_flight * band_len.max(1));
-    for (round, mut c_round) in c
-        .axis_chunks_iter_mut(Axis(0), band_rows * in_flight)
-        .enumerate()
+    let rows = products.first().map_or(0, |(_, c)| c.nrows());
+    debug_assert!(products.iter().all(|(_, c)| c.nrows() == rows));
+    let bands = Bands {
+        k,
+        rows: band_rows.max(1),
+        whole_rows: rows,
+        fill: &fill,
+    };
+    let threads = rayon::current_num_threads().clamp(1, rows.div_ceil(bands.rows).max(1));
+    let scratch = scratch.slice_mut(threads * bands.len());
+    bands.multiply(threads, 0, scratch, products);
+}
+
+/// How [`matmul_add_banded`] cuts its `a` into bands.
+struct Bands<'f, F> {
+    k: usize,
+    rows: usize,
+    whole_rows: usize,
+    fill: &'f F,
+}
+
+impl<F> Bands<'_, F> {
+    /// Values of one band.
+    fn len(&self) -> usize {
+        (self.rows * self.k).max(1)
+    }
+
+    /// The bands of `products`' rows, whose first is row `first_row` of `a`, on `threads`
+    /// threads, each in its own band of `scratch`, each given whole bands.
+    fn multiply<T: Real, const N: usize>(
+        &self,
+        threads: usize,
+        first_row: usize,
+        scratch: &mut [T],
+        mut products: Products<'_, T, N>,
+    ) where
+        F: Fn(usize, &mut [T]) + Sync,
     {
-        scratch
-            .par_chunks_mut(band_len.max(1))
-            .zip(c_round.axis_chunks_iter_mut(Axis(0), band_rows))
-            .enumerate()
-            .for_each(|(i, (values, c_band))| {
-                let values = &mut values[..c_band.nrows() * k];
-                fill((round * in_flight + i) * band_rows, values);
-                let a = ArrayView2::from_shape((c_band.nrows(), k), &*values).expect("band");
-                band_product(a, b, c_band, true, m, 1);
-            });
+        let rows = products.first().map_or(0, |(_, c)| c.nrows());
+        if threads > 1 {
+            let left = threads / 2;
+            let split = (rows.div_ceil(self.rows) * left / threads * self.rows).min(rows);
+            let (top, bottom) = split_rows(products, split);
+            let (top_scratch, bottom_scratch) = scratch.split_at_mut(left * self.len());
+            rayon::join(
+                || self.multiply(left, first_row, top_scratch, top),
+                || self.multiply(threads - left, first_row + split, bottom_scratch, bottom),
+            );
+            return;
+        }
+        for start in (0..rows).step_by(self.rows) {
+            let band_rows = self.rows.min(rows - start);
+            let values = &mut scratch[..band_rows * self.k];
+            (self.fill)(first_row + start, values);
+            let a = ArrayView2::from_shape((band_rows, self.k), &*values).expect("band");
+            for (b, c) in &mut products {
+                let c_band = c.slice_mut(ndarray::s![start..start + band_rows, ..]);
+                band_product(a, *b, c_band, true, self.whole_rows, 1);
+            }
+        }
     }
 }
 
-/// `c = aᵀ p`, where `p` (`a.nrows()` rows of `c.ncols()` values, row-major) exists only band
-/// by band, as in [`matmul_add_banded`]: a weight gradient, whose reduction runs over a whole
-/// batch of patches. After a band's product, `after` gets its first row and its values to
+/// Products that share their left or right factor, as `(factor, output)`.
+type Products<'a, T, const N: usize> = [(ArrayView2<'a, T>, ArrayViewMut2<'a, T>); N];
+
+/// Every product's output split at `row`: the rows above it, and the rest.
+fn split_rows<'a, T: Real, const N: usize>(
+    products: Products<'a, T, N>,
+    row: usize,
+) -> (Products<'a, T, N>, Products<'a, T, N>) {
+    let mut halves = products.map(|(b, c)| {
+        let (top, rest) = c.split_at(Axis(0), row);
+        [Some((b, top)), Some((b, rest))]
+    });
+    let mut half = |which: usize| {
+        std::array::from_fn(|i| halves[i][which].take().expect("each half is taken once"))
+    };
+    (half(0), half(1))
+}
+
+/// `c = aᵀ p` for every `(a, c)` of `products` (all `a` of one row count, all `c` of `p`'s
+/// columns), where `p` (`a.nrows()` rows of `c.ncols()` values, row-major) exists only band
+/// by band, as in [`matmul_add_banded`]: weight gradients, whose reduction runs over a whole
+/// batch of patches. After a band's products, `after` gets its first row and its values to
 /// reuse (a convolution turns them into the band's input gradient). The bands run in order,
 /// and the packed path continues each output element's chain of multiply-adds through `c`
-/// from one band to the next, so the bits are those of `matmul(a.t(), p, c)`; where that
+/// from one band to the next, so the bits are those of `matmul(a.t(), p, c)`; where some
 /// product would not run packed, `p` is written whole and multiplied as one band. Bands are
 /// whole units of `unit_rows` rows (a sample's patches), at most `band_rows` but one unit, and
 /// are written by all threads at once, each given whole units.
-pub fn matmul_transposed_banded<T: Real>(
+pub fn matmul_transposed_banded<T: Real, const N: usize>(
     scratch: &mut ReusableBuffer<T>,
-    a: ArrayView2<T>,
+    mut products: Products<'_, T, N>,
     (band_rows, unit_rows): (usize, usize),
-    mut c: ArrayViewMut2<T>,
     fill: impl Fn(usize, &mut [T]) + Sync,
     mut after: impl FnMut(usize, &mut [T]),
 ) {
-    let ((rows, m), n) = (a.dim(), c.ncols());
-    let p_columns_contiguous = rows <= 1 || n == 1;
-    let packed = !rows_are_contiguous(a.t()) || packed_by_shape(m, rows, n, p_columns_contiguous);
+    let rows = products.first().map_or(0, |(a, _)| a.nrows());
+    let n = products.first().map_or(0, |(_, c)| c.ncols());
+    let packed = products.each_ref().map(|(a, _)| {
+        let p_columns_contiguous = rows <= 1 || n == 1;
+        !rows_are_contiguous(a.t()) || packed_by_shape(a.ncols(), rows, n, p_columns_contiguous)
+    });
+    let threads = products
+        .each_ref()
+        .map(|(a, _)| threads_for(a.ncols() * rows * n));
+    let fill_threads = threads.iter().copied().max().unwrap_or(1);
     let unit_rows = unit_rows.max(1);
-    let band_rows = if packed {
+    let band_rows = if packed.iter().all(|&p| p) {
         (band_rows / unit_rows).max(1) * unit_rows
     } else {
         rows.max(1)
     };
-    let threads = threads_for(m * rows * n);
     let values = scratch.slice_mut(band_rows.min(rows.max(1)) * n);
     for first in (0..rows.max(1)).step_by(band_rows) {
         let band = band_rows.min(rows - first);
         let values = &mut values[..band * n];
-        let part_rows = band.div_ceil(unit_rows).div_ceil(threads).max(1) * unit_rows;
+        let part_rows = band.div_ceil(unit_rows).div_ceil(fill_threads).max(1) * unit_rows;
         values
             .par_chunks_mut((part_rows * n).max(1))
             .enumerate()
             .for_each(|(part, values)| fill(first + part * part_rows, values));
         let p = ArrayView2::from_shape((band, n), &*values).expect("band shape");
-        let a_band = a.slice(ndarray::s![first..first + band, ..]);
-        if packed {
-            packed::product(a_band.t(), p, c.view_mut(), first > 0, threads);
-        } else {
-            matmul(a_band.t(), p, c.view_mut());
+        for (((a, c), packed), threads) in products.iter_mut().zip(packed).zip(threads) {
+            let a_band = a.slice(ndarray::s![first..first + band, ..]);
+            if packed {
+                packed::product(a_band.t(), p, c.view_mut(), first > 0, threads);
+            } else {
+                matmul(a_band.t(), p, c.view_mut());
+            }
         }
         after(first, values);
     }
@@ -358,42 +427,50 @@ mod tests {
         pool.build().unwrap().install(work)
     }
 
+    /// Two products sharing each band of `a`, as the actor's and the critic's first layers.
     #[test]
-    fn a_banded_product_has_the_bits_of_the_whole_product() {
+    fn banded_products_have_the_bits_of_the_whole_products() {
         let mut rng = Pcg64Mcg::seed_from_u64(5);
         // The packed path with bands that do not divide the rows, and the few-rows path.
         for (m, k, n, band_rows) in [(1000, 130, 16, 96), (300, 33, 40, 7), (4, 50, 9, 1)] {
             let a = random((m, k), false, &mut rng);
-            let b = random((k, n), false, &mut rng);
-            let start = random((m, n), false, &mut rng);
+            let b = [0, 1].map(|_| random((k, n), false, &mut rng));
+            let start = [0, 1].map(|_| random((m, n), false, &mut rng));
             let mut whole = start.clone();
-            matmul_add(a.view(), b.view(), whole.view_mut());
+            for (b, c) in b.iter().zip(&mut whole) {
+                matmul_add(a.view(), b.view(), c.view_mut());
+            }
             let source = a.as_slice().unwrap();
-            for threads in [1, 2] {
+            for threads in [1, 2, 3] {
                 let mut banded = start.clone();
-                let filled = std::sync::Mutex::new(vec![false; m]);
+                let filled = std::sync::Mutex::new(vec![0; m]);
+                let [c0, c1] = banded.each_mut().map(|c| c.view_mut());
                 in_pool(threads, || {
                     matmul_add_banded(
                         &mut ReusableBuffer::default(),
                         k,
                         band_rows,
-                        b.view(),
-                        banded.view_mut(),
+                        [(b[0].view(), c0), (b[1].view(), c1)],
                         |row, band| {
                             band.copy_from_slice(&source[row * k..row * k + band.len()]);
                             let mut filled = filled.lock().unwrap();
-                            filled[row..row + band.len() / k].fill(true);
+                            filled[row..row + band.len() / k]
+                                .iter_mut()
+                                .for_each(|f| *f += 1);
                         },
                     )
                 });
-                assert!(filled.into_inner().unwrap().iter().all(|&f| f), "every row");
-                assert!(same_bits(&whole, &banded), "{m}x{k}x{n} on {threads}");
+                let filled = filled.into_inner().unwrap();
+                assert!(filled.iter().all(|&f| f == 1), "every row once");
+                for (whole, banded) in whole.iter().zip(&banded) {
+                    assert!(same_bits(whole, banded), "{m}x{k}x{n} on {threads}");
+                }
             }
         }
     }
 
     #[test]
-    fn a_product_by_bands_of_its_reduction_has_the_bits_of_the_whole_product() {
+    fn products_by_bands_of_their_reduction_have_the_bits_of_the_whole_products() {
         let mut rng = Pcg64Mcg::seed_from_u64(6);
         // (rows of the reduction, m, n, band rows, unit rows): the packed path, with bands
         // that do not divide the rows and units that do not divide the bands; then products
@@ -404,20 +481,22 @@ mod tests {
             (9, 1, 1, 2, 1),
         ];
         for (rows, m, n, band_rows, unit_rows) in shapes {
-            let a = random((rows, m), false, &mut rng);
+            let a = [0, 1].map(|_| random((rows, m), false, &mut rng));
             let p = random((rows, n), false, &mut rng);
-            let mut whole = random((m, n), false, &mut rng);
-            matmul(a.t(), p.view(), whole.view_mut());
+            let mut whole = [0, 1].map(|_| random((m, n), false, &mut rng));
+            for (a, c) in a.iter().zip(&mut whole) {
+                matmul(a.t(), p.view(), c.view_mut());
+            }
             let source = p.as_slice().unwrap();
             for threads in [1, 2] {
-                let mut banded = random((m, n), false, &mut rng);
+                let mut banded = [0, 1].map(|_| random((m, n), false, &mut rng));
+                let [c0, c1] = banded.each_mut().map(|c| c.view_mut());
                 let mut after = Vec::new();
                 in_pool(threads, || {
                     matmul_transposed_banded(
                         &mut ReusableBuffer::default(),
-                        a.view(),
+                        [(a[0].view(), c0), (a[1].view(), c1)],
                         (band_rows, unit_rows),
-                        banded.view_mut(),
                         |row, band| {
                             assert_eq!(row % unit_rows, 0, "whole units");
                             band.copy_from_slice(&source[row * n..row * n + band.len()]);
@@ -425,7 +504,9 @@ mod tests {
                         |row, band| after.push((row, band.to_vec())),
                     )
                 });
-                assert!(same_bits(&whole, &banded), "{rows}x{m}x{n} on {threads}");
+                for (whole, banded) in whole.iter().zip(&banded) {
+                    assert!(same_bits(whole, banded), "{rows}x{m}x{n} on {threads}");
+                }
                 let given: Vec<f32> = after.iter().flat_map(|(_, b)| b.clone()).collect();
                 assert_eq!(given, source, "after gets every band, in order");
                 assert_eq!(after[0].0, 0);

@@ -254,14 +254,9 @@ pub fn forward_sharing_input<T: Real, const N: usize>(
     x: &[T],
     mut layers: [(&Conv2d, &mut ConvWorkspace<T>, ArrayViewMut2<T>); N],
 ) {
-    let Some(first) = layers.first().map(|layer| layer.0) else {
+    let Some(first) = patch_writer(&layers) else {
         return;
     };
-    debug_assert!(
-        layers
-            .iter()
-            .all(|layer| layer.0.shares_patches_with(first))
-    );
     for (layer, ws, y) in &mut layers {
         layer.stage_weight(params, ws);
         layer.dense.fill_with_bias(params, y.view_mut());
@@ -283,6 +278,18 @@ pub fn forward_sharing_input<T: Real, const N: usize>(
     layers[0].1.patch_bands = scratch;
 }
 
+/// The first of layers that read their input alike (checked in debug builds), which writes
+/// the patches for all of them.
+fn patch_writer<'c, T, Y>(layers: &[(&'c Conv2d, &mut ConvWorkspace<T>, Y)]) -> Option<&'c Conv2d> {
+    let first = layers.first()?.0;
+    debug_assert!(
+        layers
+            .iter()
+            .all(|layer| layer.0.shares_patches_with(first))
+    );
+    Some(first)
+}
+
 /// The backward pass of [`forward_sharing_input`], each `(layer, workspace, dy)` as
 /// [`Conv2d::backward`]: the patches of `x` are written again once per band for every layer's
 /// weight gradient, and `dx`, when given, gets the input gradient through every layer.
@@ -292,14 +299,9 @@ pub fn backward_sharing_input<T: Real, const N: usize>(
     mut layers: [(&Conv2d, &mut ConvWorkspace<T>, ArrayView2<T>); N],
     mut dx: Option<&mut [T]>,
 ) {
-    let Some(first) = layers.first().map(|layer| layer.0) else {
+    let Some(first) = patch_writer(&layers) else {
         return;
     };
-    debug_assert!(
-        layers
-            .iter()
-            .all(|layer| layer.0.shares_patches_with(first))
-    );
     let (patch_len, positions) = (first.dense.inputs(), first.positions());
     let rows = layers[0].2.nrows();
     let mut scratch = std::mem::take(&mut layers[0].1.patch_bands);

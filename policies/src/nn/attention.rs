@@ -54,6 +54,8 @@ pub struct AttentionWorkspace<T> {
     d_log_weights: ReusableBuffer<T>,
     d_receiver_scores: ReusableBuffer<T>,
     d_sender_scores: ReusableBuffer<T>,
+    /// One edge's dot products of the message gradient with each head's projected sender.
+    head_dots: ReusableBuffer<T>,
 }
 
 impl<T: Real> AttentionWorkspace<T> {
@@ -249,28 +251,22 @@ impl GraphAttention {
         let weights = ws.weights.slice(self.heads * edges);
         let d_projected = ws.d_projected.slice_mut(ws.batch * width);
         let d_log_weights = ws.d_log_weights.slice_mut(self.heads * edges);
+        let head_dots = ws.head_dots.slice_mut(self.heads);
         for (i, d_message) in d_out.rows().into_iter().enumerate() {
             let d_message = d_message.to_slice().expect("rows are contiguous");
             for (e, j) in graph.edges_of(i) {
-                let sender = &projected[j * width..][..width];
-                for (first_head, blocks) in
-                    (0..).step_by(MAX_CHAINS).zip(sender.chunks(MAX_CHAINS * f))
-                {
-                    let mut head_dots = [T::zero(); MAX_CHAINS];
-                    let head_dots = &mut head_dots[..blocks.len() / f.max(1)];
-                    dots_into(blocks, d_message, head_dots);
-                    for (head, &head_dot) in (first_head..).zip(head_dots.iter()) {
-                        let w = weights[head * edges + e];
-                        let block = j * width + head * f;
-                        let d_weight = head_share * head_dot;
-                        d_log_weights[head * edges + e] = d_weight * w;
-                        let d_sender = &mut d_projected[block..][..f];
-                        let scale = head_share * w;
-                        d_sender
-                            .iter_mut()
-                            .zip(d_message)
-                            .for_each(|(d, &g)| *d += scale * g);
-                    }
+                dots_into(&projected[j * width..][..width], d_message, head_dots);
+                for (head, &head_dot) in head_dots.iter().enumerate() {
+                    let w = weights[head * edges + e];
+                    let block = j * width + head * f;
+                    let d_weight = head_share * head_dot;
+                    d_log_weights[head * edges + e] = d_weight * w;
+                    let d_sender = &mut d_projected[block..][..f];
+                    let scale = head_share * w;
+                    d_sender
+                        .iter_mut()
+                        .zip(d_message)
+                        .for_each(|(d, &g)| *d += scale * g);
                 }
             }
         }

@@ -138,10 +138,10 @@ impl Linear {
 /// then ever larger copies of what is written. A copy per row was a call to `memcpy` per row
 /// (100,000 of 16 values for the first convolution of an update's batch).
 fn fill_repeating<T: Copy>(values: &mut [T], pattern: &[T]) {
-    let Some(first) = values
-        .get_mut(..pattern.len())
-        .filter(|_| !pattern.is_empty())
-    else {
+    if pattern.is_empty() {
+        return;
+    }
+    let Some(first) = values.get_mut(..pattern.len()) else {
         return;
     };
     first.copy_from_slice(pattern);

@@ -164,8 +164,8 @@ pub fn matmul_transposed_banded<T: Real, const N: usize>(
 ) {
     let rows = products.first().map_or(0, |(a, _)| a.nrows());
     let n = products.first().map_or(0, |(_, c)| c.ncols());
+    let p_columns_contiguous = rows <= 1 || n == 1;
     let packed = products.each_ref().map(|(a, _)| {
-        let p_columns_contiguous = rows <= 1 || n == 1;
         !rows_are_contiguous(a.t()) || packed_by_shape(a.ncols(), rows, n, p_columns_contiguous)
     });
     let threads = products

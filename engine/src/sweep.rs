@@ -88,6 +88,7 @@ pub fn run_sweep(
         Some(cache) => exchange_with_cache(store, cache, &selected, &mut todo)?,
         None => 0,
     };
+    in_work_order(&mut todo);
     let CellsRun { failed, elsewhere } =
         run_cells(scenario, store, options.cache.as_ref(), &todo, options.jobs)?;
     if let Some(position) = failed.iter().position(|(_, e)| out_of_storage(e)) {
@@ -108,6 +109,14 @@ pub fn run_sweep(
         failed,
         tabled: tabled.len(),
     })
+}
+
+/// Orders the cells to compute: every run's first repetition before any run's second, and
+/// so on, each repetition in the scenario's order. A sweep longer than its session or its
+/// job's time limit then leaves a store that answers every question with fewer seeds, not
+/// some questions with all of them and others with none; the results do not depend on it.
+fn in_work_order(todo: &mut [&SweepCell]) {
+    todo.sort_by_key(|cell| (cell.config.repetition, cell.index));
 }
 
 /// Makes `store` ready for `scenario`'s sweep, or `shard`'s slice of it: its manifest, the
@@ -350,4 +359,34 @@ pub fn cell_title(c: &CellConfig) -> String {
         n_train,
         c.repetition
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    #[test]
+    fn every_first_repetition_runs_before_any_second() {
+        let text = "name: order\nseed: 1\nmaps:\n  - inline: {name: a, grid: \"....\\n....\\n\"}\n  \
+                    - inline: {name: b, grid: \"...\\n...\\n\"}\nworld: {fov: 3, test_steps: 4}\n\
+                    policies:\n  - baseline: {name: random}\n  - baseline: {name: static}\n\
+                    agents: {test: [1]}\nrepetitions: 3\ntest_episodes: 1\n";
+        let scenario = Scenario::parse(text, Path::new("order.yaml")).unwrap();
+        let cells = scenario.cells();
+        assert_eq!(cells.len(), 12);
+        let mut todo: Vec<&SweepCell> = cells.iter().collect();
+        in_work_order(&mut todo);
+        let order: Vec<(u32, usize)> = todo
+            .iter()
+            .map(|c| (c.config.repetition, c.index))
+            .collect();
+        // The scenario's order is map, policy, repetition: cells 0, 3, 6 and 9 are the
+        // repetition 0 of (a, random), (a, static), (b, random) and (b, static).
+        let expected: Vec<(u32, usize)> = (0..3)
+            .flat_map(|rep| (0..4).map(move |run| (rep, run * 3 + rep as usize)))
+            .collect();
+        assert_eq!(order, expected);
+    }
 }

@@ -31,22 +31,21 @@ pub fn work_seconds(work: u64) -> f64 {
 }
 
 /// CPU time per agent and step. A training step of the paper network (rollout plus its share
-/// of the update), as a sweep runs it (one single-thread cell per core). MA-G-PPO: 625 us
-/// measured on an AVX2 machine (the `rq3` sweep: 5,984 s of CPU for 9.6 M training
-/// agent-steps, `fast` profile, N = 2 and 4) before the banded convolution made the update
-/// about 1.16x faster; 377 to 534 us on an AVX-512 machine (the `rq4` and `rq1` cells at
-/// N = 2 to 10, 800 episodes each, test episodes included). 450 us sits within 1.3x of both
-/// machines. MA-PPO has no attention and no messages to gather: 253 to 331 us on the same
-/// AVX-512 machine (the twelve `rq4` MA-PPO cells), so 280 us; with 450 us its estimates had
-/// been 1.4x to 1.8x too long. A test step of a learned policy is about 25 us (`harness bench
-/// network`'s rollout step over its agents); a baseline's step 1 to 9 us (Random to TSPC, a
-/// world step included).
+/// of the update), as a sweep runs it (one single-thread cell per core). MA-G-PPO: 223 to 234
+/// us on an AVX-512 machine (the training logs of the `rq6` cells at N = 3 and 6, 800
+/// episodes each), after the update came to 0.86 of the GEMM peak; the code before that took
+/// 377 to 534 us there (the `rq4` and `rq1` cells, tests included) and an AVX2 machine about
+/// 1.2x as long (540 us against 450). 280 us sits within 1.25x of both. MA-PPO has no
+/// attention and no messages to gather: 170 to 174 us on the same machine (its `rq6` cells at
+/// N = 3 to 5), so 200 us. A test step of a learned policy: 3.5 us (MA-PPO) to 9.5 us
+/// (MA-G-PPO) per agent, from the same cells' time outside training; a baseline's step 1 to
+/// 9 us (Random to TSPC, a world step included).
 pub(crate) mod work {
     pub const UNIT_SECONDS: f64 = 0.5e-6;
     pub const BASELINE_STEP: u64 = 10;
-    pub const LEARNED_STEP: u64 = 50;
-    pub const GRAPH_TRAINING_STEP: u64 = 900;
-    pub const INDEPENDENT_TRAINING_STEP: u64 = 560;
+    pub const LEARNED_STEP: u64 = 16;
+    pub const GRAPH_TRAINING_STEP: u64 = 560;
+    pub const INDEPENDENT_TRAINING_STEP: u64 = 400;
 
     /// A training agent-step of `architecture`.
     pub fn training_step(architecture: super::ArchitectureName) -> u64 {

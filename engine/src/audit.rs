@@ -13,7 +13,6 @@ use policies::checkpoint::{self, WEIGHTS_FILE};
 use policies::ppo::{ConfigError, TrainError, Trainer};
 
 use crate::cell::CellConfig;
-use crate::disturbance::UNDISTURBED;
 use crate::execution::{CellError, disturbed_test_episode, stored_policy, test_episode};
 use crate::store::columns::{strings, u32s};
 use crate::store::disturbed;
@@ -46,8 +45,8 @@ pub enum AuditError {
     WeightsDiffer,
     #[error("the training log differs")]
     LogDiffers,
-    #[error("the cell has no disturbance named {0:?}")]
-    NoDisturbance(String),
+    #[error("the cell has no disturbance named {name:?} (it has {known})")]
+    NoDisturbance { name: String, known: String },
     #[error("the row differs")]
     RowDiffers,
 }
@@ -173,13 +172,12 @@ fn replay_disturbed(
     let config = &record.config;
     let world = world_of(store, worlds, config)?;
     let mut policy = stored_policy(store, &record, &world)?;
-    let disturbance = match name {
-        UNDISTURBED => None,
-        name => Some(
-            (config.disturbances.iter().find(|d| d.name == name))
-                .ok_or_else(|| AuditError::NoDisturbance(name.to_owned()))?,
-        ),
-    };
+    let disturbance = config
+        .disturbance(name)
+        .map_err(|known| AuditError::NoDisturbance {
+            name: name.to_owned(),
+            known,
+        })?;
     let mut penalties = Vec::new();
     let again = disturbed_test_episode(
         &world,

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use world::Seed;
 
 use crate::code_version::code_version;
-use crate::disturbance::Disturbance;
+use crate::disturbance::{Disturbance, UNDISTURBED};
 use crate::scenario::{Learned, Scenario, ScenarioPolicy, WorldConfig};
 
 /// Branches of the scenario's seed tree, so training and testing never share a stream.
@@ -77,6 +77,22 @@ impl CellConfig {
         hasher.update(b"\ntraining\n");
         hasher.update(json.as_bytes());
         Some(hasher.finalize().to_hex()[..20].to_owned())
+    }
+
+    /// The disturbance called `name` (`none`, the undisturbed play, is `Ok(None)`), or the
+    /// names there are.
+    pub fn disturbance(&self, name: &str) -> Result<Option<&Disturbance>, String> {
+        if name == UNDISTURBED {
+            return Ok(None);
+        }
+        let found = self.disturbances.iter().find(|d| d.name == name);
+        found.map(Some).ok_or_else(|| {
+            let names = self.disturbances.iter().map(|d| d.name.as_str());
+            std::iter::once(UNDISTURBED)
+                .chain(names)
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
     }
 
     /// The seed of test episode `episode` with `agents` agents.

@@ -104,8 +104,8 @@ pub fn run_cell(
                 world,
                 policy.as_mut(),
                 config,
-                agents,
-                episode,
+                (agents, episode),
+                None,
                 &mut |e, actions, penalty| {
                     if actions.is_some() {
                         penalties.push(penalty);
@@ -254,20 +254,29 @@ pub fn test_episode(
     agents: u32,
     episode: u32,
 ) -> Result<EpisodeRow, StartError> {
-    observed_test_episode(world, policy, config, agents, episode, &mut |_, _, _| {})
+    observed_test_episode(
+        world,
+        policy,
+        config,
+        (agents, episode),
+        None,
+        &mut |_, _, _| {},
+    )
 }
 
-/// [`test_episode`], with `on_step` seeing every step (as `run_disturbed_episode` calls it).
+/// [`test_episode`] played under `disturbance` (`None`: as the episodes table holds it), with
+/// `on_step` seeing every step (as `run_disturbed_episode` calls it).
 pub fn observed_test_episode(
     world: &Arc<World>,
     policy: &mut dyn Policy,
     config: &CellConfig,
-    agents: u32,
-    episode: u32,
+    (agents, episode): (u32, u32),
+    disturbance: Option<&Disturbance>,
     on_step: &mut StepObserver,
 ) -> Result<EpisodeRow, StartError> {
     let seed = config.episode_seed(agents, episode);
     let steps = config.world.test_steps;
+    let played = disturbance.map(|d| d.in_episode(agents as usize, seed));
     let outcome = run_disturbed_episode(
         world,
         agents as usize,
@@ -275,7 +284,7 @@ pub fn observed_test_episode(
         seed,
         None,
         steps as usize,
-        None,
+        played.as_ref(),
         on_step,
     )?;
     Ok(EpisodeRow {
@@ -319,27 +328,17 @@ pub fn disturbed_test_episode(
     penalties: &mut Vec<f64>,
 ) -> Result<DisturbedRow, StartError> {
     penalties.clear();
-    let Some(disturbance) = disturbance else {
-        let row = observed_test_episode(world, policy, config, agents, episode, &mut |_, a, p| {
-            if a.is_some() {
-                penalties.push(p);
-            }
-        })?;
-        return Ok(undisturbed_row(&row, penalties));
-    };
     let seed = config.episode_seed(agents, episode);
     let steps = config.world.test_steps as usize;
-    let played = disturbance.in_episode(agents as usize, seed);
-    let event = played.loss.as_ref().map(|(at, _)| *at as usize);
+    let loss = disturbance.and_then(|d| d.in_episode(agents as usize, seed).loss);
+    let event = loss.as_ref().map(|(at, _)| *at as usize);
     let (mut at_event, mut at_end) = (String::new(), String::new());
-    let outcome = run_disturbed_episode(
+    let row = observed_test_episode(
         world,
-        agents as usize,
         policy,
-        seed,
-        None,
-        steps,
-        Some(&played),
+        config,
+        (agents, episode),
+        disturbance,
         &mut |e, actions, penalty| {
             if actions.is_some() {
                 penalties.push(penalty);
@@ -353,7 +352,10 @@ pub fn disturbed_test_episode(
             }
         },
     )?;
-    let lost = played.loss.as_ref().map_or(&[][..], |(_, lost)| lost);
+    let Some(disturbance) = disturbance else {
+        return Ok(undisturbed_row(&row, penalties));
+    };
+    let lost = loss.as_ref().map_or(&[][..], |(_, lost)| lost);
     Ok(DisturbedRow {
         n_test: agents,
         episode,
@@ -365,7 +367,7 @@ pub fn disturbed_test_episode(
             .map(usize::to_string)
             .collect::<Vec<_>>()
             .join(" "),
-        cumulative_penalty: outcome.cumulative_penalty,
+        cumulative_penalty: row.cumulative_penalty,
         adaptation: Adaptation::measure(penalties, event.map(|e| e as u32)),
         at_event,
         at_end,

@@ -7,6 +7,9 @@ pub type Rgb = [u8; 3];
 /// Obstacle cells: a dark grey that no penalty colour comes near.
 pub const OBSTACLE: Rgb = [60, 60, 60];
 
+/// A robot lost under a disturbance: a grey lighter than the obstacles and than series 7's.
+pub const LOST: Rgb = [200, 200, 200];
+
 /// The colour of series (or agent) `index`: distinct for ten, and the same series keeps its
 /// colour in every figure and recording.
 pub fn series(index: usize) -> Rgb {

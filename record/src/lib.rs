@@ -1,7 +1,8 @@
 //! Rerun recordings (`.rrd`) of stored test episodes, scrubbable in time in the rerun viewer:
 //! per step the penalty map as an image, the agents as points with their field-of-view squares
 //! and recent trails, the team's penalty as a time series, and for MA-G-PPO the attention
-//! weights between agents.
+//! weights between agents. An episode can also be played under one of its cell's
+//! disturbances, as the disturbed table holds it, with lost robots drawn apart in grey.
 //!
 //! Recordings are views: the episode is played again from the cell's config (test episodes are
 //! pure functions of it), and the Parquet tables stay the source of truth. An `.rrd` file is
@@ -28,6 +29,8 @@ const TRAIL: usize = 100;
 pub mod entity {
     pub const PENALTY_MAP: &str = "map/penalty";
     pub const AGENTS: &str = "map/agents";
+    /// Robots lost under a disturbance, from the step they stop; they leave `AGENTS`.
+    pub const LOST: &str = "map/lost";
     pub const FIELDS_OF_VIEW: &str = "map/fov";
     pub const TRAILS: &str = "map/trails";
     pub const PENALTY: &str = "penalty/total";
@@ -51,6 +54,12 @@ pub enum RecordingError {
         n_test: u32,
         episode: u32,
     },
+    #[error("cell {key} has no disturbance named {name:?} (it has {known})")]
+    NoSuchDisturbance {
+        key: String,
+        name: String,
+        known: String,
+    },
     #[error("{path}: {problem}")]
     Rerun { path: PathBuf, problem: String },
 }
@@ -61,6 +70,8 @@ pub struct EpisodeChoice {
     pub cell: String,
     pub n_test: u32,
     pub episode: u32,
+    /// A disturbance of the cell's config by name; `None` plays the episode undisturbed.
+    pub disturbance: Option<String>,
 }
 
 /// Plays the chosen episode of `store` again and saves its recording at `path`.
@@ -78,6 +89,18 @@ pub fn record_episode(
             episode: choice.episode,
         });
     }
+    let disturbance = match &choice.disturbance {
+        None => None,
+        Some(name) => {
+            config
+                .disturbance(name)
+                .map_err(|known| RecordingError::NoSuchDisturbance {
+                    key: choice.cell.clone(),
+                    name: name.clone(),
+                    known,
+                })?
+        }
+    };
     let map = store.map(&config.map.name, &config.map.hash)?;
     let params = config.world.params().map_err(|e| RecordingError::World {
         key: choice.cell.clone(),
@@ -103,8 +126,8 @@ pub fn record_episode(
         &world,
         &mut tap,
         config,
-        choice.n_test,
-        choice.episode,
+        (choice.n_test, choice.episode),
+        disturbance,
         &mut |episode, _, _| {
             if failure.is_none() {
                 let edges = attention.lock().expect("no panics hold the lock").take();
@@ -150,6 +173,7 @@ pub fn record_cells(
             cell: key.clone(),
             n_test,
             episode: 0,
+            disturbance: None,
         };
         record_episode(store, &choice, &partial)?;
         std::fs::rename(&partial, &path).map_err(|e| io(&path, e))?;
@@ -228,22 +252,34 @@ impl StepLogger {
             }
         }
         let colours: Vec<rerun::Color> = (0..centres.len()).map(agent_colour).collect();
-        let labels: Vec<String> = (0..centres.len()).map(|a| format!("agent {a}")).collect();
+        let (lost, active): (Vec<usize>, Vec<usize>) =
+            (0..centres.len()).partition(|&a| episode.stopped()[a]);
+        let at = |agents: &[usize]| agents.iter().map(|&a| centres[a]).collect::<Vec<_>>();
         self.stream.log(
             entity::AGENTS,
-            &rerun::Points2D::new(centres.clone())
+            &rerun::Points2D::new(at(&active))
                 .with_radii([0.6])
-                .with_colors(colours.clone())
-                .with_labels(labels),
+                .with_colors(active.iter().map(|&a| colours[a]))
+                .with_labels(active.iter().map(|a| format!("agent {a}"))),
         )?;
+        if !lost.is_empty() {
+            let [red, green, blue] = palette::LOST;
+            self.stream.log(
+                entity::LOST,
+                &rerun::Points2D::new(at(&lost))
+                    .with_radii([0.6])
+                    .with_colors([rerun::Color::from_rgb(red, green, blue)])
+                    .with_labels(lost.iter().map(|a| format!("agent {a}, lost"))),
+            )?;
+        }
         let half = self.world.params().fov() as f32 / 2.0;
         self.stream.log(
             entity::FIELDS_OF_VIEW,
             &rerun::Boxes2D::from_centers_and_half_sizes(
-                centres.clone(),
-                vec![[half, half]; colours.len()],
+                at(&active),
+                vec![[half, half]; active.len()],
             )
-            .with_colors(colours.clone()),
+            .with_colors(active.iter().map(|&a| colours[a])),
         )?;
         self.stream.log(
             entity::TRAILS,

@@ -176,6 +176,37 @@ fn every_policy_meets_the_same_disturbance_and_claims_and_report_read_it() {
         assert!(report.join("figures").join(figure).is_file(), "{figure}");
     }
 
+    // A recording plays an episode under a disturbance: the lost robot leaves the agents and
+    // shows apart from its loss on; undisturbed, nobody is lost.
+    let row = (0..disturbed.height())
+        .find(|&r| names[r] == "lose-1" && policies[r] == "ma-g-ppo@fast" && episodes[r] == Some(0))
+        .unwrap();
+    let n_test = n_tests[row].unwrap().to_string();
+    let play = |under: &[&str], out: &Path| {
+        let (store, out) = (store.to_str().unwrap(), out.to_str().unwrap());
+        let args = ["record", store, "--cell", &keys[row], "--n-test", &n_test];
+        harness(&[&args[..], under, &["--out", out]].concat())
+    };
+    for (under, lost) in [(&["--disturbance", "lose-1"][..], true), (&[][..], false)] {
+        let out = dir.join("episode.rrd");
+        succeed(play(under, &out));
+        let contents = record::read_recording(&out).unwrap();
+        let entities = &contents.entities;
+        assert_eq!(
+            entities.iter().any(|e| e == "/map/lost"),
+            lost,
+            "{under:?}: {entities:?}"
+        );
+        assert_eq!(contents.steps, Some((0, 60)));
+    }
+    let unknown = play(&["--disturbance", "lose-2"], &dir.join("none.rrd"));
+    assert!(!unknown.status.success());
+    let error = String::from_utf8_lossy(&unknown.stderr);
+    assert!(
+        error.contains("no disturbance named \"lose-2\" (it has none, lose-1, cut)"),
+        "{error}"
+    );
+
     // The audit plays disturbed rows again and finds an altered number.
     let store_arg = store.to_str().unwrap();
     let audit = [

@@ -20,7 +20,12 @@ pub struct RecordArgs {
     /// Test episode index.
     #[arg(long, default_value_t = 0)]
     episode: u32,
-    /// Output file; default DIR/recordings/KEY-nN-eE.rrd.
+    /// Play the episode under this disturbance of the cell (by its name in the scenario), as
+    /// the disturbed table holds it.
+    #[arg(long)]
+    disturbance: Option<String>,
+    /// Output file; default DIR/recordings/KEY-nN-eE.rrd, or KEY-nN-eE-NAME.rrd under a
+    /// disturbance.
     #[arg(long)]
     out: Option<PathBuf>,
 }
@@ -71,6 +76,7 @@ pub fn run(args: RecordArgs) -> anyhow::Result<()> {
         cell: args.cell,
         n_test,
         episode: args.episode,
+        disturbance: args.disturbance,
     };
     let out = match args.out {
         Some(out) => out,
@@ -78,9 +84,13 @@ pub fn run(args: RecordArgs) -> anyhow::Result<()> {
             let folder = args.store.join("recordings");
             std::fs::create_dir_all(&folder)
                 .with_context(|| format!("{}: cannot create", folder.display()))?;
+            let under = choice.disturbance.as_ref().map(|name| format!("-{name}"));
             folder.join(format!(
-                "{}-n{}-e{}.rrd",
-                choice.cell, n_test, choice.episode
+                "{}-n{}-e{}{}.rrd",
+                choice.cell,
+                n_test,
+                choice.episode,
+                under.unwrap_or_default()
             ))
         }
     };

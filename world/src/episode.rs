@@ -196,13 +196,15 @@ impl Episode {
     }
 
     /// Whether `receiver` hears `sender` at this step: a lost robot sends nothing, and a
-    /// disturbed link carries nothing while it is down.
+    /// disturbed link carries nothing while it is down. A robot's own features (its edge to
+    /// itself in the authors' attention over all agents) travel over no link.
     pub fn hears(&self, receiver: usize, sender: usize) -> bool {
         let at = |agent: usize| (agent, self.positions[agent]);
         !self.stopped[sender]
-            && self
-                .links
-                .is_none_or(|links| links.up(self.time, at(receiver), at(sender)))
+            && (receiver == sender
+                || self
+                    .links
+                    .is_none_or(|links| links.up(self.time, at(receiver), at(sender))))
     }
 
     /// Moves the agents one at a time in index order, then updates penalties; returns the
@@ -347,6 +349,15 @@ mod tests {
         assert_eq!(e.penalty().at(Cell::new(1, 0)), 0.0);
         e.set_links(Links::new(Some(0.5), 0.0, Seed::new(1)).unwrap());
         assert!(!e.hears(1, 0), "(1, 0) and (2, 0) are 1 apart, beyond 0.5");
+        assert!(
+            !e.hears(1, 1),
+            "a lost robot sends nothing, to itself neither"
+        );
+        e.set_links(Links::new(None, 1.0, Seed::new(1)).unwrap());
+        assert!(
+            e.hears(0, 0) && !e.hears(0, 1),
+            "every link down, but not to itself"
+        );
         e.reset_at(&[Cell::new(0, 0), Cell::new(2, 0)]).unwrap();
         assert_eq!(e.stopped(), &[false, false]);
         assert!(!e.messages_disturbed());

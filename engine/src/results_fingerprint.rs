@@ -41,15 +41,26 @@ pub enum FingerprintError {
 
 /// Runs the fingerprint scenario into a store at `out` and returns its fingerprint.
 pub fn compute(out: &Path, jobs: usize) -> Result<String, FingerprintError> {
-    let scenario = Scenario::parse(SCENARIO, Path::new("fingerprint/scenario.yaml"))
-        .map_err(|e| FingerprintError::Scenario(e.to_string()))?;
+    compute_for(SCENARIO, Path::new("fingerprint/scenario.yaml"), out, jobs)
+}
+
+/// [`compute`] for another scenario (`text`, read from `file`): what the tests pin for work
+/// the fingerprint scenario leaves out.
+pub fn compute_for(
+    text: &str,
+    file: &Path,
+    out: &Path,
+    jobs: usize,
+) -> Result<String, FingerprintError> {
+    let scenario =
+        Scenario::parse(text, file).map_err(|e| FingerprintError::Scenario(e.to_string()))?;
     let store = Store::new(out);
     let options = SweepOptions {
         jobs,
         shard: None,
         cache: None,
     };
-    let report = run_sweep(&scenario, SCENARIO, &store, &options)?;
+    let report = run_sweep(&scenario, text, &store, &options)?;
     if !report.failed.is_empty() {
         return Err(FingerprintError::Failed(report.failed.len()));
     }

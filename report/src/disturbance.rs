@@ -377,10 +377,13 @@ fn curves(report: &mut ReportWriter, steps: &DataFrame) -> Result<(), ReportErro
                     .map(|(policy, rows)| Line {
                         label: policy,
                         points: rows.iter().map(|&r| (bins[r] as f64, means[r])).collect(),
+                        // A penalty is never negative: a few jammed episodes widen the
+                        // band far below the mean, where it would claim what cannot be.
                         band: Some(
                             rows.iter()
                                 .map(|&r| {
-                                    (means[r] - 0.5 * spreads[r], means[r] + 0.5 * spreads[r])
+                                    let half = 0.5 * spreads[r];
+                                    ((means[r] - half).max(0.0), means[r] + half)
                                 })
                                 .collect(),
                         ),
@@ -394,7 +397,7 @@ fn curves(report: &mut ReportWriter, steps: &DataFrame) -> Result<(), ReportErro
         };
         let caption = format!(
             "`{map}`, N = {n}: mean penalty per step over test episodes, per policy, with +-0.5 \
-             standard deviation bands; one panel per disturbance"
+             standard deviation bands (cut at 0); one panel per disturbance"
         );
         report.figure(
             &file_stem(&["disturbance", &map, &format!("n{n}")]),

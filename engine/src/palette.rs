@@ -10,22 +10,38 @@ pub const OBSTACLE: Rgb = [60, 60, 60];
 /// A robot lost under a disturbance: a grey lighter than the obstacles and than series 7's.
 pub const LOST: Rgb = [200, 200, 200];
 
-/// The colour of series (or agent) `index`: distinct for ten, and the same series keeps its
-/// colour in every figure and recording.
+/// The series colours: Tableau's ten first (recordings made before keep their agents'
+/// colours), then ten darker or lighter hues, each at least 60 (RGB distance) from every other
+/// and from white, the obstacles and the lost robots. A report figure puts up to 14 policies
+/// side by side (rq6); ten colours had two of them share a blue.
+pub const SERIES: [Rgb; 20] = [
+    [31, 119, 180],
+    [255, 127, 14],
+    [44, 160, 44],
+    [214, 39, 40],
+    [148, 103, 189],
+    [140, 86, 75],
+    [227, 119, 194],
+    [127, 127, 127],
+    [188, 189, 34],
+    [23, 190, 207],
+    [0, 0, 128],
+    [200, 0, 200],
+    [100, 110, 20],
+    [250, 160, 120],
+    [128, 0, 64],
+    [0, 90, 50],
+    [170, 110, 0],
+    [150, 200, 255],
+    [0, 60, 160],
+    [130, 220, 40],
+];
+
+/// The colour of series (or agent) `index`: distinct for twenty, and the same series keeps its
+/// colour in every figure and recording. Figures also give each series a marker, so that
+/// series 20 apart still differ.
 pub fn series(index: usize) -> Rgb {
-    const COLOURS: [Rgb; 10] = [
-        [31, 119, 180],
-        [255, 127, 14],
-        [44, 160, 44],
-        [214, 39, 40],
-        [148, 103, 189],
-        [140, 86, 75],
-        [227, 119, 194],
-        [127, 127, 127],
-        [188, 189, 34],
-        [23, 190, 207],
-    ];
-    COLOURS[index % COLOURS.len()]
+    SERIES[index % SERIES.len()]
 }
 
 /// A penalty as a share of Rmax: blue for a cell just seen (0), red for one at -Rmax (1),
@@ -54,8 +70,26 @@ mod tests {
     }
 
     #[test]
-    fn series_colours_repeat_after_ten() {
-        assert_eq!(series(3), series(13));
-        assert_ne!(series(0), series(1));
+    fn twenty_series_colours_are_far_apart_and_off_the_background() {
+        let distance = |a: Rgb, b: Rgb| {
+            let squares = a
+                .iter()
+                .zip(b)
+                .map(|(&x, y)| (f64::from(x) - f64::from(y)).powi(2));
+            squares.sum::<f64>().sqrt()
+        };
+        for i in 0..20 {
+            for j in i + 1..20 {
+                let d = distance(series(i), series(j));
+                assert!(d >= 60.0, "series {i} and {j} are {d:.0} apart");
+            }
+            for other in [[255, 255, 255], OBSTACLE, LOST] {
+                assert!(
+                    distance(series(i), other) >= 60.0,
+                    "series {i} near {other:?}"
+                );
+            }
+        }
+        assert_eq!(series(3), series(23), "they repeat after twenty");
     }
 }

@@ -1,21 +1,23 @@
 //! The summary table: per (map, policy, N_train, N_test), the cumulative penalty's mean,
-//! standard deviation, median, interquartile mean and stratified-bootstrap 95% intervals of
-//! the mean and the IQM, as rliable recommends for reporting RL results (Agarwal et al. 2021);
+//! standard deviation, median, interquartile mean and bootstrap 95% intervals of the mean
+//! and the IQM, as rliable recommends for reporting RL results (Agarwal et al. 2021);
 //! and for the patrolling literature, the means of the average and the worst idleness with
 //! their intervals. The penalty stays the headline: it is the paper's metric.
 //!
-//! The strata are the cells (one training run, i.e. one seed, each): a bootstrap replicate
-//! resamples episodes within every cell, so the spread between training runs is kept. Each
-//! group's resampling has its own seed, derived from the group's name, so the table does not
-//! depend on row order or thread count.
+//! The strata are the cells. A learned policy's cells are its training runs, the unit of
+//! replication: its intervals draw runs, then episodes within them, and its mean and IQM are
+//! those of its runs' means (`stats::resampling`). A baseline's cells are repetitions of test
+//! episodes: its intervals draw episodes within each cell. Each group's resampling has its own
+//! seed, derived from the group's name, so the table does not depend on row order or thread
+//! count.
 
 use polars::prelude::*;
 use world::Seed;
 
 use crate::grouping::group_rows;
 use crate::stats::{
-    RESAMPLES, StatsError, iqm, mean, median, named_seed, standard_deviation,
-    stratified_bootstrap_interval,
+    Block, RESAMPLES, Sample, StatsError, Unit, bootstrap, iqm, mean, median, named_seed,
+    standard_deviation,
 };
 use crate::store::StoreError;
 
@@ -114,39 +116,53 @@ fn mean_with_interval_columns(name: &str, figures: &[&MeanWithInterval]) -> [Col
 
 fn summarise(group: &Group) -> Result<GroupSummary, StatsError> {
     let seed = group_seed(group);
-    let figure = |field: fn(&Stratum) -> &Vec<f64>| -> Vec<&[f64]> {
-        group
-            .strata
-            .iter()
-            .map(|(_, s)| field(s).as_slice())
-            .collect()
+    let unit = group.unit();
+    let sample = |field: fn(&Stratum) -> &Vec<f64>| -> Sample {
+        let strata = group.strata.iter().map(|(_, s)| field(s).as_slice());
+        Sample::new(strata.collect(), unit)
     };
-    let interval = |strata: &[&[f64]], statistic, branch| {
-        stratified_bootstrap_interval(strata, statistic, CONFIDENCE, RESAMPLES, seed.child(branch))
-    };
-    let mean_with_interval = |field, branch| -> Result<MeanWithInterval, StatsError> {
-        let strata = figure(field);
-        let (low, high) = interval(&strata, mean, branch)?;
-        Ok(MeanWithInterval {
-            mean: mean(&strata.concat())?,
+    // Value and interval of `statistic` over the sample's units (runs' means, or episodes).
+    let estimate = |sample: Sample, statistic: fn(&[f64]) -> Result<f64, StatsError>, branch| {
+        let of_units = |units: &[Vec<f64>]| statistic(&units[0]);
+        let boot = bootstrap(
+            &[Block::single(sample)],
+            &of_units,
+            RESAMPLES,
+            seed.child(branch),
+        )?;
+        let (low, high) = boot.interval(CONFIDENCE)?;
+        Ok::<_, StatsError>(MeanWithInterval {
+            mean: boot.estimate,
             low,
             high,
         })
     };
-    let strata = figure(|s| &s.penalty);
-    let all: Vec<f64> = strata.concat();
+    let penalties = sample(|s| &s.penalty);
+    let all: Vec<f64> = penalties.strata.concat();
+    let centre = estimate(penalties.clone(), mean, 0)?;
+    let robust = estimate(penalties.clone(), iqm, 1)?;
     Ok(GroupSummary {
-        cells: strata.len() as u32,
+        cells: group.strata.len() as u32,
         episodes: all.len() as u32,
-        mean: mean(&all)?,
+        mean: centre.mean,
         std: standard_deviation(&all)?,
         median: median(&all)?,
-        iqm: iqm(&all)?,
-        mean_ci: interval(&strata, mean, 0)?,
-        iqm_ci: interval(&strata, iqm, 1)?,
-        average_idleness: mean_with_interval(|s| &s.average_idleness, 2)?,
-        worst_idleness: mean_with_interval(|s| &s.worst_idleness, 3)?,
+        iqm: robust.mean,
+        mean_ci: (centre.low, centre.high),
+        iqm_ci: (robust.low, robust.high),
+        average_idleness: estimate(sample(|s| &s.average_idleness), mean, 2)?,
+        worst_idleness: estimate(sample(|s| &s.worst_idleness), mean, 3)?,
     })
+}
+
+impl Group {
+    /// A learned policy (one with an N_train) is replicated by training runs.
+    fn unit(&self) -> Unit {
+        match self.n_train {
+            Some(_) => Unit::Run,
+            None => Unit::Episode,
+        }
+    }
 }
 
 /// The group's own resampling seed: a hash of its name.

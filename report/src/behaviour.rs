@@ -111,31 +111,36 @@ struct Rhythm {
 }
 
 fn rhythms(motions: &[Motion]) -> Vec<Rhythm> {
+    (motions.iter().enumerate())
+        .flat_map(|(index, motion)| motion_rhythms(index, motion))
+        .collect()
+}
+
+/// The rhythms of every agent of one motion, `motions[index]`.
+fn motion_rhythms(index: usize, motion: &Motion) -> Vec<Rhythm> {
     let mut rows = Vec::new();
-    for (index, motion) in motions.iter().enumerate() {
-        for (signal, values) in motion.signals() {
-            let periods: Vec<Option<f64>> = values.iter().map(|v| dominant_period(v)).collect();
-            let found: Vec<f64> = periods.iter().flatten().copied().collect();
-            let team_period = engine::stats::median(&found).ok();
-            let harmonics: Vec<Option<Harmonic>> = values
-                .iter()
-                .map(|v| team_period.and_then(|p| fit_harmonic(v, p)))
-                .collect();
-            for agent in 0..motion.agents {
-                let phase = match (harmonics[0], harmonics[agent]) {
-                    (Some(first), Some(this)) => Some(wrapped_degrees(this.phase - first.phase)),
-                    _ => None,
-                };
-                rows.push(Rhythm {
-                    motion: index,
-                    agent,
-                    signal,
-                    period: periods[agent],
-                    team_period,
-                    harmonic: harmonics[agent],
-                    phase_to_agent_0: phase,
-                });
-            }
+    for (signal, values) in motion.signals() {
+        let periods: Vec<Option<f64>> = values.iter().map(|v| dominant_period(v)).collect();
+        let found: Vec<f64> = periods.iter().flatten().copied().collect();
+        let team_period = engine::stats::median(&found).ok();
+        let harmonics: Vec<Option<Harmonic>> = values
+            .iter()
+            .map(|v| team_period.and_then(|p| fit_harmonic(v, p)))
+            .collect();
+        for agent in 0..motion.agents {
+            let phase = match (harmonics[0], harmonics[agent]) {
+                (Some(first), Some(this)) => Some(wrapped_degrees(this.phase - first.phase)),
+                _ => None,
+            };
+            rows.push(Rhythm {
+                motion: index,
+                agent,
+                signal,
+                period: periods[agent],
+                team_period,
+                harmonic: harmonics[agent],
+                phase_to_agent_0: phase,
+            });
         }
     }
     rows
@@ -244,7 +249,10 @@ fn standardised(values: Vec<f64>) -> Vec<f64> {
 }
 
 pub fn section(report: &mut ReportWriter, motions: &[Motion]) -> Result<(), ReportError> {
-    report.heading(2, "Emergent behaviour, measured (RQ3)");
+    report.heading(
+        2,
+        "Emergent behaviour, measured: what roles and rhythms emerge?",
+    );
     report.paragraph(&format!(
         "Per agent of every recorded episode: the dominant period of y(t) and of sin(theta(t)) \
          (the periodogram's peak, periods from {SHORTEST_PERIOD} steps to half the episode); \
@@ -259,7 +267,12 @@ pub fn section(report: &mut ReportWriter, motions: &[Motion]) -> Result<(), Repo
     let roles = agent_roles(motions);
     let role_frame = role_frame(motions, &roles)?;
     let statements: Vec<String> = (0..motions.len())
-        .map(|index| format!("- {}", summary(motions, index, &rhythm, &roles).statement))
+        .map(|index| {
+            format!(
+                "- {}",
+                summary(&motions[index], index, &rhythm, &roles).statement
+            )
+        })
         .collect();
     report.paragraph(&statements.join("\n"));
     report.heading(3, "Periods and phases");
@@ -342,30 +355,44 @@ struct AgentRole {
     role: Role,
 }
 
+/// Every agent's role, pooled per map as [`pooled_roles`] pools them.
 fn agent_roles(motions: &[Motion]) -> Vec<AgentRole> {
     let mut rows = Vec::new();
     for map in distinct(motions.iter().map(|m| m.group.map.clone())) {
-        let agents: Vec<(usize, usize, Features)> = motions
-            .iter()
-            .enumerate()
-            .filter(|(_, m)| m.group.map == map)
-            .flat_map(|(i, m)| (0..m.agents).map(move |a| (i, a, features(&m.x[a], &m.y[a]))))
+        let indices: Vec<usize> = (0..motions.len())
+            .filter(|&i| motions[i].group.map == map)
             .collect();
-        let features: Vec<Features> = agents.iter().map(|a| a.2).collect();
-        let roles = roles(&features, named_seed(&map).value());
-        rows.extend(
-            agents
-                .into_iter()
-                .zip(roles)
-                .map(|((motion, agent, features), role)| AgentRole {
-                    motion,
-                    agent,
-                    features,
-                    role,
-                }),
-        );
+        let pool: Vec<&Motion> = indices.iter().map(|&i| &motions[i]).collect();
+        rows.extend(pooled_roles(&pool).into_iter().map(|role| AgentRole {
+            motion: indices[role.motion],
+            ..role
+        }));
     }
     rows
+}
+
+/// The roles of every agent of `pool`, motions of one map (`motion` indexes `pool`): one
+/// 2-means over all of them, so that "stationary" means still next to the map's other
+/// recorded agents, not merely the stiller half of one team.
+fn pooled_roles(pool: &[&Motion]) -> Vec<AgentRole> {
+    let Some(first) = pool.first() else {
+        return Vec::new();
+    };
+    let agents: Vec<(usize, usize, Features)> = (pool.iter().enumerate())
+        .flat_map(|(i, m)| (0..m.agents).map(move |a| (i, a, features(&m.x[a], &m.y[a]))))
+        .collect();
+    let features: Vec<Features> = agents.iter().map(|a| a.2).collect();
+    let roles = roles(&features, named_seed(&first.group.map).value());
+    agents
+        .into_iter()
+        .zip(roles)
+        .map(|((motion, agent, features), role)| AgentRole {
+            motion,
+            agent,
+            features,
+            role,
+        })
+        .collect()
 }
 
 fn role_frame(motions: &[Motion], rows: &[AgentRole]) -> PolarsResult<DataFrame> {
@@ -391,7 +418,7 @@ fn role_frame(motions: &[Motion], rows: &[AgentRole]) -> PolarsResult<DataFrame>
     DataFrame::new(rows.len(), columns)
 }
 
-/// What one recorded episode shows, as claims test it.
+/// What one episode shows (a recorded one, or one a behaviour claim replays).
 pub struct EpisodeBehaviour {
     pub group: super::columns::GroupKey,
     pub stationary: usize,
@@ -446,22 +473,21 @@ fn phase_wander(signals: &[Vec<f64>], agents: &[usize], period: f64) -> Option<f
     Some(wander)
 }
 
-/// Every recorded episode's behaviour.
-pub fn summaries(motions: &[Motion]) -> Vec<EpisodeBehaviour> {
-    let rhythm = rhythms(motions);
-    let roles = agent_roles(motions);
-    (0..motions.len())
-        .map(|index| summary(motions, index, &rhythm, &roles))
-        .collect()
+/// The behaviour of `pool[index]`, its roles pooled with the rest of `pool` (motions of one
+/// map, as the report pools a map's recorded episodes); `None` when `index` is outside it.
+pub fn measure(pool: &[&Motion], index: usize) -> Option<EpisodeBehaviour> {
+    let motion = pool.get(index)?;
+    let rhythm = motion_rhythms(index, motion);
+    Some(summary(motion, index, &rhythm, &pooled_roles(pool)))
 }
 
+/// The behaviour of `motion`, whose rows in `rhythm` and `roles` are those of `index`.
 fn summary(
-    motions: &[Motion],
+    motion: &Motion,
     index: usize,
     rhythm: &[Rhythm],
     roles: &[AgentRole],
 ) -> EpisodeBehaviour {
-    let motion = &motions[index];
     let of = |signal: &'static str| {
         rhythm
             .iter()

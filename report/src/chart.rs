@@ -1,17 +1,19 @@
 //! Figures drawn once and rendered twice: PNG (for the README) and SVG (for print), with
 //! Plotters and an embedded font, so reports need no system fonts.
 
+pub mod axis;
 pub mod bars;
 pub mod grid;
 pub mod heatmap;
+pub mod legend;
 pub mod lines;
+pub mod marker;
 
 use std::sync::OnceLock;
 
 use engine::palette;
 use image::ImageEncoder;
-use plotters::coord::Shift;
-use plotters::coord::types::RangedCoordf64;
+use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
@@ -89,8 +91,8 @@ fn register_embedded_font() -> Result<(), ChartError> {
 }
 
 /// The series' legend, boxed on a translucent white, in the corner `position`.
-pub fn draw_legend<'a, DB: DrawingBackend + 'a>(
-    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+pub fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
     position: SeriesLabelPosition,
     font_size: u32,
 ) -> Result<(), ChartError> {
@@ -104,7 +106,8 @@ pub fn draw_legend<'a, DB: DrawingBackend + 'a>(
     Ok(())
 }
 
-/// The colour of series `index`: distinct, and the same series keeps its colour everywhere.
+/// The colour of series `index`: distinct for twenty, and the same series keeps its colour
+/// everywhere; [`marker::marker`] gives it its shape.
 pub fn series_colour(index: usize) -> RGBColor {
     rgb(palette::series(index))
 }
@@ -160,6 +163,16 @@ fn trimmed(value: f64, decimals: usize) -> String {
         true => text.trim_end_matches('0').trim_end_matches('.').to_owned(),
         false => text,
     }
+}
+
+/// The label of the item at `x` when `x` is an item's centre (an integer), nothing between
+/// items: grouped bars and heat map cells sit at integers, their axes ticked halfway too.
+pub fn centre_label(labels: &[String], x: f64) -> String {
+    let nearest = x.round();
+    if (x - nearest).abs() > 1e-6 || nearest < 0.0 {
+        return String::new();
+    }
+    labels.get(nearest as usize).cloned().unwrap_or_default()
 }
 
 /// Axis range with a margin, never empty.
@@ -240,6 +253,57 @@ mod tests {
     }
 
     #[test]
+    fn log_scaled_bars_with_run_points_and_spread_curves_render() {
+        let interval = |value: f64| {
+            Some(bars::Interval {
+                value,
+                low: value * 0.8,
+                high: value * 1.2,
+            })
+        };
+        let series = (0..14).map(|s| bars::BarSeries {
+            label: format!("policy {s}"),
+            values: vec![interval(300.0 + s as f64), interval(0.5)],
+            runs: vec![vec![250.0, 320.0, 380.0], vec![0.3, 0.7]],
+        });
+        let figure = bars::GroupedBars {
+            title: "four_room".into(),
+            x_label: "N_test".into(),
+            y_label: "penalty".into(),
+            groups: vec!["2".into(), "6".into()],
+            series: series.collect(),
+        };
+        assert!(figure.axis().log, "300 against 0.5");
+        assert_renders(&figure);
+        let curve = |scale: f64| -> Vec<(f64, f64)> {
+            (0..40)
+                .map(|i| (i as f64, scale * (1.0 + i as f64)))
+                .collect()
+        };
+        assert_renders(&lines::LineChart {
+            x_label: "training episode".into(),
+            panels: vec![lines::Panel {
+                title: "runs".into(),
+                y_label: "penalty".into(),
+                lines: vec![lines::Spread {
+                    line: lines::Line {
+                        label: "ma-g-ppo".into(),
+                        points: curve(2.0),
+                        band: Some(
+                            curve(1.0)
+                                .iter()
+                                .zip(curve(300.0))
+                                .map(|(l, h)| (l.1, h.1))
+                                .collect(),
+                        ),
+                    },
+                    traces: vec![curve(1.0), curve(300.0)],
+                }],
+            }],
+        });
+    }
+
+    #[test]
     fn ticks_are_short() {
         let labels: Vec<String> = [0.0, 5.0, 45.0, 0.25, 1.0 / 3.0, 2500.0, 250000.0, -0.0004]
             .into_iter()
@@ -252,6 +316,15 @@ mod tests {
                 "0", "5", "45", "0.25", "0.333", "2500", "2.5e5", "-4e-4", "0"
             ]
         );
+    }
+
+    #[test]
+    fn only_centres_are_labelled() {
+        let labels = vec!["2".to_owned(), "4".to_owned()];
+        assert_eq!(centre_label(&labels, 1.0), "4");
+        assert_eq!(centre_label(&labels, 0.5), "");
+        assert_eq!(centre_label(&labels, 2.0), "");
+        assert_eq!(centre_label(&labels, -1.0), "");
     }
 
     #[test]

@@ -1,32 +1,112 @@
 //! Pairwise comparisons of policies on one map and N_test: the difference of mean penalties
-//! and the probability of improvement, each with a 95 % stratified bootstrap interval, so no
-//! claim rests on two means alone.
+//! and the probability of improvement, each with a 95 % bootstrap interval over the unit of
+//! replication (a learned policy's training runs, a baseline's episodes: `engine::stats`), so
+//! no claim rests on two means alone.
 
 use polars::prelude::*;
 use rayon::prelude::*;
 
-use super::columns::{GroupKey, PolicyKey, f64s, group_rows, named_seed, strings};
+use super::columns::{GroupKey, PolicyKey, f64s, group_rows, named_seed, strings, u32s};
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use engine::stats::{
-    RESAMPLES, comparison_interval, mean, mean_difference, probability_of_improvement,
+    self, Block, Bootstrap, Pairing, RESAMPLES, StatsError, Unit, UnitsStatistic, bootstrap,
+    mean_difference, probability_of_improvement,
 };
 
-const CONFIDENCE: f64 = 0.95;
+pub const CONFIDENCE: f64 = 0.95;
 
-/// One policy's penalties (10^6) on a (map, N_test), by training run (cell).
+/// One policy's penalties (10^6) on a (map, N_test), by cell: for a learned policy, by
+/// training run.
 pub struct Sample {
     pub group: GroupKey,
+    /// Each stratum's cell key.
+    pub cells: Vec<String>,
+    /// Each stratum's test episode numbers, in the order of its values.
+    pub episodes: Vec<Vec<u32>>,
     pub strata: Vec<Vec<f64>>,
 }
 
 impl Sample {
-    pub fn strata(&self) -> Vec<&[f64]> {
-        self.strata.iter().map(Vec::as_slice).collect()
+    /// A learned policy (one with an N_train) is replicated by training runs, a baseline by
+    /// test episodes.
+    pub fn unit(&self) -> Unit {
+        match self.group.policy.n_train {
+            Some(_) => Unit::Run,
+            None => Unit::Episode,
+        }
+    }
+
+    /// The sample as the bootstrap draws it.
+    pub fn drawn(&self) -> stats::Sample<'_> {
+        stats::Sample::new(self.strata.iter().map(Vec::as_slice).collect(), self.unit())
+    }
+
+    /// What statistics see: each run's mean, or every episode.
+    pub fn units(&self) -> Result<Vec<f64>, StatsError> {
+        self.drawn().units()
     }
 
     pub fn values(&self) -> Vec<f64> {
         self.strata.concat()
     }
+
+    /// The cells (training runs) it holds.
+    pub fn runs(&self) -> usize {
+        self.strata.len()
+    }
+}
+
+/// How `samples` are drawn together: samples holding the same cells (one policy's runs under
+/// two conditions, or at two team sizes) are paired by cell, and by episode where they hold
+/// the same test episodes of the same N_test; any other sample is drawn on its own. Returns
+/// the blocks and, block by block, the index in `samples` of each of their samples.
+pub fn blocks<'a>(samples: &[&'a Sample]) -> (Vec<Block<'a>>, Vec<usize>) {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, sample) in samples.iter().enumerate() {
+        match groups
+            .iter_mut()
+            .find(|g| samples[g[0]].cells == sample.cells)
+        {
+            Some(group) => group.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    let block = |group: &Vec<usize>| -> Block<'a> {
+        let members: Vec<&Sample> = group.iter().map(|&i| samples[i]).collect();
+        if let [one] = members[..] {
+            return Block::single(one.drawn());
+        }
+        let first = members[0];
+        let same_episodes = members
+            .iter()
+            .all(|m| m.episodes == first.episodes && m.group.n_test == first.group.n_test);
+        let pairing = if same_episodes {
+            Pairing::StrataAndEpisodes
+        } else {
+            Pairing::Strata
+        };
+        let drawn = members.iter().map(|m| m.drawn()).collect();
+        Block::paired(drawn, pairing).expect("samples of the same cells pair")
+    };
+    (groups.iter().map(block).collect(), groups.concat())
+}
+
+/// The bootstrap of `statistic` over `samples`' units, drawn as [`blocks`] draws them. The
+/// statistic sees the units in the order of `samples`.
+pub fn bootstrap_of(
+    samples: &[&Sample],
+    statistic: UnitsStatistic,
+    seed: world::Seed,
+) -> Result<Bootstrap, StatsError> {
+    let (blocks, order) = blocks(samples);
+    let in_caller_order = |units: &[Vec<f64>]| -> Result<f64, StatsError> {
+        let mut by_caller = vec![Vec::new(); units.len()];
+        for (position, &caller) in order.iter().enumerate() {
+            by_caller[caller] = units[position].clone();
+        }
+        statistic(&by_caller)
+    };
+    bootstrap(&blocks, &in_caller_order, RESAMPLES, seed)
 }
 
 /// A compared pair: `a` better than `b` when `p_improvement` > 0.5.
@@ -37,6 +117,8 @@ pub struct Comparison {
     pub b: PolicyKey,
     pub mean_a: f64,
     pub mean_b: f64,
+    pub runs_a: usize,
+    pub runs_b: usize,
     pub difference: (f64, f64, f64),
     pub p_improvement: (f64, f64, f64),
 }
@@ -64,41 +146,65 @@ pub fn samples(episodes: &DataFrame) -> Result<Vec<Sample>, ReportError> {
 pub fn samples_of(frame: &DataFrame, column: &str, unit: f64) -> Result<Vec<Sample>, ReportError> {
     let groups = GroupKey::of_rows(frame)?;
     let cells = strings(frame, "cell_key")?;
+    let numbers = u32s(frame, "episode")?;
     let values = f64s(frame, column)?;
     Ok(group_rows(&groups)
         .into_iter()
         .map(|(group, rows)| {
             let keys: Vec<&String> = rows.iter().map(|&r| &cells[r]).collect();
-            let strata = group_rows(&keys)
-                .into_iter()
-                .map(|(_, within)| within.iter().map(|&i| values[rows[i]] / unit).collect())
-                .collect();
-            Sample { group, strata }
+            let by_cell = group_rows(&keys);
+            let pick = |within: &[usize], f: &dyn Fn(usize) -> f64| -> Vec<f64> {
+                within.iter().map(|&i| f(rows[i])).collect()
+            };
+            Sample {
+                group,
+                cells: by_cell.iter().map(|(key, _)| (*key).clone()).collect(),
+                episodes: by_cell
+                    .iter()
+                    .map(|(_, within)| within.iter().map(|&i| numbers[rows[i]]).collect())
+                    .collect(),
+                strata: by_cell
+                    .iter()
+                    .map(|(_, within)| pick(within, &|row| values[row] / unit))
+                    .collect(),
+            }
         })
         .collect())
 }
 
+/// Difference of means and probability of improvement over units (rliable's, over runs for
+/// a learned policy), each with its bootstrap and its estimate.
+pub fn difference_and_improvement(
+    a: &Sample,
+    b: &Sample,
+    seed: world::Seed,
+) -> Result<(Bootstrap, Bootstrap), StatsError> {
+    let difference = |u: &[Vec<f64>]| mean_difference(&u[0], &u[1]);
+    let improvement = |u: &[Vec<f64>]| probability_of_improvement(&u[0], &u[1]);
+    Ok((
+        bootstrap_of(&[a, b], &difference, seed.child(0))?,
+        bootstrap_of(&[a, b], &improvement, seed.child(1))?,
+    ))
+}
+
 fn compare(a: &Sample, b: &Sample) -> Result<Comparison, ReportError> {
-    let strata = |s: &'_ Sample| -> Vec<Vec<f64>> { s.strata.clone() };
-    let (x, y) = (strata(a), strata(b));
-    let x: Vec<&[f64]> = x.iter().map(Vec::as_slice).collect();
-    let y: Vec<&[f64]> = y.iter().map(Vec::as_slice).collect();
-    let (all_x, all_y) = (x.concat(), y.concat());
     let seed = named_seed(&format!("{}\0{}", a.group.label(), b.group.label()));
-    let interval = |statistic, branch| {
-        comparison_interval(&x, &y, statistic, CONFIDENCE, RESAMPLES, seed.child(branch))
+    let (difference, p) = difference_and_improvement(a, b, seed)?;
+    let with_interval = |boot: &Bootstrap| -> Result<(f64, f64, f64), StatsError> {
+        let (low, high) = boot.interval(CONFIDENCE)?;
+        Ok((boot.estimate, low, high))
     };
-    let difference = interval(mean_difference, 0)?;
-    let p = interval(probability_of_improvement, 1)?;
     Ok(Comparison {
         map: a.group.map.clone(),
         n_test: a.group.n_test,
         a: a.group.policy.clone(),
         b: b.group.policy.clone(),
-        mean_a: mean(&all_x)?,
-        mean_b: mean(&all_y)?,
-        difference: (mean_difference(&all_x, &all_y)?, difference.0, difference.1),
-        p_improvement: (probability_of_improvement(&all_x, &all_y)?, p.0, p.1),
+        mean_a: stats::mean(&a.units()?)?,
+        mean_b: stats::mean(&b.units()?)?,
+        runs_a: a.runs(),
+        runs_b: b.runs(),
+        difference: with_interval(&difference)?,
+        p_improvement: with_interval(&p)?,
     })
 }
 
@@ -118,6 +224,8 @@ pub fn frame(comparisons: &[Comparison]) -> PolarsResult<DataFrame> {
         "n_train_b" => count(|c| c.b.n_train),
         "mean_a" => number(|c| c.mean_a),
         "mean_b" => number(|c| c.mean_b),
+        "runs_a" => comparisons.iter().map(|c| c.runs_a as u32).collect::<Vec<u32>>(),
+        "runs_b" => comparisons.iter().map(|c| c.runs_b as u32).collect::<Vec<u32>>(),
         "difference" => number(|c| c.difference.0),
         "difference_ci_low" => number(|c| c.difference.1),
         "difference_ci_high" => number(|c| c.difference.2),
@@ -128,13 +236,19 @@ pub fn frame(comparisons: &[Comparison]) -> PolarsResult<DataFrame> {
 }
 
 pub fn section(report: &mut ReportWriter, comparisons: &[Comparison]) -> Result<(), ReportError> {
-    report.heading(2, "Pairwise comparisons");
+    report.heading(
+        2,
+        "Pairwise comparisons: how far apart is each pair of policies?",
+    );
     report.paragraph(
         "Every pair of policies on each map and N_test: `difference` = mean_a - mean_b \
          (10^6; negative: a has the lower penalty) with its 95 % interval, and `p_a_better`, \
-         the probability that an episode of a has a lower penalty than one of b (ties count \
-         half) with its 95 % interval. An interval of the difference that excludes 0, or of \
-         the probability that excludes 0.5, marks a difference the test episodes support.",
+         the probability that a draw of a has a lower penalty than one of b (ties count half) \
+         with its 95 % interval. A draw is a training run (its mean over the test episodes) \
+         for a learned policy, a test episode for a baseline; `runs_a` and `runs_b` count the \
+         cells (training runs of a learned policy). Intervals draw runs, then episodes within \
+         them (see How we decide); an interval of the difference that excludes 0 marks a \
+         difference the training runs support.",
     );
     report.table("comparisons", &frame(comparisons)?)
 }

@@ -2,7 +2,8 @@
 //! episode, or messages cut, from the store's disturbed tables. The headline stays the
 //! cumulative penalty; beside it the per-step penalty before and after the loss, its level
 //! over the last quarter, and the adaptation ratio: that level over the level of an
-//! undisturbed team of the survivors' size (the same policy, trained for that size).
+//! undisturbed team of the survivors' size (the same policy: a learned one's same training
+//! runs, trained for the whole team).
 
 use std::collections::{BTreeMap, HashMap};
 
@@ -11,18 +12,16 @@ use polars::prelude::*;
 use super::chart::grid::{GridFigure, GridPanel};
 use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{GroupKey, distinct, f64s, optional_u32s, strings, u32s};
-use super::comparison::{Sample, samples, samples_of};
+use super::comparison::{CONFIDENCE, Sample, bootstrap_of, samples, samples_of};
 use super::motion::map_shades;
 use super::{ReportError, ReportWriter, file_stem};
 use engine::claims::Point;
 use engine::disturbance::UNDISTURBED;
-use engine::stats::{RESAMPLES, StatsError, mean, samples_interval, standard_deviation};
+use engine::stats::{StatsError, mean, standard_deviation};
 use world::Map;
 
 /// Per-step penalties are reported in thousands.
 pub const PER_STEP_UNIT: f64 = 1e3;
-
-const CONFIDENCE: f64 = 0.95;
 
 /// The disturbed table's samples by disturbance (`none` included): cumulative penalties
 /// (10^6) and last-quarter per-step penalties (10^3), with the robots each disturbance loses.
@@ -65,7 +64,8 @@ impl DisturbedSamples {
     }
 
     /// `policy`'s last-quarter samples at `point` under `disturbance`, and those of its
-    /// undisturbed team of survivors (N - k, trained with N - k), or what is missing.
+    /// undisturbed team of survivors: the same policy (for a learned one, the same training
+    /// runs, trained with N) playing with N - k; or what is missing.
     pub fn ratio_samples(
         &self,
         policy: &str,
@@ -80,7 +80,7 @@ impl DisturbedSamples {
         let reference = Point {
             map: point.map.clone(),
             n_test: survivors,
-            n_train: survivors,
+            n_train: point.n_train,
         };
         let label = |p: &Point| format!("{} N={}", p.map, p.n_test);
         let disturbed =
@@ -111,21 +111,16 @@ pub fn ratio(replicates: &[Vec<f64>]) -> Result<f64, StatsError> {
     Ok(mean(&replicates[0])? / mean(&replicates[1])?)
 }
 
-/// The ratio of means of two samples, with its 95 % stratified bootstrap interval.
+/// The ratio of means of two samples, with its 95 % bootstrap interval (the same training
+/// runs drawn together).
 fn ratio_interval(
     disturbed: &Sample,
     reference: &Sample,
     seed: world::Seed,
 ) -> Result<(f64, f64, f64), StatsError> {
-    let whole = [disturbed.values(), reference.values()];
-    let (low, high) = samples_interval(
-        &[&disturbed.strata(), &reference.strata()],
-        &ratio,
-        CONFIDENCE,
-        RESAMPLES,
-        seed,
-    )?;
-    Ok((ratio(&whole)?, low, high))
+    let boot = bootstrap_of(&[disturbed, reference], &ratio, seed)?;
+    let (low, high) = boot.interval(CONFIDENCE)?;
+    Ok((boot.estimate, low, high))
 }
 
 pub fn section(
@@ -134,16 +129,20 @@ pub fn section(
     steps: &DataFrame,
     maps: &HashMap<String, Map>,
 ) -> Result<(), ReportError> {
-    report.heading(2, "Disturbances");
+    report.heading(
+        2,
+        "Disturbances: how do teams cope with a lost robot or cut links?",
+    );
     report.paragraph(&format!(
         "Every test episode was played again from the same start and seed under each of the \
          scenario's disturbances (`{UNDISTURBED}`: not disturbed). `undisturbed` and \
          `disturbed` are mean cumulative penalties (10^6) and `change` the relative increase. \
          For a disturbance that loses robots: the mean penalty per step (10^3) before and \
          after the loss, over the last quarter of the episode, and of the undisturbed team of \
-         the survivors' size (`reference`, a learned policy trained for that size); the \
-         adaptation `ratio` is last quarter over reference with its 95 % interval (1: the \
-         survivors do as well as a team trained for their number), and `settle_steps` the \
+         the survivors' size (`reference`: the same policy, a learned one's same training \
+         runs playing with N - k robots); the adaptation `ratio` is last quarter over \
+         reference with its 95 % interval, drawn run by run (lower is better; 1: the \
+         survivors do as well as the same team with their number undisturbed), and `settle_steps` the \
          mean steps until the per-step penalty, averaged over T/10 steps, stays within 10 % of \
          its last-quarter level (the rest of the episode: it did not settle). Learned policies \
          are shown with N_train = N_test."
@@ -395,10 +394,8 @@ fn curves(report: &mut ReportWriter, steps: &DataFrame) -> Result<(), ReportErro
             x_label: "step (end of a bin of T/50 steps)".into(),
             panels,
         };
-        let caption = format!(
-            "`{map}`, N = {n}: mean penalty per step over test episodes, per policy, with +-0.5 \
-             standard deviation bands (cut at 0); one panel per disturbance"
-        );
+        let log = chart.panels.iter().any(|p| p.axis().log);
+        let caption = curves_caption(&map, n, log);
         report.figure(
             &file_stem(&["disturbance", &map, &format!("n{n}")]),
             &chart,
@@ -406,6 +403,24 @@ fn curves(report: &mut ReportWriter, steps: &DataFrame) -> Result<(), ReportErro
         )?;
     }
     Ok(())
+}
+
+/// What a disturbance figure's curves and bands are: spreads of test episodes, the training
+/// runs' pooled, not of the runs themselves.
+fn curves_caption(map: &str, n: u32, log: bool) -> String {
+    let scale = match log {
+        true => {
+            "; a panel whose curves span more than two decades has a log value axis (its \
+                 label says so)"
+        }
+        false => "",
+    };
+    format!(
+        "`{map}`, N = {n}: mean penalty per step over the test episodes of every training run \
+         pooled, per policy (its colour and marker), with a band of +-0.5 standard deviation \
+         of those episodes (a spread of episodes, not of training runs; cut at 0, as a penalty \
+         is never negative); one panel per disturbance{scale}"
+    )
 }
 
 /// Per map, at its largest team that loses a robot: where each policy's robots were at the

@@ -22,7 +22,7 @@ pub fn section(
     trajectories: &DataFrame,
     store: &Store,
 ) -> Result<(), ReportError> {
-    report.heading(2, "Map illustration");
+    report.heading(2, "Map illustration: what does an agent see?");
     let maps = maps(store)?;
     let keys = strings(snapshots, "cell_key")?;
     let names = strings(snapshots, "map")?;

@@ -6,10 +6,13 @@
 //! 10^6, as in the paper.
 
 pub mod behaviour;
+mod behaviour_claims;
+pub mod behaviour_replay;
 pub mod chart;
 mod columns;
 mod comparison;
 mod disturbance;
+pub mod header;
 mod illustration;
 pub mod markdown;
 pub mod motion;
@@ -26,7 +29,7 @@ use polars::prelude::*;
 use chart::{ChartError, Figure, render};
 use engine::atomic_file::write_atomic;
 use engine::status::CellState;
-use engine::store::{Store, StoreError, tables};
+use engine::store::{MissingCell, Store, StoreError, tables};
 use world::Map;
 
 /// Penalties are reported in millions, as in the paper.
@@ -53,6 +56,8 @@ pub enum ReportError {
     Claims(#[from] engine::scenario::ScenarioError),
     #[error(transparent)]
     Status(#[from] engine::status::StatusError),
+    #[error(transparent)]
+    Behaviour(#[from] behaviour_replay::BehaviourError),
 }
 
 /// What a report wrote.
@@ -61,9 +66,16 @@ pub struct ReportSummary {
     pub folder: PathBuf,
     pub tables: usize,
     pub figures: usize,
+    /// The bytes of the table store it carries in `store/`.
+    pub store_bytes: u64,
 }
 
-/// Writes the report of the sweep in `store` to `reports_root/<scenario>/`.
+/// The folder of a report that holds the table store it was written from.
+pub const STORE_FOLDER: &str = "store";
+
+/// Writes the report of the sweep in `store` (a sweep's store or a table store) to
+/// `reports_root/<scenario>/`, with the store's tables as a table store in its `store/`, so
+/// that the report can be rebuilt, byte for byte, from the repository alone.
 pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary, ReportError> {
     let manifest = store
         .manifest()?
@@ -72,33 +84,41 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
     report.heading(1, &format!("Report: {}", manifest.scenario));
     report.paragraph(&format!(
         "The sweep `{}` ({} cells, code version `{}`, scenario blake3 `{}`). Cumulative \
-         penalties are per test episode, in units of 10^6; intervals are 95 % stratified \
-         bootstrap intervals over test episodes within training runs.",
+         penalties are per test episode, in units of 10^6.",
         manifest.scenario,
         manifest.cells.len(),
         manifest.code_version,
         &manifest.scenario_hash[..16.min(manifest.scenario_hash.len())],
     ));
-    if let Some(cells) = optional_table(store, "cells")? {
-        report.paragraph(&provenance(&cells)?);
-    }
-    if let Some(missing) = missing_cells(store)? {
-        report.paragraph(&missing);
-    }
     let loaded = StoreTables::load(store)?;
+    let cells = optional_table(store, "cells")?;
+    let header = header::HeaderTables {
+        cells: cells.as_ref(),
+        episodes: &loaded.episodes,
+        training: loaded.training.as_ref(),
+    };
+    header::section(&mut report, &header)?;
+    let missing = missing_cells(store)?;
+    if !missing.is_empty() {
+        report.paragraph(&missing_paragraph(&missing, manifest.cells.len()));
+    }
     let claims = store_claims(store)?;
     if !claims.is_empty() {
-        verdicts::section(&mut report, &loaded.verdicts(&claims)?)?;
+        let measures = loaded.behaviour_measures(&claims)?;
+        verdicts::section(&mut report, &loaded.judge(&claims, &measures)?)?;
+        // Under the behaviour claims' verdicts: every run's share and every episode.
+        behaviour_claims::section(&mut report, &claims, &measures)?;
     }
     let StoreTables {
         episodes,
         training,
         motions,
         disturbed,
+        ..
     } = loaded;
     let summary = store.table("summary")?;
     let comparisons = comparison::comparisons(&episodes)?;
-    penalty::section(&mut report, &summary, &comparisons)?;
+    penalty::section(&mut report, &summary, &episodes, &comparisons)?;
     comparison::section(&mut report, &comparisons)?;
     transfer::section(&mut report, &summary)?;
     if let (Some(disturbed), Some(steps)) = (&disturbed, optional_table(store, "disturbed_steps")?)
@@ -118,68 +138,48 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
     ) {
         illustration::section(&mut report, &snapshots, &trajectories, store)?;
     }
-    report.finish()
-}
-
-/// Where the cells were computed: each CPU and kernel build with its count of cells, and the
-/// commits. Equal bits on every machine are the claim; the report names the machines.
-fn provenance(cells: &DataFrame) -> PolarsResult<String> {
-    let column = |name: &str| -> PolarsResult<Vec<String>> {
-        match cells.column(name) {
-            Ok(_) => columns::strings(cells, name),
-            Err(_) => Ok(vec![String::new(); cells.height()]),
-        }
-    };
-    let (cpus, kernels) = (column("cpu")?, column("kernels")?);
-    let platforms: Vec<String> = cpus
-        .iter()
-        .zip(&kernels)
-        .map(|(cpu, kernels)| match (cpu.as_str(), kernels.as_str()) {
-            ("", _) => "an unrecorded CPU".to_owned(),
-            (cpu, kernels) => format!("{cpu} with {kernels} kernels"),
-        })
-        .collect();
-    let counted: Vec<String> = columns::group_rows(&platforms)
-        .into_iter()
-        .map(|(platform, rows)| format!("{} on {platform}", rows.len()))
-        .collect();
-    let commits = columns::distinct(column("git_commit")?).join("`, `");
-    let wall_seconds: f64 = columns::f64s(cells, "wall_seconds")?.iter().sum();
-    Ok(format!(
-        "Cells computed: {} (commit `{commits}`), in {:.0} s of wall time summed over cells.",
-        counted.join("; "),
-        wall_seconds
-    ))
+    let store_bytes = store.write_table_store(&report.folder.join(STORE_FOLDER), &missing)?;
+    report.finish(store_bytes)
 }
 
 /// The cells of the sweep that its tables lack, failed or not run, each with why: every
-/// figure and verdict rests on the others, and the reader must know which. `None` when every
-/// cell is there.
-fn missing_cells(store: &Store) -> Result<Option<String>, ReportError> {
+/// figure and verdict rests on the others, and the reader must know which. A table store
+/// keeps the list its report printed: its cells are complete by construction.
+fn missing_cells(store: &Store) -> Result<Vec<MissingCell>, ReportError> {
+    if let Some(marker) = store.table_store()? {
+        return Ok(marker.missing);
+    }
     let status = engine::status::sweep_status(store.root())?;
-    let lines: Vec<String> = status
+    Ok(status
         .cells
-        .iter()
+        .into_iter()
         .filter_map(|cell| {
-            let why = match &cell.state {
+            let why = match cell.state {
                 CellState::Done { .. } => return None,
                 CellState::Failed { failure, .. } => format!("failed: {}", failure.error),
                 CellState::Running { .. } => "still running".to_owned(),
                 CellState::Missing { .. } => "not run".to_owned(),
             };
-            Some(format!("- {} (`{}`): {why}", cell.label, cell.key))
+            Some(MissingCell {
+                label: cell.label,
+                key: cell.key,
+                why,
+            })
         })
+        .collect())
+}
+
+fn missing_paragraph(missing: &[MissingCell], cells: usize) -> String {
+    let lines: Vec<String> = missing
+        .iter()
+        .map(|cell| format!("- {} (`{}`): {}", cell.label, cell.key, cell.why))
         .collect();
-    if lines.is_empty() {
-        return Ok(None);
-    }
-    Ok(Some(format!(
-        "**{} of {} cells are missing** from these tables, and every number, figure and verdict \
-         below rests on the others:\n\n{}",
-        lines.len(),
-        status.cells.len(),
+    format!(
+        "**{} of {cells} cells are missing** from these tables, and every number, figure and \
+         verdict below rests on the others:\n\n{}",
+        missing.len(),
         lines.join("\n")
-    )))
+    )
 }
 
 /// The claims of the scenario as the sweep ran it (its copy in the store).
@@ -199,10 +199,15 @@ pub struct StoreTables {
     pub motions: Option<(HashMap<String, Map>, Vec<motion::Motion>)>,
     /// The episodes played under disturbances, when the scenario declared any.
     pub disturbed: Option<DataFrame>,
+    /// Where behaviour claims' test episodes are replayed from, and their measures kept.
+    store: Store,
 }
 
 impl StoreTables {
+    /// The tables of a sweep's store or of a table store (its files checked against its
+    /// marker first).
     pub fn load(store: &Store) -> Result<Self, ReportError> {
+        store.table_store()?;
         let motions = match optional_table(store, "trajectories")? {
             Some(trajectories) => Some(motion::load(&trajectories, store)?),
             None => None,
@@ -212,6 +217,7 @@ impl StoreTables {
             training: optional_table(store, "training")?,
             motions,
             disturbed: optional_table(store, "disturbed")?,
+            store: store.clone(),
         })
     }
 
@@ -220,14 +226,35 @@ impl StoreTables {
         &self,
         claims: &[engine::claims::Claim],
     ) -> Result<Vec<verdicts::ClaimResult>, ReportError> {
-        let behaviours = self.motions.as_ref().map(|(_, m)| behaviour::summaries(m));
+        self.judge(claims, &self.behaviour_measures(claims)?)
+    }
+
+    /// The verdict of every claim, the behaviour claims' from `behaviours`, their measures.
+    pub fn judge(
+        &self,
+        claims: &[engine::claims::Claim],
+        behaviours: &[behaviour_replay::EpisodeMeasure],
+    ) -> Result<Vec<verdicts::ClaimResult>, ReportError> {
         let recorded = verdicts::Recorded {
             episodes: &self.episodes,
             training: self.training.as_ref(),
-            behaviours: behaviours.as_deref(),
+            behaviours: Some(behaviours),
             disturbed: self.disturbed.as_ref(),
         };
         verdicts::evaluate(claims, &recorded)
+    }
+
+    /// Every test episode that the behaviour claims of `claims` read, measured (see
+    /// `behaviour_replay`).
+    pub fn behaviour_measures(
+        &self,
+        claims: &[engine::claims::Claim],
+    ) -> Result<Vec<behaviour_replay::EpisodeMeasure>, ReportError> {
+        let motions = self.motions.as_ref().map(|(_, m)| m.as_slice());
+        let (store, episodes) = (&self.store, &self.episodes);
+        let measures =
+            behaviour_replay::measures(store, claims, episodes, motions.unwrap_or_default())?;
+        Ok(measures)
     }
 }
 
@@ -357,7 +384,7 @@ impl ReportWriter {
         Ok(())
     }
 
-    fn finish(mut self) -> Result<ReportSummary, ReportError> {
+    fn finish(mut self, store_bytes: u64) -> Result<ReportSummary, ReportError> {
         let readme = std::mem::take(&mut self.readme);
         self.write("README.md", readme.as_bytes())?;
         self.remove_stale()?;
@@ -365,6 +392,7 @@ impl ReportWriter {
             folder: self.folder,
             tables: self.tables,
             figures: self.figures,
+            store_bytes,
         })
     }
 }

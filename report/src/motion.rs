@@ -70,7 +70,7 @@ pub fn section(
     maps: &HashMap<String, Map>,
     claims: &[Claim],
 ) -> Result<(), ReportError> {
-    report.heading(2, "Trajectories and motion");
+    report.heading(2, "Trajectories and motion: where do the agents go?");
     report.paragraph(
         "The first test episode of the first training run, drawn for every baseline, for \
          learned policies where N_train = N_test, and wherever a behaviour claim looks (the \
@@ -308,6 +308,7 @@ mod tests {
         let claim = Claim {
             id: "structure-holds".into(),
             paper: String::new(),
+            budget: None,
             test: ClaimTest::Behaviour {
                 policy: "ma-g-ppo@fast".into(),
                 point: Point {

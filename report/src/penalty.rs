@@ -1,12 +1,14 @@
 //! RQ1: the cumulative penalty of every policy, per map and N_test, as a table and grouped
 //! bars with 95 % intervals, and the answer: the best policy at every (map, N_test) against
 //! the runner-up, with the probability of improvement between them. The table also carries
-//! the mean average and worst idleness (steps), the patrolling literature's figures.
+//! the mean average and worst idleness (steps), the patrolling literature's figures. Beside
+//! it, the mean of every training run (cell): the bars show them as points, so a bar that
+//! averages one collapsed run with two good ones reads as such.
 
 use polars::prelude::*;
 
 use super::chart::bars::{BarSeries, GroupedBars, Interval};
-use super::columns::{GroupKey, PolicyKey, distinct, f64s, group_rows, u32s};
+use super::columns::{GroupKey, PolicyKey, distinct, f64s, group_rows, strings, u32s};
 use super::comparison::Comparison;
 use super::markdown::number;
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
@@ -27,21 +29,32 @@ struct MapRows {
 pub fn section(
     report: &mut ReportWriter,
     summary: &DataFrame,
+    episodes: &DataFrame,
     comparisons: &[Comparison],
 ) -> Result<(), ReportError> {
-    report.heading(2, "Cumulative penalty of every policy");
+    report.heading(
+        2,
+        "Cumulative penalty of every policy: which leaves the least?",
+    );
+    let runs = runs_frame(episodes)?;
     for rows in map_rows(summary)? {
         report.heading(3, &format!("Map `{}`", rows.map));
         let frame = rows.frame()?;
+        let map_runs = runs.filter(&runs.column("map")?.str()?.equal(rows.map.as_str()))?;
+        let bars = rows.bars(&RunMeans::new(&map_runs)?);
         report.figure(
             &file_stem(&["penalty", &rows.map]),
-            &rows.bars(),
-            &format!(
-                "Mean cumulative penalty (10^6) on `{}` by N_test, with 95 % intervals",
-                rows.map
-            ),
+            &bars,
+            &bars_caption(&rows.map, bars.axis().log),
         )?;
         report.table(&file_stem(&["penalty", &rows.map]), &frame)?;
+        report.paragraph(&format!(
+            "The mean cumulative penalty (10^6) of every training run on `{}` (a learned \
+             policy's cell, identified by `cell_key` and `training_seed`; a baseline's cells \
+             are repetitions of its test episodes): the points on the bars.",
+            rows.map
+        ));
+        report.table(&file_stem(&["runs", &rows.map]), &map_runs)?;
     }
     let best = best_frame(summary, comparisons)?;
     report.heading(3, "Answer: the best policy at every map and N_test");
@@ -104,13 +117,14 @@ impl MapRows {
         )
     }
 
-    fn bars(&self) -> GroupedBars {
+    fn bars(&self, runs: &RunMeans) -> GroupedBars {
         let n_tests = distinct(self.groups.iter().map(|g| g.n_test));
         let policies: Vec<PolicyKey> = distinct(self.groups.iter().map(|g| g.policy.clone()));
         let series = policies
             .iter()
             .map(|policy| BarSeries {
                 label: policy.label(),
+                runs: n_tests.iter().map(|&n| runs.of(policy, n)).collect(),
                 values: n_tests
                     .iter()
                     .map(|&n| {
@@ -134,6 +148,70 @@ impl MapRows {
             groups: n_tests.iter().map(|n| n.to_string()).collect(),
             series,
         }
+    }
+}
+
+fn bars_caption(map: &str, log: bool) -> String {
+    let scale = match log {
+        true => "; the value axis is on a log scale, as the values span more than two decades",
+        false => "",
+    };
+    format!(
+        "Mean cumulative penalty (10^6) on `{map}` by N_test, with 95 % intervals; a point per \
+         training run (a baseline's: per repetition) at its mean, each policy its own marker{scale}"
+    )
+}
+
+/// One row per (map, policy, N_train, N_test, cell) of the episodes table, in its order: the
+/// cell's training seed, episodes and mean cumulative penalty (10^6).
+fn runs_frame(episodes: &DataFrame) -> Result<DataFrame, ReportError> {
+    let groups = GroupKey::of_rows(episodes)?;
+    let cells = strings(episodes, "cell_key")?;
+    let seeds = episodes.column("training_seed")?.cast(&DataType::UInt64)?;
+    let seeds: Vec<Option<u64>> = seeds.u64()?.iter().collect();
+    let penalties = f64s(episodes, "cumulative_penalty")?;
+    let keys: Vec<(GroupKey, String)> = groups.into_iter().zip(cells).collect();
+    let runs = group_rows(&keys);
+    let group = |f: fn(&GroupKey) -> String| -> Vec<String> {
+        runs.iter().map(|((g, _), _)| f(g)).collect()
+    };
+    let mean = |rows: &[usize]| {
+        rows.iter().map(|&r| penalties[r]).sum::<f64>() / rows.len() as f64 / PENALTY_UNIT
+    };
+    Ok(df!(
+        "map" => group(|g| g.map.clone()),
+        "policy" => group(|g| g.policy.policy.clone()),
+        "n_train" => runs.iter().map(|((g, _), _)| g.policy.n_train).collect::<Vec<_>>(),
+        "n_test" => runs.iter().map(|((g, _), _)| g.n_test).collect::<Vec<_>>(),
+        "cell_key" => runs.iter().map(|((_, cell), _)| cell.as_str()).collect::<Vec<_>>(),
+        "training_seed" => runs.iter().map(|(_, rows)| seeds[rows[0]]).collect::<Vec<_>>(),
+        "episodes" => runs.iter().map(|(_, rows)| rows.len() as u32).collect::<Vec<_>>(),
+        "mean" => runs.iter().map(|(_, rows)| mean(rows)).collect::<Vec<_>>(),
+    )?)
+}
+
+/// The runs table's means by (policy, N_test), as the bars draw them.
+struct RunMeans {
+    groups: Vec<GroupKey>,
+    mean: Vec<f64>,
+}
+
+impl RunMeans {
+    fn new(runs: &DataFrame) -> PolarsResult<Self> {
+        Ok(Self {
+            groups: GroupKey::of_rows(runs)?,
+            mean: f64s(runs, "mean")?,
+        })
+    }
+
+    /// The means of `policy`'s runs at `n_test`, in table order.
+    fn of(&self, policy: &PolicyKey, n_test: u32) -> Vec<f64> {
+        self.groups
+            .iter()
+            .zip(&self.mean)
+            .filter(|(g, _)| &g.policy == policy && g.n_test == n_test)
+            .map(|(_, &m)| m)
+            .collect()
     }
 }
 
@@ -283,4 +361,41 @@ fn answer_text(best: &DataFrame) -> Result<String, ReportError> {
         lines.push(line + ".");
     }
     Ok(lines.join("\n"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_training_run_gets_its_mean_and_the_bars_their_points() {
+        let episodes = df!(
+            "cell_key" => ["a", "a", "b", "b", "g"],
+            "map" => vec!["open"; 5],
+            "policy" => ["ma-g-ppo", "ma-g-ppo", "ma-g-ppo", "ma-g-ppo", "gcs"],
+            "n_train" => [Some(4u32), Some(4), Some(4), Some(4), None],
+            "training_seed" => [11u64, 11, 12, 12, 0],
+            "n_test" => [4u32; 5],
+            "cumulative_penalty" => [1e6, 3e6, 10e6, 20e6, 5e6],
+        )
+        .unwrap();
+        let runs = runs_frame(&episodes).unwrap();
+        assert_eq!(strings(&runs, "cell_key").unwrap(), ["a", "b", "g"]);
+        assert_eq!(f64s(&runs, "mean").unwrap(), [2.0, 15.0, 5.0]);
+        assert_eq!(u32s(&runs, "episodes").unwrap(), [2, 2, 1]);
+        let means = RunMeans::new(&runs).unwrap();
+        let learned = PolicyKey {
+            policy: "ma-g-ppo".into(),
+            n_train: Some(4),
+        };
+        assert_eq!(means.of(&learned, 4), [2.0, 15.0]);
+        assert!(means.of(&learned, 6).is_empty());
+    }
+
+    #[test]
+    fn the_caption_says_when_the_axis_is_logarithmic() {
+        assert!(bars_caption("four_room", true).contains("log scale"));
+        assert!(!bars_caption("open", false).contains("log"));
+        assert!(bars_caption("open", false).contains("a point per training run"));
+    }
 }

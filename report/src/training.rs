@@ -1,60 +1,86 @@
-//! Training curves: a learned policy's training penalty per episode (mean over training runs),
-//! as the rolling mean over a sixtieth of the run with a +-0.5 standard deviation band (the
-//! paper's figures: 500 of its 30,000 episodes). Policies trained with the same N_train on one map share a plot, so RQ2's three
-//! input choices appear together; with several maps, one more plot per N_train holds them
-//! all (RQ1's open against eight_room).
+//! Training curves: a learned policy's training penalty per episode, smoothed per training run
+//! by a rolling mean over a sixtieth of the run (the paper's figures: 500 of its 30,000
+//! episodes), never more than a quarter of it. Each run's own curve is drawn thin, the mean of
+//! the runs thick, and the band between them spans, at every episode, the lowest to the
+//! highest run: a run that collapsed stays visible, where a mean with a +-0.5 standard
+//! deviation band hid it. Policies trained with the same N_train on one map share a plot, so
+//! RQ2's three input choices appear together; with several maps, one more plot per N_train
+//! holds them all (RQ1's open against eight_room).
+
+use std::collections::BTreeMap;
 
 use polars::prelude::*;
 
-use super::chart::lines::{Line, LineChart, Panel};
+use super::chart::lines::{Line, LineChart, Panel, Spread};
 use super::columns::{PolicyKey, distinct, f64s, group_rows, optional_u32s, strings};
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 
 /// The paper's rolling window, 500 episodes of 30,000, as a fraction of the run, so that an
-/// 800-episode run is smoothed as much as the paper's (over 13 episodes), not flattened.
+/// 800-episode run is smoothed as much as the paper's (over 13 episodes), not flattened (a
+/// fixed 500 once smoothed a 400-episode run over all of it).
 const WINDOW_PER_EPISODE: f64 = 500.0 / 30_000.0;
 
-/// The rolling window of a run of `episodes` episodes.
+/// The rolling window of runs whose shortest has `episodes` episodes: the paper's share, at
+/// least 1 and at most a quarter of the run.
 fn window(episodes: usize) -> usize {
-    ((episodes as f64 * WINDOW_PER_EPISODE).round() as usize).max(1)
+    let share = (episodes as f64 * WINDOW_PER_EPISODE).round() as usize;
+    share.clamp(1, (episodes / 4).max(1))
 }
-/// Points kept per curve; longer curves are sampled evenly (their last episode always kept).
-const POINTS: usize = 2000;
 
+/// Points kept per curve; longer curves are sampled evenly (their last episode always kept).
+/// A figure is under 900 pixels wide.
+const POINTS: usize = 600;
+
+/// One training run's rolling mean, sampled.
+struct Run {
+    cell: String,
+    episode: Vec<u64>,
+    rolling: Vec<f64>,
+}
+
+/// One policy's training on one map: its runs, and at every episode the mean, the lowest
+/// and the highest of the runs' rolling means.
 struct Curve {
     map: String,
     policy: PolicyKey,
-    episode: Vec<u64>,
     /// The rolling window, in episodes.
     window: usize,
+    episode: Vec<u64>,
+    runs_at: Vec<u32>,
     mean: Vec<f64>,
-    std: Vec<f64>,
+    low: Vec<f64>,
+    high: Vec<f64>,
+    runs: Vec<Run>,
 }
 
 pub fn section(report: &mut ReportWriter, training: &DataFrame) -> Result<(), ReportError> {
-    report.heading(2, "Training curves");
+    report.heading(2, "Training curves: how did training progress, run by run?");
     let curves = curves(training)?;
-    let frame = frame(&curves)?;
     report.paragraph(
-        "Training penalty per episode (10^6, the mean over training runs), rolling mean over a \
-         sixtieth of the run (the paper's 500 of 30,000 episodes) with a +-0.5 standard \
-         deviation band.",
+        "Training penalty per episode (10^6). Each training run is smoothed by a rolling mean \
+         over a sixtieth of the run (the paper's 500 of 30,000 episodes; never more than a \
+         quarter of the shortest run), drawn thin; the thick line is the mean of the runs, and \
+         its band spans, at every episode, the lowest to the highest run.",
     );
-    report.linked_table("training_curves", &frame, "The curves")?;
-    let settings = distinct(curves.iter().map(|c| (c.map.clone(), c.policy.n_train)));
-    for (map, n_train) in settings {
+    report.linked_table(
+        "training_curves",
+        &curves_frame(&curves)?,
+        "The curves (mean, lowest and highest run)",
+    )?;
+    report.linked_table(
+        "training_runs",
+        &runs_frame(&curves)?,
+        "Each run's rolling mean",
+    )?;
+    for (map, n_train) in distinct(curves.iter().map(|c| (c.map.clone(), c.policy.n_train))) {
         let n = n_train_label(n_train);
         let shown: Vec<&Curve> = curves
             .iter()
             .filter(|c| c.map == map && c.policy.n_train == n_train)
             .collect();
-        let lines = shown
-            .iter()
-            .map(|c| line(c, c.policy.policy.clone()))
-            .collect();
         let stem = file_stem(&["training", &map, &format!("train{n}")]);
         let setting = format!("on `{map}`, N_train = {n}");
-        figure(report, &stem, &setting, &windows(&shown), lines)?;
+        figure(report, &stem, &setting, &shown, |c| c.policy.policy.clone())?;
     }
     // The paper also plots the maps against each other (RQ1: open against eight_room).
     if distinct(curves.iter().map(|c| c.map.clone())).len() > 1 {
@@ -64,80 +90,100 @@ pub fn section(report: &mut ReportWriter, training: &DataFrame) -> Result<(), Re
                 .iter()
                 .filter(|c| c.policy.n_train == n_train)
                 .collect();
-            let lines = shown
-                .iter()
-                .map(|c| line(c, format!("{}: {}", c.map, c.policy.policy)))
-                .collect();
             let stem = file_stem(&["training", "all-maps", &format!("train{n}")]);
             let setting = format!("on every map, N_train = {n}");
-            figure(report, &stem, &setting, &windows(&shown), lines)?;
+            figure(report, &stem, &setting, &shown, |c| {
+                format!("{}: {}", c.map, c.policy.policy)
+            })?;
         }
     }
     Ok(())
-}
-
-/// The rolling windows of `curves`, for a caption: "13 episodes".
-fn windows(curves: &[&Curve]) -> String {
-    let windows: Vec<String> = distinct(curves.iter().map(|c| c.window))
-        .into_iter()
-        .map(|w| w.to_string())
-        .collect();
-    format!("{} episodes", windows.join(" or "))
 }
 
 fn n_train_label(n_train: Option<u32>) -> String {
     n_train.map_or("?".into(), |n| n.to_string())
 }
 
-/// One plot of `lines`; `setting` completes its title and caption ("on `open`, N_train = 4").
+/// One plot of `curves`, each labelled by `label`; `setting` completes its title and caption
+/// ("on `open`, N_train = 4").
 fn figure(
     report: &mut ReportWriter,
     stem: &str,
     setting: &str,
-    window: &str,
-    lines: Vec<Line>,
+    curves: &[&Curve],
+    label: impl Fn(&Curve) -> String,
 ) -> Result<(), ReportError> {
+    let panel = Panel {
+        title: format!("Training {}", setting.replace('`', "")),
+        y_label: "penalty (10^6)".into(),
+        lines: curves.iter().map(|c| spread(c, label(c))).collect(),
+    };
+    let log = panel.axis().log;
     let chart = LineChart {
         x_label: "training episode".into(),
-        panels: vec![Panel {
-            title: format!("Training {}", setting.replace('`', "")),
-            y_label: "penalty (10^6)".into(),
-            lines,
-        }],
+        panels: vec![panel],
     };
-    report.figure(
-        stem,
-        &chart,
-        &format!("Rolling mean ({window}) +-0.5 std of the training penalty {setting}"),
+    report.figure(stem, &chart, &caption(curves, setting, log))
+}
+
+/// What a training figure shows, with its window and runs.
+fn caption(curves: &[&Curve], setting: &str, log: bool) -> String {
+    let list = |values: Vec<String>| values.join(" or ");
+    let windows = match list(distinct(curves.iter().map(|c| c.window.to_string()))) {
+        one if one == "1" => "1 episode (no smoothing)".to_owned(),
+        windows => format!("{windows} episodes"),
+    };
+    let runs = list(distinct(curves.iter().map(|c| c.runs.len().to_string())));
+    let scale = match log {
+        true => "; the value axis is on a log scale, as the curves span more than two decades",
+        false => "",
+    };
+    format!(
+        "Training penalty {setting}: each training run's rolling mean over {windows} \
+         (thin; {runs} runs per policy), the mean of the runs (thick, with its marker) and the \
+         band from the lowest to the highest run at every episode{scale}"
     )
 }
 
-fn line(curve: &Curve, label: String) -> Line {
-    let xs = curve.episode.iter().map(|&e| e as f64);
-    Line {
-        label,
-        points: xs.clone().zip(curve.mean.iter().copied()).collect(),
-        band: Some(
-            curve
-                .mean
-                .iter()
-                .zip(&curve.std)
-                .map(|(m, s)| (m - 0.5 * s, m + 0.5 * s))
-                .collect(),
-        ),
+fn spread(curve: &Curve, label: String) -> Spread {
+    let xs = || curve.episode.iter().map(|&e| e as f64);
+    Spread {
+        line: Line {
+            label,
+            points: xs().zip(curve.mean.iter().copied()).collect(),
+            band: Some(
+                curve
+                    .low
+                    .iter()
+                    .copied()
+                    .zip(curve.high.iter().copied())
+                    .collect(),
+            ),
+        },
+        traces: curve
+            .runs
+            .iter()
+            .map(|run| {
+                let xs = run.episode.iter().map(|&e| e as f64);
+                xs.zip(run.rolling.iter().copied()).collect()
+            })
+            .collect(),
     }
 }
 
-fn curves(training: &DataFrame) -> Result<Vec<Curve>, ReportError> {
+/// The training table's penalties (10^6) by (map, policy) and, within, by run (cell), each
+/// run sorted by episode.
+fn runs_of(training: &DataFrame) -> Result<Vec<(Trained, RunsByCell)>, ReportError> {
     let maps = strings(training, "map")?;
     let policies = strings(training, "policy")?;
     let n_trains = optional_u32s(training, "n_train")?;
+    let cells = strings(training, "cell_key")?;
     let episodes: Vec<u64> = f64s(training, "episode")?
         .into_iter()
         .map(|e| e as u64)
         .collect();
     let penalties = f64s(training, "penalty")?;
-    let keys: Vec<(String, PolicyKey)> = (0..training.height())
+    let keys: Vec<Trained> = (0..training.height())
         .map(|i| {
             let policy = PolicyKey {
                 policy: policies[i].clone(),
@@ -148,53 +194,103 @@ fn curves(training: &DataFrame) -> Result<Vec<Curve>, ReportError> {
         .collect();
     Ok(group_rows(&keys)
         .into_iter()
-        .map(|((map, policy), rows)| {
-            let per_episode = mean_per_episode(
-                rows.iter()
-                    .map(|&r| (episodes[r], penalties[r] / PENALTY_UNIT)),
-            );
-            let window = window(per_episode.len());
-            let (mean, std) = rolling(&per_episode.iter().map(|p| p.1).collect::<Vec<_>>(), window);
-            let keep = sample(per_episode.len(), POINTS);
-            Curve {
-                map,
-                policy,
-                episode: keep.iter().map(|&i| per_episode[i].0).collect(),
-                window,
-                mean: keep.iter().map(|&i| mean[i]).collect(),
-                std: keep.iter().map(|&i| std[i]).collect(),
+        .map(|(key, rows)| {
+            let mut by_cell: RunsByCell = BTreeMap::new();
+            for &r in &rows {
+                let run = by_cell.entry(cells[r].clone()).or_default();
+                run.insert(episodes[r], penalties[r] / PENALTY_UNIT);
             }
+            (key, by_cell)
         })
         .collect())
 }
 
-/// The mean penalty of every episode index over training runs, by episode.
-fn mean_per_episode(rows: impl Iterator<Item = (u64, f64)>) -> Vec<(u64, f64)> {
-    let mut sums: std::collections::BTreeMap<u64, (f64, u32)> = Default::default();
-    for (episode, penalty) in rows {
-        let entry = sums.entry(episode).or_default();
-        *entry = (entry.0 + penalty, entry.1 + 1);
+/// A map and the policy trained on it.
+type Trained = (String, PolicyKey);
+
+/// Per run (cell), its penalty by episode.
+type RunsByCell = BTreeMap<String, BTreeMap<u64, f64>>;
+
+fn curves(training: &DataFrame) -> Result<Vec<Curve>, ReportError> {
+    Ok(runs_of(training)?
+        .into_iter()
+        .map(|((map, policy), runs)| curve(map, policy, &runs))
+        .collect())
+}
+
+/// The curve of one (map, policy): its runs smoothed over a window fitting the shortest.
+fn curve(map: String, policy: PolicyKey, runs: &RunsByCell) -> Curve {
+    let shortest = runs.values().map(BTreeMap::len).min().unwrap_or(0);
+    let window = window(shortest);
+    let smoothed: Vec<(&String, Vec<(u64, f64)>)> = runs
+        .iter()
+        .map(|(cell, penalties)| {
+            let values: Vec<f64> = penalties.values().copied().collect();
+            let episodes = penalties.keys().copied();
+            (cell, episodes.zip(rolling_mean(&values, window)).collect())
+        })
+        .collect();
+    let across = across_runs(smoothed.iter().map(|(_, s)| s.as_slice()));
+    let keep = sample(across.len(), POINTS);
+    let pick = |f: fn(&Across) -> f64| keep.iter().map(|&i| f(&across[i])).collect();
+    Curve {
+        map,
+        policy,
+        window,
+        episode: keep.iter().map(|&i| across[i].episode).collect(),
+        runs_at: keep.iter().map(|&i| across[i].runs).collect(),
+        mean: pick(|a| a.mean),
+        low: pick(|a| a.low),
+        high: pick(|a| a.high),
+        runs: smoothed
+            .into_iter()
+            .map(|(cell, points)| {
+                let keep = sample(points.len(), POINTS);
+                Run {
+                    cell: cell.clone(),
+                    episode: keep.iter().map(|&i| points[i].0).collect(),
+                    rolling: keep.iter().map(|&i| points[i].1).collect(),
+                }
+            })
+            .collect(),
     }
-    sums.into_iter()
-        .map(|(e, (sum, n))| (e, sum / n as f64))
+}
+
+/// At one episode, the runs' rolling means: how many, their mean, lowest and highest.
+#[derive(Debug, PartialEq)]
+struct Across {
+    episode: u64,
+    runs: u32,
+    mean: f64,
+    low: f64,
+    high: f64,
+}
+
+/// Per episode (sorted), the runs' rolling means gathered.
+fn across_runs<'a>(runs: impl Iterator<Item = &'a [(u64, f64)]>) -> Vec<Across> {
+    let mut at: BTreeMap<u64, Vec<f64>> = BTreeMap::new();
+    for (episode, value) in runs.flatten() {
+        at.entry(*episode).or_default().push(*value);
+    }
+    at.into_iter()
+        .map(|(episode, values)| Across {
+            episode,
+            runs: values.len() as u32,
+            mean: values.iter().sum::<f64>() / values.len() as f64,
+            low: values.iter().copied().fold(f64::INFINITY, f64::min),
+            high: values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        })
         .collect()
 }
 
-/// The mean and standard deviation (divisor n) of the last `window` values at every index
-/// (fewer at the start).
-fn rolling(values: &[f64], window: usize) -> (Vec<f64>, Vec<f64>) {
-    let (mut means, mut stds) = (
-        Vec::with_capacity(values.len()),
-        Vec::with_capacity(values.len()),
-    );
-    for end in 1..=values.len() {
-        let slice = &values[end.saturating_sub(window)..end];
-        let mean = slice.iter().sum::<f64>() / slice.len() as f64;
-        let variance = slice.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / slice.len() as f64;
-        means.push(mean);
-        stds.push(variance.sqrt());
-    }
-    (means, stds)
+/// The mean of the last `window` values at every index (fewer at the start).
+fn rolling_mean(values: &[f64], window: usize) -> Vec<f64> {
+    (1..=values.len())
+        .map(|end| {
+            let slice = &values[end.saturating_sub(window)..end];
+            slice.iter().sum::<f64>() / slice.len() as f64
+        })
+        .collect()
 }
 
 /// At most `points` indices of `0..len`, evenly spread, the last one included.
@@ -207,20 +303,47 @@ fn sample(len: usize, points: usize) -> Vec<usize> {
     kept
 }
 
-fn frame(curves: &[Curve]) -> PolarsResult<DataFrame> {
-    let repeat = |f: &dyn Fn(&Curve) -> String| -> Vec<String> {
-        curves
-            .iter()
-            .flat_map(|c| vec![f(c); c.episode.len()])
-            .collect()
+/// `value(curve)` once per row that `rows(curve)` counts, for every curve.
+fn repeat<T: Clone>(
+    curves: &[Curve],
+    rows: impl Fn(&Curve) -> usize,
+    value: impl Fn(&Curve) -> T,
+) -> Vec<T> {
+    curves
+        .iter()
+        .flat_map(|c| vec![value(c); rows(c)])
+        .collect()
+}
+
+fn curves_frame(curves: &[Curve]) -> PolarsResult<DataFrame> {
+    let rows = |c: &Curve| c.episode.len();
+    let all = |f: fn(&Curve) -> &Vec<f64>| -> Vec<f64> {
+        curves.iter().flat_map(|c| f(c).clone()).collect()
     };
     df!(
-        "map" => repeat(&|c| c.map.clone()),
-        "policy" => repeat(&|c| c.policy.policy.clone()),
-        "n_train" => curves.iter().flat_map(|c| vec![c.policy.n_train; c.episode.len()]).collect::<Vec<_>>(),
+        "map" => repeat(curves, rows, |c| c.map.clone()),
+        "policy" => repeat(curves, rows, |c| c.policy.policy.clone()),
+        "n_train" => repeat(curves, rows, |c| c.policy.n_train),
+        "window" => repeat(curves, rows, |c| c.window as u32),
         "episode" => curves.iter().flat_map(|c| c.episode.clone()).collect::<Vec<_>>(),
-        "rolling_mean" => curves.iter().flat_map(|c| c.mean.clone()).collect::<Vec<_>>(),
-        "rolling_std" => curves.iter().flat_map(|c| c.std.clone()).collect::<Vec<_>>(),
+        "runs" => curves.iter().flat_map(|c| c.runs_at.clone()).collect::<Vec<_>>(),
+        "mean" => all(|c| &c.mean),
+        "run_low" => all(|c| &c.low),
+        "run_high" => all(|c| &c.high),
+    )
+}
+
+fn runs_frame(curves: &[Curve]) -> PolarsResult<DataFrame> {
+    let rows = |c: &Curve| c.runs.iter().map(|r| r.episode.len()).sum();
+    let runs = || curves.iter().flat_map(|c| &c.runs);
+    df!(
+        "map" => repeat(curves, rows, |c| c.map.clone()),
+        "policy" => repeat(curves, rows, |c| c.policy.policy.clone()),
+        "n_train" => repeat(curves, rows, |c| c.policy.n_train),
+        "window" => repeat(curves, rows, |c| c.window as u32),
+        "cell_key" => runs().flat_map(|r| vec![r.cell.clone(); r.episode.len()]).collect::<Vec<_>>(),
+        "episode" => runs().flat_map(|r| r.episode.clone()).collect::<Vec<_>>(),
+        "rolling_mean" => runs().flat_map(|r| r.rolling.clone()).collect::<Vec<_>>(),
     )
 }
 
@@ -229,46 +352,82 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_window_is_the_papers_share_of_the_run() {
+    fn the_window_is_the_papers_share_and_at_most_a_quarter_of_the_run() {
         assert_eq!(window(30_000), 500);
         assert_eq!(window(800), 13);
+        assert_eq!(window(400), 7, "not 500, as a fixed window once drew");
         assert_eq!(window(8), 1);
+        assert_eq!(window(0), 1);
+        for episodes in 1..3000 {
+            let w = window(episodes);
+            assert!(w >= 1 && w <= (episodes / 4).max(1), "{episodes}: {w}");
+        }
     }
 
     #[test]
     fn rolling_windows_grow_then_slide() {
-        let (mean, std) = rolling(&[1.0, 3.0, 5.0, 7.0], 2);
-        assert_eq!(mean, vec![1.0, 2.0, 4.0, 6.0]);
-        assert_eq!(std, vec![0.0, 1.0, 1.0, 1.0]);
+        assert_eq!(
+            rolling_mean(&[1.0, 3.0, 5.0, 7.0], 2),
+            vec![1.0, 2.0, 4.0, 6.0]
+        );
     }
 
     #[test]
-    fn runs_are_averaged_per_episode_and_long_curves_sampled() {
-        let rows = [(1, 4.0), (0, 1.0), (1, 2.0), (0, 3.0)];
-        assert_eq!(mean_per_episode(rows.into_iter()), vec![(0, 2.0), (1, 3.0)]);
+    fn the_band_spans_the_lowest_to_the_highest_run() {
+        let a = [(0, 1.0), (1, 2.0)];
+        let b = [(0, 3.0), (1, 8.0), (2, 5.0)];
+        let across = across_runs([a.as_slice(), b.as_slice()].into_iter());
+        assert_eq!(
+            across[1],
+            Across {
+                episode: 1,
+                runs: 2,
+                mean: 5.0,
+                low: 2.0,
+                high: 8.0
+            }
+        );
+        assert_eq!(
+            (across[2].runs, across[2].low, across[2].high),
+            (1, 5.0, 5.0)
+        );
         assert_eq!(sample(10, 4), vec![0, 3, 6, 9]);
         assert_eq!(sample(5, 2), vec![0, 3, 4]);
         assert_eq!(sample(3, 10), vec![0, 1, 2]);
     }
 
-    #[test]
-    fn a_training_table_gives_one_curve_per_policy() {
-        let episodes: Vec<u64> = (0..6).chain(0..6).collect();
-        let frame = df!(
-            "map" => vec!["open"; 12],
-            "policy" => [vec!["ma-g-ppo"; 6], vec!["ma-ppo"; 6]].concat(),
-            "n_train" => vec![Some(4u32); 12],
-            "episode" => episodes,
-            "penalty" => (0..12).map(|i| i as f64 * 1e6).collect::<Vec<_>>(),
+    /// Two policies, two runs each, six episodes per run; run `b` of ma-ppo collapses.
+    fn training() -> DataFrame {
+        let rows = 24;
+        let policy = |i: usize| if i < 12 { "ma-g-ppo" } else { "ma-ppo" };
+        let cell = |i: usize| format!("{}-{}", policy(i), if i % 12 < 6 { "a" } else { "b" });
+        let penalty = |i: usize| if i >= 18 { 900e6 } else { (i % 6) as f64 * 1e6 };
+        df!(
+            "cell_key" => (0..rows).map(cell).collect::<Vec<_>>(),
+            "map" => vec!["open"; rows],
+            "policy" => (0..rows).map(policy).collect::<Vec<_>>(),
+            "n_train" => vec![Some(4u32); rows],
+            "episode" => (0..rows).map(|i| (i % 6) as u64).collect::<Vec<_>>(),
+            "penalty" => (0..rows).map(penalty).collect::<Vec<_>>(),
         )
-        .unwrap();
-        let curves = curves(&frame).unwrap();
-        assert_eq!(curves.len(), 2);
-        assert_eq!(curves[1].mean[0], 6.0);
-        assert_eq!(frame_height(&curves), 12);
+        .unwrap()
     }
 
-    fn frame_height(curves: &[Curve]) -> usize {
-        frame(curves).unwrap().height()
+    #[test]
+    fn a_training_table_gives_one_curve_per_policy_with_its_runs() {
+        let curves = curves(&training()).unwrap();
+        assert_eq!(curves.len(), 2);
+        let collapsed = &curves[1];
+        assert_eq!((collapsed.window, collapsed.runs.len()), (1, 2));
+        assert_eq!((collapsed.low[5], collapsed.high[5]), (5.0, 900.0));
+        assert_eq!(collapsed.mean[5], 452.5);
+        assert_eq!(curves_frame(&curves).unwrap().height(), 12);
+        assert_eq!(runs_frame(&curves).unwrap().height(), 24);
+        let caption = caption(&curves.iter().collect::<Vec<_>>(), "on `open`", true);
+        assert!(
+            caption.contains("over 1 episode (no smoothing)") && caption.contains("2 runs"),
+            "{caption}"
+        );
+        assert!(caption.contains("log scale"), "{caption}");
     }
 }

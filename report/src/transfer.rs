@@ -8,7 +8,7 @@ use super::columns::{GroupKey, distinct, f64s};
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 
 pub fn section(report: &mut ReportWriter, summary: &DataFrame) -> Result<(), ReportError> {
-    report.heading(2, "Trained with N_train agents, tested with N_test");
+    report.heading(2, "Trained with N_train agents, tested with N_test: does a policy carry over to other team sizes?");
     let groups = GroupKey::of_rows(summary)?;
     let means = f64s(summary, "mean")?;
     let learned: Vec<(GroupKey, f64)> = groups
@@ -31,17 +31,27 @@ pub fn section(report: &mut ReportWriter, summary: &DataFrame) -> Result<(), Rep
             "mean" => rows.iter().map(|(_, m)| *m).collect::<Vec<_>>(),
         )?;
         report.heading(3, &format!("Map `{map}`"));
+        let maps = heat_maps(&frame)?;
         report.figure(
             &file_stem(&["transfer", &map]),
-            &heat_maps(&frame)?,
-            &format!(
-                "Mean cumulative penalty (10^6) on `{map}`: rows N_train, columns N_test; colour \
-                 on a log scale shared by the panels, from blue (lowest) to red (highest)"
-            ),
+            &maps,
+            &caption(&map, maps.logarithmic()),
         )?;
         report.table(&file_stem(&["transfer", &map]), &frame)?;
     }
     Ok(())
+}
+
+fn caption(map: &str, logarithmic: bool) -> String {
+    let scale = match logarithmic {
+        true => "a log scale",
+        false => "a linear scale (a value at or below 0 has no logarithm)",
+    };
+    format!(
+        "Mean cumulative penalty (10^6) on `{map}`: rows N_train, columns N_test; colour on \
+         {scale} shared by the panels, from blue (lowest) to red (highest), as the colour bar \
+         on the right gives it"
+    )
 }
 
 /// One panel per learned policy, from the table's rows.

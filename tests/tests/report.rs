@@ -288,19 +288,23 @@ fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
         readme.find("## Claims").unwrap() < readme.find("## Cumulative penalty").unwrap(),
         "claims come first"
     );
-    let claims = read_parquet(&report.join("tables/claims.parquet"));
-    let verdicts: Vec<String> = claims
-        .column("verdict")
-        .unwrap()
-        .str()
-        .unwrap()
+    // Statistical claims, then behaviour claims (a table of their own), in the scenario's order.
+    let verdicts: Vec<String> = ["claims", "behaviour_claims"]
         .iter()
-        .map(|v| v.unwrap().to_owned())
+        .flat_map(|name| {
+            let claims = read_parquet(&report.join(format!("tables/{name}.parquet")));
+            println!("{claims}");
+            let column = claims.column("verdict").unwrap().str().unwrap();
+            column
+                .iter()
+                .map(|v| v.unwrap().to_owned())
+                .collect::<Vec<_>>()
+        })
         .collect();
-    println!("{claims}");
     assert_eq!(verdicts[..3], ["supported", "contradicted", "contradicted"]);
     assert!(["supported", "contradicted", "inconclusive"].contains(&verdicts[3].as_str()));
-    // A behaviour is measured on the recorded episode: of two opposite claims, one holds.
+    // Behaviour is measured on every test episode of every run: of two opposite claims, one
+    // holds.
     let mut opposite = [verdicts[4].as_str(), verdicts[5].as_str()];
     opposite.sort();
     assert_eq!(opposite, ["contradicted", "supported"]);
@@ -436,4 +440,140 @@ fn a_recording_of_a_stored_episode_reads_back() {
     assert!(!missing.status.success());
     let error = String::from_utf8_lossy(&missing.stderr);
     assert!(error.contains("was not tested with 7 agents"), "{error}");
+}
+
+/// The bytes of a report's README, tables and figures, by path relative to the report.
+fn report_files(report: &Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    let mut files = std::collections::BTreeMap::new();
+    files.insert(
+        "README.md".to_owned(),
+        std::fs::read(report.join("README.md")).unwrap(),
+    );
+    for sub in ["tables", "figures"] {
+        for entry in std::fs::read_dir(report.join(sub)).unwrap() {
+            let path = entry.unwrap().path();
+            let name = format!("{sub}/{}", path.file_name().unwrap().to_str().unwrap());
+            files.insert(name, std::fs::read(&path).unwrap());
+        }
+    }
+    files
+}
+
+fn folder_bytes(folder: &Path) -> u64 {
+    std::fs::read_dir(folder)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .map(|p| match p.is_dir() {
+            true => folder_bytes(&p),
+            false => std::fs::metadata(&p).unwrap().len(),
+        })
+        .sum()
+}
+
+#[test]
+fn a_report_rebuilds_byte_for_byte_from_its_table_store() {
+    let dir = scratch("rebuild");
+    let scenario = dir.join("tiny.yaml");
+    // Two training runs of a learned policy, for the header's budget and trend, and a lost
+    // robot, for the disturbed tables.
+    let learned =
+        "  - ma-g-ppo: {profile: fast, episodes: 8, set: {network: compact, environments: 2}}\n";
+    let lost = "disturbances:\n  - name: lose-1\n    lose: {robots: 1, at: 30}\nclaims:\n";
+    let text = SCENARIO
+        .replace("agents:\n", &format!("{learned}agents:\n  train: [2]\n"))
+        .replace("claims:\n", lost);
+    std::fs::write(&scenario, text).unwrap();
+    let (store, reports) = (dir.join("store"), dir.join("reports"));
+    let (store, reports) = (store.to_str().unwrap(), reports.to_str().unwrap());
+    let sweep = ["sweep", scenario.to_str().unwrap(), "--out", store];
+    succeed(harness(
+        &[&sweep[..], &["--jobs", "2", "--no-report"]].concat(),
+    ));
+    let printed = succeed(harness(&["report", store, "--to", reports]));
+    assert!(printed.contains("store's tables in"), "{printed}");
+    let report = dir.join("reports/tiny");
+    let tables = report.join("store");
+
+    // The table store: the tables, scenario and maps, no cells, and small.
+    for file in [
+        "table-store.json",
+        "sweep.json",
+        "scenario.yaml",
+        "episodes.parquet",
+    ] {
+        assert!(tables.join(file).is_file(), "{file}");
+    }
+    for file in [
+        "training",
+        "cells",
+        "summary",
+        "trajectories",
+        "snapshots",
+        "disturbed",
+        "disturbed_steps",
+    ] {
+        assert!(tables.join(format!("{file}.parquet")).is_file(), "{file}");
+    }
+    assert!(!tables.join("cells").exists(), "no cell folders");
+    assert!(!tables.join("episodes.csv").exists(), "Parquet only");
+    let size = folder_bytes(&tables);
+    println!("table store: {size} bytes");
+    assert!(size < 2_000_000, "{size} bytes");
+
+    // The header: the budget against the paper's, runs, tests, and the trend of training.
+    let readme = std::fs::read_to_string(report.join("README.md")).unwrap();
+    let header = &readme[..readme.find("## Claims").unwrap()];
+    println!("{header}");
+    for words in [
+        "8 episodes per training run, against the paper's 30,000",
+        "2 training runs (seeds) per learned",
+        "4 test episodes per cell and N_test, each of T = 60 steps",
+        "CPU hours",
+        "| rooms | ma-g-ppo@fast | 2 | 2 | 8 | 2 |",
+    ] {
+        assert!(header.contains(words), "{words}");
+    }
+    assert!(!readme.contains("missing"), "the sweep is complete");
+
+    // Deleted and rebuilt from `store/` alone, into the same place: the same bytes.
+    let before = report_files(&report);
+    std::fs::remove_file(report.join("README.md")).unwrap();
+    for sub in ["tables", "figures"] {
+        std::fs::remove_dir_all(report.join(sub)).unwrap();
+    }
+    let tables_arg = tables.to_str().unwrap();
+    succeed(harness(&["report", tables_arg, "--to", reports]));
+    let after = report_files(&report);
+    assert_eq!(
+        before.keys().collect::<Vec<_>>(),
+        after.keys().collect::<Vec<_>>()
+    );
+    assert!(
+        before.keys().any(|k| k.ends_with(".png")) && before.keys().any(|k| k.ends_with(".svg"))
+    );
+    for (name, bytes) in &before {
+        assert!(after[name] == *bytes, "{name} differs when rebuilt");
+    }
+    assert_eq!(folder_bytes(&tables), size, "the store is left as it was");
+
+    // `harness claims` reads the table store as it reads the sweep's.
+    let claims = succeed(harness(&["claims", tables_arg]));
+    assert_eq!(claims, succeed(harness(&["claims", store])));
+
+    // A table store takes no sweep, and a damaged table is named.
+    let refused = harness(&["sweep", scenario.to_str().unwrap(), "--out", tables_arg]);
+    assert!(!refused.status.success());
+    let error = String::from_utf8_lossy(&refused.stderr);
+    assert!(error.contains("is a table store"), "{error}");
+    let summary = tables.join("summary.parquet");
+    let mut bytes = std::fs::read(&summary).unwrap();
+    bytes.push(0);
+    std::fs::write(&summary, bytes).unwrap();
+    let damaged = harness(&["claims", tables_arg]);
+    assert!(!damaged.status.success());
+    let error = String::from_utf8_lossy(&damaged.stderr);
+    assert!(
+        error.contains("summary.parquet") && error.contains("does not match"),
+        "{error}"
+    );
 }

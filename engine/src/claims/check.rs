@@ -6,7 +6,7 @@ use std::path::Path;
 use serde_saphyr::Spanned;
 
 use super::format::{AdaptationSpec, BehaviourSpec, ClaimSpec, CurveSpec, DiagonalSpec, PairSpec};
-use super::{Behaviour, Claim, ClaimTest, Pair, Point};
+use super::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
 use crate::scenario::ScenarioError;
 
 /// What a scenario offers claims to name.
@@ -61,10 +61,11 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         spec.curve_below.is_some(),
         spec.behaviour.is_some(),
         spec.adapts_better.is_some(),
+        spec.not_tested.is_some(),
     ];
     if kinds.iter().filter(|&&k| k).count() != 1 {
         let problem = "give exactly one of lower, within, not_worse, gap_grows, diagonal_best, \
-                       curve_below, behaviour, adapts_better";
+                       curve_below, behaviour, adapts_better, not_tested";
         return Err((None, String::new(), problem.into()));
     }
     let checker = Checker { context };
@@ -94,14 +95,40 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         checker.behaviour(behaviour)?
     } else if let Some(adaptation) = &spec.adapts_better {
         checker.adaptation(adaptation)?
+    } else if let Some(reason) = &spec.not_tested {
+        if reason.value.trim().is_empty() {
+            let problem = "say why the statement is not tested".to_owned();
+            return Err(fail(reason, ".not_tested".into(), problem));
+        }
+        ClaimTest::NotTested {
+            reason: reason.value.clone(),
+        }
     } else {
         checker.curve(spec.curve_below.as_ref().expect("one kind is given"))?
     };
+    if let Some(budget) = &spec.budget
+        && budget.value == 0
+    {
+        return Err(fail(
+            budget,
+            ".budget".into(),
+            "must be > 0 episodes".into(),
+        ));
+    }
     Ok(Claim {
         id: spec.id.clone(),
         paper: spec.paper.clone(),
         test,
+        budget: spec.budget.as_ref().map(|b| b.value),
     })
+}
+
+/// Which of the scenario's agent counts a claim's counts must be among.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Lists {
+    Test,
+    Train,
+    Both,
 }
 
 struct Checker<'a> {
@@ -135,19 +162,10 @@ impl Checker<'_> {
             return Err(fail(&spec.b, format!("{field}.b"), problem));
         }
         let maps = self.names(&spec.maps, &format!("{field}.maps"))?;
-        let n = self.counts(&spec.n, &format!("{field}.n"), least, false)?;
-        if let Some(n_train) = &spec.n_train {
-            self.count(n_train, format!("{field}.n_train"), true)?;
-        } else {
-            for (i, count) in spec.n.value.iter().enumerate() {
-                if self.is_learned(&spec.a.value) || self.is_learned(&spec.b.value) {
-                    self.count(count, format!("{field}.n[{i}]"), true)?;
-                }
-            }
-        }
-        let points = points(&maps, &n, |n_test| {
-            spec.n_train.as_ref().map_or(n_test, |n| n.value)
-        });
+        let points = match &spec.n_test {
+            Some(n_test) => self.column(spec, field, least, n_test, &maps)?,
+            None => self.row(spec, field, least, &maps)?,
+        };
         Ok(Pair {
             a: spec.a.value.clone(),
             b: spec.b.value.clone(),
@@ -155,6 +173,54 @@ impl Checker<'_> {
             b_under,
             points,
         })
+    }
+
+    /// The points (map, N_test = n), a learned policy at N_train = `n_train` or N_test.
+    fn row(
+        &self,
+        spec: &PairSpec,
+        field: &str,
+        least: usize,
+        maps: &[String],
+    ) -> Result<Vec<Point>, Failure> {
+        let n = self.counts(&spec.n, &format!("{field}.n"), least, Lists::Test)?;
+        if let Some(n_train) = &spec.n_train {
+            self.count(n_train, format!("{field}.n_train"), true)?;
+        } else if self.is_learned(&spec.a.value) || self.is_learned(&spec.b.value) {
+            for (i, count) in spec.n.value.iter().enumerate() {
+                self.count(count, format!("{field}.n[{i}]"), true)?;
+            }
+        }
+        Ok(points(maps, &n, |n_test| {
+            spec.n_train.as_ref().map_or(n_test, |n| n.value)
+        }))
+    }
+
+    /// The points of one N_test column: `n` lists the learned policies' N_train.
+    fn column(
+        &self,
+        spec: &PairSpec,
+        field: &str,
+        least: usize,
+        n_test: &Spanned<u32>,
+        maps: &[String],
+    ) -> Result<Vec<Point>, Failure> {
+        if let Some(n_train) = &spec.n_train {
+            let problem = "give n_test (a column, n listing N_train) or n_train, not both";
+            return Err(fail(n_train, format!("{field}.n_train"), problem.into()));
+        }
+        self.count(n_test, format!("{field}.n_test"), false)?;
+        let n_trains = self.counts(&spec.n, &format!("{field}.n"), least, Lists::Train)?;
+        Ok(maps
+            .iter()
+            .flat_map(|map| {
+                n_trains.iter().map(|&n_train| Point {
+                    map: map.clone(),
+                    n_test: n_test.value,
+                    n_train,
+                })
+            })
+            .collect())
     }
 
     /// A disturbance of the scenario, by name.
@@ -196,7 +262,8 @@ impl Checker<'_> {
         }
         let maps = self.names(&spec.maps, &format!("{field}.maps"))?;
         let learned = self.is_learned(&spec.a.value) || self.is_learned(&spec.b.value);
-        let n = self.counts(&spec.n, &format!("{field}.n"), 1, learned)?;
+        let lists = if learned { Lists::Both } else { Lists::Test };
+        let n = self.counts(&spec.n, &format!("{field}.n"), 1, lists)?;
         self.under(Some(&spec.disturbance), format!("{field}.disturbance"))?;
         let lost = match self.context {
             None => 0,
@@ -223,11 +290,9 @@ impl Checker<'_> {
                         count.referenced,
                         count.defined,
                     );
+                    // The same policy (training runs trained with N) plays the survivors' team.
                     let field = format!("{field}.n[{i}] (its team of survivors)");
-                    self.count(&reference, field.clone(), false)?;
-                    if learned {
-                        self.count(&reference, field, true)?;
-                    }
+                    self.count(&reference, field, false)?;
                 }
                 lost
             }
@@ -242,18 +307,38 @@ impl Checker<'_> {
         })
     }
 
-    fn tolerance(&self, spec: &PairSpec, field: &str) -> Result<f64, Failure> {
-        match &spec.tolerance {
-            Some(t) if t.value > 0.0 && t.value.is_finite() => Ok(t.value),
-            Some(t) => Err(fail(t, format!("{field}.tolerance"), "must be > 0".into())),
-            None => Err((None, field.into(), "needs a tolerance".into())),
+    fn tolerance(&self, spec: &PairSpec, field: &str) -> Result<Tolerance, Failure> {
+        let value = match &spec.tolerance {
+            Some(t) if t.value > 0.0 && t.value.is_finite() => t.value,
+            Some(t) => return Err(fail(t, format!("{field}.tolerance"), "must be > 0".into())),
+            None => return Err((None, field.into(), "needs a tolerance".into())),
+        };
+        let scale = match &spec.scale {
+            None => Scale::B,
+            Some(name) => Scale::parse(&name.value).ok_or_else(|| {
+                let problem = format!(
+                    "unknown scale {:?} (one of {})",
+                    name.value,
+                    Scale::NAMES.join(", ")
+                );
+                fail(name, format!("{field}.scale"), problem)
+            })?,
+        };
+        if scale == Scale::Random
+            && let Some(context) = self.context
+            && !context.policies.iter().any(|(l, _)| l == RANDOM)
+        {
+            let name = spec.scale.as_ref().expect("a scale was given");
+            let problem = "scale random needs the random baseline in the scenario".to_owned();
+            return Err(fail(name, format!("{field}.scale"), problem));
         }
+        Ok(Tolerance { value, scale })
     }
 
     fn diagonal(&self, spec: &DiagonalSpec) -> Result<ClaimTest, Failure> {
         self.policy(&spec.policy, ".diagonal_best.policy".into(), true)?;
         self.map(&spec.map, ".diagonal_best.map".into())?;
-        let n = self.counts(&spec.n, ".diagonal_best.n", 2, true)?;
+        let n = self.counts(&spec.n, ".diagonal_best.n", 2, Lists::Both)?;
         Ok(ClaimTest::DiagonalBest {
             policy: spec.policy.value.clone(),
             map: spec.map.value.clone(),
@@ -389,22 +474,23 @@ impl Checker<'_> {
         Ok(names.value.iter().map(|n| n.value.clone()).collect())
     }
 
-    /// Agent counts, at least `least` of them; each a test count, and a training count too when
-    /// `trained`.
+    /// Agent counts, at least `least` of them, each in the scenario's `lists`.
     fn counts(
         &self,
         counts: &Spanned<Vec<Spanned<u32>>>,
         field: &str,
         least: usize,
-        trained: bool,
+        lists: Lists,
     ) -> Result<Vec<u32>, Failure> {
         if counts.value.len() < least {
             let problem = format!("needs at least {least} agent count(s)");
             return Err(fail(counts, field.into(), problem));
         }
         for (i, count) in counts.value.iter().enumerate() {
-            self.count(count, format!("{field}[{i}]"), false)?;
-            if trained {
+            if lists != Lists::Train {
+                self.count(count, format!("{field}[{i}]"), false)?;
+            }
+            if lists != Lists::Test {
                 self.count(count, format!("{field}[{i}]"), true)?;
             }
         }

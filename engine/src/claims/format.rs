@@ -27,8 +27,16 @@ pub struct ClaimSpec {
     pub curve_below: Option<CurveSpec>,
     /// What the recorded test episode of one setting shows (RQ3).
     pub behaviour: Option<BehaviourSpec>,
-    /// `a`'s adaptation ratio under a loss is closer to 1 than `b`'s at every point.
+    /// `a`'s adaptation ratio under a loss is lower than `b`'s at every point.
     pub adapts_better: Option<AdaptationSpec>,
+    /// A statement of the paper the store cannot test, with the reason: it stays in the
+    /// verdict table as "not tested".
+    pub not_tested: Option<Spanned<String>>,
+    /// The training episodes the statement assumes (the paper's 30,000 where it says "after
+    /// 30k episodes" or "given sufficient training"): shorter training runs make it "not
+    /// tested at this budget".
+    #[serde(default)]
+    pub budget: Option<Spanned<u64>>,
 }
 
 /// Two policies compared at the points (map, N_test = n): a learned policy is taken at
@@ -42,10 +50,18 @@ pub struct PairSpec {
     pub n: Spanned<Vec<Spanned<u32>>>,
     #[serde(default)]
     pub n_train: Option<Spanned<u32>>,
-    /// For `within`: the largest relative difference |a - b| / b still called equal; for
-    /// `not_worse`: the largest (a - b) / b still called not worse.
+    /// One N_test column: `n` then lists the learned policies' N_train (RQ5's generalisation
+    /// gap at a fixed team size).
+    #[serde(default)]
+    pub n_test: Option<Spanned<u32>>,
+    /// For `within`: the largest |a - b| still called equal; for `not_worse`: the largest
+    /// a - b still called not worse; both in units of `scale`.
     #[serde(default)]
     pub tolerance: Option<Spanned<f64>>,
+    /// What the tolerance is relative to: `b` (b's mean, the default: for penalties far from
+    /// 0), `random` (Random's mean at the point: where b is near 0) or `absolute` (10^6).
+    #[serde(default)]
+    pub scale: Option<Spanned<String>>,
     /// Take `a`'s (`b`'s) test episodes as played under this disturbance of the scenario.
     #[serde(default)]
     pub a_under: Option<Spanned<String>>,
@@ -54,8 +70,8 @@ pub struct PairSpec {
 }
 
 /// Two policies' adaptation ratios under a disturbance that loses robots, at (map, N): the
-/// mean last-quarter penalty of the team of N that lost k, over that of an undisturbed team
-/// of N - k (a learned policy trained with N and N - k).
+/// mean last-quarter penalty of the team of N that lost k, over that of the same policy (for
+/// a learned one, the same training runs) playing undisturbed with N - k; lower is better.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AdaptationSpec {
@@ -86,9 +102,9 @@ pub struct CurveSpec {
     pub episodes: Spanned<[u64; 2]>,
 }
 
-/// The recorded episode (first training run, first test episode) of `policy` on `map` with
-/// `n_test` agents (trained with `n_train`, default N_test): how many agents stay and how many
-/// tour (the report's roles), and whether the touring agents share a period with stable phases.
+/// The test episodes of `policy` on `map` with `n_test` agents (trained with `n_train`,
+/// default N_test): how many agents stay and how many tour (the report's roles), and whether
+/// the touring agents share a period with stable phases.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BehaviourSpec {

@@ -3,10 +3,11 @@
 //! counts, and the report (`report::verdicts`, also behind `harness claims DIR`) gives each a
 //! verdict with the numbers behind it.
 //!
-//! Verdicts rest on 95 % stratified bootstrap intervals, the report's own (test episodes
-//! resampled within training runs): **supported** when the interval excludes the opposite of
-//! the claim, **contradicted** when it excludes the claim, **inconclusive** otherwise. A claim
-//! over several points is supported when every point is, contradicted when any point is.
+//! Verdicts rest on 95 % bootstrap intervals whose unit is a learned policy's training run
+//! (`stats::resampling`): **supported** when every point's interval excludes the opposite of
+//! the claim, **contradicted** when Holm's correction over the points finds one whose interval
+//! excludes the claim, **inconclusive** otherwise, **not tested** where the training runs are
+//! shorter than the budget the statement names.
 
 mod check;
 pub mod format;
@@ -24,6 +25,8 @@ pub struct Claim {
     /// The paper's words and numbers.
     pub paper: String,
     pub test: ClaimTest,
+    /// The training episodes the statement assumes, when it names them.
+    pub budget: Option<u64>,
 }
 
 /// What a claim asserts. Policies are table labels; points are (map, N_test) with an N_train
@@ -35,11 +38,11 @@ pub enum ClaimTest {
     },
     Within {
         pair: Pair,
-        tolerance: f64,
+        tolerance: Tolerance,
     },
     NotWorse {
         pair: Pair,
-        tolerance: f64,
+        tolerance: Tolerance,
     },
     GapGrows {
         pair: Pair,
@@ -69,6 +72,48 @@ pub enum ClaimTest {
         lost: u32,
         points: Vec<Point>,
     },
+    /// The reason the store cannot test the statement.
+    NotTested {
+        reason: String,
+    },
+}
+
+/// The label of the Random baseline, which `scale: random` measures tolerances by.
+pub const RANDOM: &str = "random";
+
+/// A tolerance and what it is relative to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tolerance {
+    pub value: f64,
+    pub scale: Scale,
+}
+
+/// What a tolerance is relative to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scale {
+    /// b's mean penalty at the point.
+    B,
+    /// Random's mean penalty at the point (policy `random`): for a b near 0.
+    Random,
+    /// Penalty units (10^6).
+    Absolute,
+}
+
+impl Scale {
+    pub const NAMES: [&'static str; 3] = ["b", "random", "absolute"];
+
+    pub fn parse(name: &str) -> Option<Scale> {
+        match name {
+            "b" => Some(Scale::B),
+            "random" => Some(Scale::Random),
+            "absolute" => Some(Scale::Absolute),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
 }
 
 /// What a behaviour claim expects; `None` leaves a feature untested.
@@ -90,6 +135,7 @@ impl ClaimTest {
             ClaimTest::CurveBelow { .. } => "curve_below",
             ClaimTest::Behaviour { .. } => "behaviour",
             ClaimTest::AdaptsBetter { .. } => "adapts_better",
+            ClaimTest::NotTested { .. } => "not_tested",
         }
     }
 }

@@ -331,6 +331,76 @@ mod tests {
     }
 
     #[test]
+    fn claims_take_a_column_a_scale_a_budget_or_a_reason() {
+        let learned = "  - ma-ppo: {profile: fast, episodes: 5, set: {network: compact}}\n";
+        let with = |claims: &str| format!("{}claims:\n{claims}", scenario(learned, &inline("a")));
+        let good = "  - id: column\n    budget: 30000\n    \
+                    gap_grows: {a: ma-ppo@fast, b: random, maps: [a], n_test: 1, n: [2, 3]}\n  \
+                    - id: scaled\n    not_worse: {a: ma-ppo@fast, b: random, maps: [a], n: [2], \
+                    tolerance: 0.05, scale: random}\n  \
+                    - id: rooms\n    not_tested: rooms are not measured\n";
+        let s = parse(&with(good)).unwrap();
+        use crate::claims::{ClaimTest, Scale};
+        let ClaimTest::GapGrows { pair } = &s.claims[0].test else {
+            panic!("{:?}", s.claims[0]);
+        };
+        let points: Vec<(u32, u32)> = pair.points.iter().map(|p| (p.n_test, p.n_train)).collect();
+        assert_eq!(
+            points,
+            [(1, 2), (1, 3)],
+            "one N_test column, N_train along n"
+        );
+        assert_eq!(s.claims[0].budget, Some(30000));
+        let ClaimTest::NotWorse { tolerance, .. } = &s.claims[1].test else {
+            panic!("{:?}", s.claims[1]);
+        };
+        assert_eq!((tolerance.value, tolerance.scale), (0.05, Scale::Random));
+        assert_eq!(s.claims[1].budget, None);
+        assert!(
+            matches!(&s.claims[2].test, ClaimTest::NotTested { reason } if reason == "rooms are not measured")
+        );
+        let cases = [
+            (
+                "  - id: x\n    within: {a: ma-ppo@fast, b: random, maps: [a], n: [2], tolerance: 0.1, scale: c}\n",
+                "claims[0].within.scale: unknown scale \"c\" (one of b, random, absolute)",
+            ),
+            (
+                "  - id: x\n    gap_grows: {a: ma-ppo@fast, b: random, maps: [a], n_test: 3, n: [2, 3]}\n",
+                "claims[0].gap_grows.n_test: N = 3 is not in agents.test [1, 2]",
+            ),
+            (
+                "  - id: x\n    gap_grows: {a: ma-ppo@fast, b: random, maps: [a], n_test: 1, n: [1, 2]}\n",
+                "claims[0].gap_grows.n[0]: N = 1 is not in agents.train [2, 3]",
+            ),
+            (
+                "  - id: x\n    lower: {a: ma-ppo@fast, b: random, maps: [a], n_test: 1, n: [2], n_train: 2}\n",
+                "claims[0].lower.n_train: give n_test (a column, n listing N_train) or n_train",
+            ),
+            (
+                "  - id: x\n    budget: 0\n    lower: {a: ma-ppo@fast, b: random, maps: [a], n: [2]}\n",
+                "claims[0].budget: must be > 0 episodes",
+            ),
+            (
+                "  - id: x\n    not_tested: \" \"\n",
+                "claims[0].not_tested: say why the statement is not tested",
+            ),
+        ];
+        for (claims, expected) in cases {
+            let error = parse(&with(claims)).unwrap_err().to_string();
+            assert!(error.contains(expected), "{error}\n  expected: {expected}");
+        }
+        let no_random = format!(
+            "{}claims:\n  - id: x\n    within: {{a: ma-ppo@fast, b: tspc, maps: [a], n: [2], tolerance: 0.1, scale: random}}\n",
+            scenario(learned, &inline("a")).replace("{name: random}", "{name: tspc}")
+        );
+        let error = parse(&no_random).unwrap_err().to_string();
+        assert!(
+            error.contains("scale random needs the random baseline"),
+            "{error}"
+        );
+    }
+
+    #[test]
     fn claims_name_the_scenarios_own_policies_maps_and_counts() {
         let learned = "  - ma-ppo: {profile: fast, episodes: 5, set: {network: compact}}\n";
         let with = |claims: &str| format!("{}claims:\n{claims}", scenario(learned, &inline("a")));

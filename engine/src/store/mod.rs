@@ -18,11 +18,16 @@
 //! Per-cell files make shards independent and resume simple: a cell is finished when its
 //! record exists and every file it lists has the recorded hash. Every file is written whole
 //! (`write_atomic`), so a crash leaves a cell finished or not, never half.
+//!
+//! A *table store* (`table_store`) holds the manifest, scenario, maps and sweep tables
+//! without `cells/`: what a report carries to be rebuilt. It reads as a store whose cells are
+//! the rows of its cells table, and refuses what needs a cell's own files.
 
 pub mod columns;
 pub mod disturbed;
 pub mod lease;
 pub mod record;
+pub mod table_store;
 pub mod tables;
 
 use std::collections::BTreeSet;
@@ -35,6 +40,7 @@ use crate::scenario::Output;
 pub use lease::{Lease, LeaseHolder, Liveness};
 use policies::checkpoint::WEIGHTS_FILE;
 pub use record::{CellFailure, CellRecord, Manifest};
+pub use table_store::{MissingCell, TABLE_STORE_FILE, TableStoreMarker};
 
 pub const EPISODES_FILE: &str = "episodes.parquet";
 pub const TRAINING_FILE: &str = "training.parquet";
@@ -66,6 +72,10 @@ pub enum StoreError {
         found: String,
         expected: String,
     },
+    #[error(
+        "{folder} is a table store ({TABLE_STORE_FILE}): it keeps a sweep's tables, not {wanted}"
+    )]
+    TableOnly { folder: PathBuf, wanted: String },
 }
 
 impl StoreError {
@@ -152,6 +162,9 @@ impl Store {
     /// Makes the folder ready to serve as a cache of cells shared between sweeps: the cells
     /// and their maps, no manifest.
     pub fn prepare_cache(&self) -> Result<(), StoreError> {
+        if self.is_table_store() {
+            return Err(self.table_only("cells to compute or share"));
+        }
         for folder in [self.root.join("cells"), self.root.join("maps")] {
             std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
         }
@@ -203,8 +216,12 @@ impl Store {
         Ok(record)
     }
 
-    /// Cell `key`'s record as written, unchecked against its files.
+    /// Cell `key`'s record as written, unchecked against its files; a table store's from its
+    /// cells table.
     fn record(&self, key: &str) -> Result<CellRecord, StoreError> {
+        if self.is_table_store() {
+            return self.record_from_cells_table(key);
+        }
         let path = self.cell_folder(key).join(RECORD_FILE);
         let record: CellRecord = read_json(&path)?;
         if record.key != key {
@@ -256,6 +273,9 @@ impl Store {
 
     /// A result file of a finished cell, checked against its recorded hash.
     pub fn cell_file(&self, record: &CellRecord, file: &str) -> Result<Vec<u8>, StoreError> {
+        if self.is_table_store() {
+            return Err(self.table_only(&format!("cell {}'s {file}", record.key)));
+        }
         let path = self.cell_folder(&record.key).join(file);
         let recorded = record
             .files
@@ -327,6 +347,9 @@ impl Store {
         if self.finished(key).is_some() {
             return Ok(false);
         }
+        if other.is_table_store() {
+            return Err(other.table_only(&format!("cell {key}'s files")));
+        }
         let record = other.verified_record(key)?;
         let files: Vec<(&str, Vec<u8>)> = record
             .files
@@ -392,8 +415,12 @@ impl Store {
     /// hold exactly those cells (the sweep is still running, or was stopped, or an earlier
     /// look built them from fewer), so that its report and claims can be read mid-sweep.
     /// Returns how many of the sweep's cells the tables hold, out of how many, or `None` when
-    /// there is no sweep or its tables were current.
+    /// there is no sweep, its tables were current or it is a table store.
     pub fn build_missing_tables(&self) -> Result<Option<(usize, usize)>, StoreError> {
+        // A table store's tables are its content: there are no cells to build them from.
+        if self.is_table_store() {
+            return Ok(None);
+        }
         let Some(manifest) = self.manifest()? else {
             return Ok(None);
         };

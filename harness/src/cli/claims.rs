@@ -8,7 +8,7 @@ use report::{StoreTables, markdown, store_claims, verdicts};
 
 #[derive(clap::Args)]
 pub struct ClaimsArgs {
-    /// A sweep's output folder.
+    /// A sweep's output folder, or a report's `store/` folder (a table store).
     dir: PathBuf,
     /// Test the claims of this scenario file instead of those the sweep ran with (checked
     /// against the file's maps, policies and agent counts).
@@ -30,6 +30,7 @@ pub fn run(args: ClaimsArgs) -> anyhow::Result<()> {
     anyhow::ensure!(!claims.is_empty(), "the scenario has no claims");
     super::report::tables_of_unfinished_sweep(&store)?;
     let results = StoreTables::load(&store)?.verdicts(&claims)?;
+    let results: Vec<&verdicts::ClaimResult> = results.iter().collect();
     print!("{}", markdown::table(&verdicts::results_frame(&results)?)?);
     Ok(())
 }

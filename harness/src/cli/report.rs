@@ -1,4 +1,6 @@
-//! `harness report DIR`: the report of a sweep's store, in `reports/<scenario>/`.
+//! `harness report DIR`: the report of a sweep's store, in `reports/<scenario>/`, with the
+//! store's tables in its `store/` (a table store, which `harness report` and `harness claims`
+//! read as they read a sweep's store).
 
 use std::path::PathBuf;
 
@@ -7,7 +9,7 @@ use report::write_report;
 
 #[derive(clap::Args)]
 pub struct ReportArgs {
-    /// The sweep's output folder.
+    /// The sweep's output folder, or a report's `store/` folder (a table store).
     store: PathBuf,
     /// Folder of reports; the report goes to its subfolder named after the scenario.
     #[arg(long, default_value = "reports")]
@@ -19,10 +21,12 @@ pub fn run(args: ReportArgs) -> anyhow::Result<()> {
     tables_of_unfinished_sweep(&store)?;
     let summary = write_report(&store, &args.to)?;
     println!(
-        "report: {} tables and {} figures in {}",
+        "report: {} tables and {} figures in {}, and its store's tables in {} ({:.1} MB)",
         summary.tables,
         summary.figures,
-        summary.folder.display()
+        summary.folder.display(),
+        summary.folder.join(report::STORE_FOLDER).display(),
+        summary.store_bytes as f64 / 1e6
     );
     Ok(())
 }

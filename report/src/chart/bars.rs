@@ -1,10 +1,16 @@
 //! Grouped bars with interval whiskers: one group per x label (N_test), one bar per series
-//! (policy) in each group.
+//! (policy) in each group, and over each bar a point per training run (cell): its mean, so
+//! that a bar is read with the runs it averages. The value axis turns logarithmic where the
+//! bars and points span more than two decades.
 
 use plotters::coord::Shift;
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
 
-use super::{ChartError, FONT, Figure, draw_legend, padded_range, series_colour, tick_label};
+use super::axis::ValueAxis;
+use super::legend::{self, Entry};
+use super::marker::{Behind, marker};
+use super::{ChartError, FONT, Figure, centre_label, series_colour, tick_label};
 
 /// A bar's height and its interval.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -18,6 +24,8 @@ pub struct BarSeries {
     pub label: String,
     /// One per group; `None` leaves a gap.
     pub values: Vec<Option<Interval>>,
+    /// One list per group: the mean of each training run (cell), drawn as points on the bar.
+    pub runs: Vec<Vec<f64>>,
 }
 
 pub struct GroupedBars {
@@ -28,21 +36,64 @@ pub struct GroupedBars {
     pub series: Vec<BarSeries>,
 }
 
+/// The radius of a run's point on a bar `bar` pixels wide: at most 4 pixels, and less on
+/// thin bars (14 policies at five N_test), so that points stay on their bar.
+fn point_radius(bar: f64) -> i32 {
+    ((bar * 0.3) as i32).clamp(2, 4)
+}
+
 impl Figure for GroupedBars {
     fn size(&self) -> (u32, u32) {
         (960, 540)
     }
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), ChartError> {
-        let intervals = self.series.iter().flat_map(|s| s.values.iter().flatten());
-        let y_range = padded_range(intervals.flat_map(|i| [i.low, i.high, i.value]), true);
+        let axis = self.axis();
+        let range = axis.range.clone();
+        match axis.log {
+            true => self.draw_on(
+                root,
+                &axis,
+                range.log_scale().with_key_points(axis.log_ticks()),
+            ),
+            false => self.draw_on(root, &axis, range),
+        }
+    }
+}
+
+impl GroupedBars {
+    /// The value axis: logarithmic where the bars and the runs' points span more than two
+    /// decades, and then it says so.
+    pub fn axis(&self) -> ValueAxis {
+        let (mut shown, mut reach) = (Vec::new(), Vec::new());
+        for series in &self.series {
+            for interval in series.values.iter().flatten() {
+                shown.push(interval.value);
+                reach.extend([interval.low, interval.high]);
+            }
+            shown.extend(series.runs.iter().flatten());
+        }
+        ValueAxis::fit(&shown, &reach, true)
+    }
+
+    fn draw_on<DB: DrawingBackend, Y>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        axis: &ValueAxis,
+        y: Y,
+    ) -> Result<(), ChartError>
+    where
+        Y: AsRangedCoord<Value = f64>,
+        Y::CoordDescType: ValueFormatter<f64>,
+    {
         let groups = self.groups.len();
-        let mut chart = ChartBuilder::on(root)
+        let plot = legend::beside(root, &self.legend(), 44)?;
+        let mut chart = ChartBuilder::on(&plot)
             .caption(&self.title, (FONT, 22))
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(70)
-            .build_cartesian_2d(-0.5..groups as f64 - 0.5, y_range)?;
+            .build_cartesian_2d(-0.5..groups as f64 - 0.5, y)?;
         let labels = &self.groups;
         chart
             .configure_mesh()
@@ -50,53 +101,57 @@ impl Figure for GroupedBars {
             .light_line_style(TRANSPARENT)
             .y_label_formatter(&tick_label)
             .x_labels(groups.max(1) * 2 + 1)
-            .x_label_formatter(&|x| group_label(labels, *x))
+            .x_label_formatter(&|x| centre_label(labels, *x))
             .x_desc(&self.x_label)
-            .y_desc(&self.y_label)
+            .y_desc(axis.describe(&self.y_label))
             .label_style((FONT, 14))
             .draw()?;
         let width = 0.8 / self.series.len().max(1) as f64;
+        let radius = point_radius(width * plot.dim_in_pixel().0 as f64 / groups.max(1) as f64);
         for (index, series) in self.series.iter().enumerate() {
             let colour = series_colour(index);
-            let bars: Vec<(f64, Interval)> = series
+            let centre = |group: usize| group as f64 - 0.4 + width * (index as f64 + 0.5);
+            let half = width * 0.45;
+            let bars = series
                 .values
                 .iter()
                 .enumerate()
-                .filter_map(|(group, v)| v.map(|v| (group as f64, v)))
-                .map(|(group, v)| (group - 0.4 + width * (index as f64 + 0.5), v))
-                .collect();
-            chart
-                .draw_series(bars.iter().map(|&(centre, v)| {
-                    let half = width * 0.45;
-                    Rectangle::new(
-                        [(centre - half, 0.0), (centre + half, v.value)],
-                        colour.filled(),
-                    )
-                }))?
-                .label(&series.label)
-                .legend(move |(x, y)| {
-                    Rectangle::new([(x, y - 5), (x + 14, y + 5)], colour.filled())
-                });
-            chart.draw_series(bars.iter().map(|&(centre, v)| {
-                PathElement::new(
-                    vec![(centre, v.low), (centre, v.high)],
-                    BLACK.stroke_width(2),
-                )
+                .filter_map(|(group, v)| v.map(|v| (centre(group), v)));
+            chart.draw_series(bars.clone().map(|(x, v)| {
+                let (base, top) = (axis.base(), axis.clamp(v.value));
+                Rectangle::new([(x - half, base), (x + half, top)], colour.filled())
             }))?;
+            chart.draw_series(bars.map(|(x, v)| {
+                let (low, high) = (axis.clamp(v.low), axis.clamp(v.high));
+                PathElement::new(vec![(x, low), (x, high)], BLACK.stroke_width(2))
+            }))?;
+            let points = series.runs.iter().enumerate().flat_map(|(group, runs)| {
+                spread(centre(group), half, runs.len())
+                    .zip(runs)
+                    .map(|(x, &run)| (x, axis.clamp(run)))
+            });
+            chart.draw_series(points.map(|at| marker(at, index, BLACK, radius)))?;
         }
-        // Penalties fall as teams grow, so the bars are lowest at the right.
-        draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
         Ok(())
+    }
+
+    /// A bar of each series' colour under its runs' (black) marker.
+    fn legend(&self) -> Vec<Entry> {
+        let entry = |(index, series): (usize, &BarSeries)| Entry {
+            label: series.label.clone(),
+            series: index,
+            colour: BLACK,
+            behind: Behind::Patch(series_colour(index)),
+        };
+        self.series.iter().enumerate().map(entry).collect()
     }
 }
 
-/// The label of the group at `x` when `x` is a group's centre, nothing between groups.
-fn group_label(labels: &[String], x: f64) -> String {
-    let nearest = x.round();
-    if (x - nearest).abs() > 1e-6 || nearest < 0.0 {
-        return String::new();
-    }
-    labels.get(nearest as usize).cloned().unwrap_or_default()
+/// `count` positions across the middle of a bar at `centre`, `half` wide either side, so that
+/// runs of equal means stay apart.
+fn spread(centre: f64, half: f64, count: usize) -> impl Iterator<Item = f64> {
+    let step = 1.2 * half / count.max(1) as f64;
+    (0..count).map(move |k| centre - 0.6 * half + step * (k as f64 + 0.5))
 }
 
 #[cfg(test)]
@@ -104,11 +159,56 @@ mod tests {
     use super::*;
 
     #[test]
-    fn only_group_centres_are_labelled() {
-        let labels = vec!["2".to_owned(), "4".to_owned()];
-        assert_eq!(group_label(&labels, 1.0), "4");
-        assert_eq!(group_label(&labels, 0.5), "");
-        assert_eq!(group_label(&labels, 2.0), "");
-        assert_eq!(group_label(&labels, -1.0), "");
+    fn points_shrink_on_thin_bars() {
+        assert_eq!(point_radius(40.0), 4);
+        assert_eq!(point_radius(10.0), 3);
+        assert_eq!(point_radius(3.0), 2);
+    }
+
+    #[test]
+    fn run_points_spread_evenly_over_the_bar() {
+        let xs: Vec<f64> = spread(1.0, 0.5, 3).collect();
+        assert_eq!(xs.len(), 3);
+        assert!(
+            (xs[1] - 1.0).abs() < 1e-12,
+            "the middle run sits at the centre"
+        );
+        assert!(xs[0] > 0.5 && xs[2] < 1.5, "all within the bar");
+        assert_eq!(spread(2.0, 0.5, 1).collect::<Vec<_>>(), [2.0]);
+    }
+
+    fn bars(means: &[f64], runs: Vec<Vec<f64>>) -> GroupedBars {
+        let interval = |&m: &f64| {
+            Some(Interval {
+                value: m,
+                low: m * 0.9,
+                high: m * 1.1,
+            })
+        };
+        GroupedBars {
+            title: "t".into(),
+            x_label: "x".into(),
+            y_label: "penalty".into(),
+            groups: means.iter().map(|m| m.to_string()).collect(),
+            series: vec![BarSeries {
+                label: "a".into(),
+                values: means.iter().map(interval).collect(),
+                runs,
+            }],
+        }
+    }
+
+    #[test]
+    fn the_axis_turns_logarithmic_over_two_decades_of_bars_or_runs() {
+        assert!(!bars(&[50.0, 5.0], vec![]).axis().log);
+        assert!(
+            bars(&[50.0, 0.2], vec![]).axis().log,
+            "four_room: N = 6 vanished"
+        );
+        let one_low_run = bars(&[50.0, 5.0], vec![vec![], vec![9.0, 0.1]]);
+        assert!(
+            one_low_run.axis().log,
+            "a single run far below its bar counts too"
+        );
     }
 }

@@ -1,16 +1,21 @@
-//! Summaries of episode results: mean, spread, robust centres (median, interquartile mean) and
-//! percentile bootstrap intervals, plain or stratified.
+//! Summaries of episode results: mean, spread, robust centres (median, interquartile mean),
+//! bootstrap intervals (`resampling`: a learned policy's training runs are the unit of
+//! replication) and a multiple-testing correction (`multiplicity`).
 //!
 //! Ten test episodes are too few to trust a normal approximation, and penalties are skewed
 //! (one bad episode can dominate), so intervals are the spread of statistics of resampled sets
-//! rather than mean ± 1.96 standard errors. With several training runs the resampling is
-//! stratified (rliable, Agarwal et al. 2021): episodes are drawn within each run, so every
-//! replicate keeps every run and the interval reflects the spread between runs.
+//! rather than mean ± 1.96 standard errors.
 
-use rand::RngExt;
-use rand_pcg::Pcg64Mcg;
+mod distributions;
+mod multiplicity;
+mod resampling;
+
 use thiserror::Error;
 use world::Seed;
+
+pub use distributions::{normal_cdf, normal_quantile, t_cdf, t_quantile};
+pub use multiplicity::holm;
+pub use resampling::{Block, Bootstrap, Pairing, Sample, Unit, UnitsStatistic, bootstrap};
 
 /// Resamples behind every interval in the reports: the 2.5 % and 97.5 % quantiles of 10,000
 /// means move by well under 1 % of their width between seeds.
@@ -24,6 +29,8 @@ pub enum StatsError {
     Confidence(f64),
     #[error("a bootstrap needs at least one resample")]
     NoResamples,
+    #[error("paired samples must hold the same runs (and episodes) in the same order")]
+    Unpaired,
     #[error("value {index} is {value}, not a finite number")]
     NotFinite { index: usize, value: f64 },
 }
@@ -81,19 +88,21 @@ pub fn iqm(values: &[f64]) -> Result<f64, StatsError> {
     mean(&sorted[cut..sorted.len() - cut])
 }
 
-/// The percentile bootstrap interval of the mean at `confidence` (0.95 for 95 %): draw
-/// `resamples` sets of the same size with replacement from `seed`'s stream, and take the
-/// quantiles of their means (nearest rank).
+/// The expanded percentile bootstrap interval of the mean of independent `values` at
+/// `confidence` (0.95 for 95 %), with `resamples` replicates from `seed`'s stream.
 pub fn bootstrap_interval(
     values: &[f64],
     confidence: f64,
     resamples: usize,
     seed: Seed,
 ) -> Result<(f64, f64), StatsError> {
-    stratified_bootstrap_interval(&[values], mean, confidence, resamples, seed)
+    let sample = Sample::new(vec![values], Unit::Episode);
+    let statistic = |units: &[Vec<f64>]| mean(&units[0]);
+    bootstrap(&[Block::single(sample)], &statistic, resamples, seed)?.interval(confidence)
 }
 
-/// Mean and 95 % percentile bootstrap interval with [`RESAMPLES`] resamples.
+/// Mean and 95 % interval with [`RESAMPLES`] resamples, of values that are independent draws
+/// (one per training run, say).
 pub fn summarize(values: &[f64], seed: Seed) -> Result<Summary, StatsError> {
     let (low, high) = bootstrap_interval(values, 0.95, RESAMPLES, seed)?;
     Ok(Summary {
@@ -103,38 +112,9 @@ pub fn summarize(values: &[f64], seed: Seed) -> Result<Summary, StatsError> {
     })
 }
 
-/// The percentile bootstrap interval of `statistic` at `confidence` (0.95 for 95 %), with
-/// resampling within strata: each of `resamples` replicates draws, from `seed`'s stream and
-/// with replacement, as many values from every stratum as it holds, pools them and takes the
-/// statistic; the interval is the replicates' quantiles (nearest rank).
-pub fn stratified_bootstrap_interval(
-    strata: &[&[f64]],
-    statistic: Statistic,
-    confidence: f64,
-    resamples: usize,
-    seed: Seed,
-) -> Result<(f64, f64), StatsError> {
-    check(&strata.concat())?;
-    check_bootstrap(confidence, resamples)?;
-    let mut rng = seed.rng();
-    let mut replicate = Vec::new();
-    let mut statistics = Vec::with_capacity(resamples);
-    for _ in 0..resamples {
-        resample(strata, &mut rng, &mut replicate);
-        statistics.push(statistic(&replicate)?);
-    }
-    Ok(percentile_interval(statistics, confidence))
-}
-
-/// A statistic of several sets of values (each a replicate of one sample).
-pub type SamplesStatistic<'a> = &'a dyn Fn(&[Vec<f64>]) -> Result<f64, StatsError>;
-
-/// A statistic comparing two sets of values (a policy's penalties and another's).
-pub type Comparison = fn(&[f64], &[f64]) -> Result<f64, StatsError>;
-
 /// The probability that a value drawn from `x` is lower (better, for penalties) than one
 /// drawn from `y`, ties counting half: the Mann-Whitney U statistic over `len(x) len(y)`, the
-/// "probability of improvement" of rliable (Agarwal et al. 2021).
+/// "probability of improvement" of rliable (Agarwal et al. 2021), which draws runs.
 pub fn probability_of_improvement(x: &[f64], y: &[f64]) -> Result<f64, StatsError> {
     check(x)?;
     check(y)?;
@@ -153,72 +133,6 @@ pub fn probability_of_improvement(x: &[f64], y: &[f64]) -> Result<f64, StatsErro
 /// `mean(x) - mean(y)`.
 pub fn mean_difference(x: &[f64], y: &[f64]) -> Result<f64, StatsError> {
     Ok(mean(x)? - mean(y)?)
-}
-
-/// The percentile bootstrap interval of a two-sample `comparison`: every replicate resamples
-/// `x` and `y` independently, each within its strata (as [`stratified_bootstrap_interval`]).
-pub fn comparison_interval(
-    x: &[&[f64]],
-    y: &[&[f64]],
-    comparison: Comparison,
-    confidence: f64,
-    resamples: usize,
-    seed: Seed,
-) -> Result<(f64, f64), StatsError> {
-    let statistic = |replicates: &[Vec<f64>]| comparison(&replicates[0], &replicates[1]);
-    samples_interval(&[x, y], &statistic, confidence, resamples, seed)
-}
-
-/// The percentile bootstrap interval of a statistic of several samples (a claim's gaps along
-/// N, say): every replicate resamples each sample within its strata, in order.
-pub fn samples_interval(
-    samples: &[&[&[f64]]],
-    statistic: SamplesStatistic,
-    confidence: f64,
-    resamples: usize,
-    seed: Seed,
-) -> Result<(f64, f64), StatsError> {
-    for sample in samples {
-        check(&sample.concat())?;
-    }
-    check_bootstrap(confidence, resamples)?;
-    let mut rng = seed.rng();
-    let mut replicates = vec![Vec::new(); samples.len()];
-    let mut statistics = Vec::with_capacity(resamples);
-    for _ in 0..resamples {
-        for (sample, replicate) in samples.iter().zip(&mut replicates) {
-            resample(sample, &mut rng, replicate);
-        }
-        statistics.push(statistic(&replicates)?);
-    }
-    Ok(percentile_interval(statistics, confidence))
-}
-
-fn check_bootstrap(confidence: f64, resamples: usize) -> Result<(), StatsError> {
-    if !(confidence > 0.0 && confidence < 1.0) {
-        return Err(StatsError::Confidence(confidence));
-    }
-    if resamples == 0 {
-        return Err(StatsError::NoResamples);
-    }
-    Ok(())
-}
-
-/// One replicate: as many values from every stratum as it holds, drawn with replacement.
-fn resample(strata: &[&[f64]], rng: &mut Pcg64Mcg, replicate: &mut Vec<f64>) {
-    replicate.clear();
-    for stratum in strata.iter().filter(|s| !s.is_empty()) {
-        replicate.extend((0..stratum.len()).map(|_| stratum[rng.random_range(0..stratum.len())]));
-    }
-}
-
-/// The quantiles of the replicates' statistics at both tails (nearest rank).
-fn percentile_interval(mut statistics: Vec<f64>, confidence: f64) -> (f64, f64) {
-    statistics.sort_unstable_by(f64::total_cmp);
-    let tail = (1.0 - confidence) / 2.0;
-    let last = (statistics.len() - 1) as f64;
-    let quantile = |q: f64| statistics[(q * last).round() as usize];
-    (quantile(tail), quantile(1.0 - tail))
 }
 
 fn sorted(values: &[f64]) -> Result<Vec<f64>, StatsError> {
@@ -271,11 +185,11 @@ mod tests {
         assert_eq!(mean(&[]), Err(StatsError::Empty));
         assert_eq!(iqm(&[]), Err(StatsError::Empty));
         assert_eq!(
-            stratified_bootstrap_interval(&[&[1.0]], mean, 1.0, 10, seed),
+            bootstrap_interval(&[1.0, 2.0], 1.0, 10, seed),
             Err(StatsError::Confidence(1.0))
         );
         assert_eq!(
-            stratified_bootstrap_interval(&[&[1.0]], mean, 0.9, 0, seed),
+            bootstrap_interval(&[1.0], 0.9, 0, seed),
             Err(StatsError::NoResamples)
         );
         assert!(matches!(
@@ -305,28 +219,6 @@ mod tests {
     }
 
     #[test]
-    fn strata_keep_their_share_in_every_replicate() {
-        // Two runs whose episodes never vary: every replicate holds both runs whole, so the
-        // stratified interval of the mean is a point, where pooled resampling would spread.
-        let (a, b) = ([1.0; 5], [3.0; 5]);
-        let interval = stratified_bootstrap_interval(&[&a, &b], mean, 0.95, 500, Seed::new(1));
-        assert_eq!(interval, Ok((2.0, 2.0)));
-    }
-
-    #[test]
-    fn interval_brackets_the_statistic_and_is_seeded() {
-        let values: Vec<f64> = (0..10).map(|i| (i * i) as f64).collect();
-        let strata: [&[f64]; 2] = [&values[..5], &values[5..]];
-        let interval =
-            |seed| stratified_bootstrap_interval(&strata, iqm, 0.95, 2000, Seed::new(seed));
-        let (low, high) = interval(2).unwrap();
-        let centre = iqm(&values).unwrap();
-        assert!(low < centre && centre < high, "{low} {centre} {high}");
-        assert_eq!(interval(2), Ok((low, high)));
-        assert_ne!(interval(3), Ok((low, high)));
-    }
-
-    #[test]
     fn probability_of_improvement_counts_wins_and_half_ties() {
         assert_eq!(
             probability_of_improvement(&[1.0, 2.0], &[3.0, 4.0]),
@@ -345,31 +237,9 @@ mod tests {
     }
 
     #[test]
-    fn comparison_interval_brackets_and_separates() {
-        let x: Vec<f64> = (0..20).map(|i| i as f64).collect();
-        let y: Vec<f64> = (0..20).map(|i| i as f64 + 100.0).collect();
-        let seed = Seed::new(5);
-        let p = comparison_interval(&[&x], &[&y], probability_of_improvement, 0.95, 500, seed);
-        assert_eq!(p, Ok((1.0, 1.0)), "x is always lower");
-        let (low, high) =
-            comparison_interval(&[&x], &[&y], mean_difference, 0.95, 2000, seed).unwrap();
-        assert!(
-            low < -100.0 && -100.0 < high && high < -90.0,
-            "{low} {high}"
-        );
-        let same = comparison_interval(&[&x], &[&x], probability_of_improvement, 0.95, 2000, seed);
-        let (low, high) = same.unwrap();
-        assert!(low < 0.5 && 0.5 < high, "{low} {high}");
-        assert_eq!(
-            comparison_interval(&[&x], &[&[]], mean_difference, 0.95, 10, seed),
-            Err(StatsError::Empty)
-        );
-    }
-
-    #[test]
     fn interval_matches_the_normal_approximation_for_many_values() {
         // 400 values alternating 0 and 1: mean 0.5, standard error 0.025, so the 95 % interval
-        // is about 0.5 ± 0.049.
+        // is about 0.5 ± 0.049 (the small-sample correction is negligible at 400).
         let values: Vec<f64> = (0..400).map(|i| (i % 2) as f64).collect();
         let (low, high) = bootstrap_interval(&values, 0.95, 4000, Seed::new(4)).unwrap();
         assert!((low - 0.451).abs() < 0.01, "{low}");

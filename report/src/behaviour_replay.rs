@@ -1,0 +1,453 @@
+//! The measured behaviour of every test episode a behaviour claim reads: each test episode of
+//! every training run (cell) of the claimed (map, policy, N_train) at the claimed N_test.
+//!
+//! A sweep records the motion of one test episode only (the first, of the first run: see
+//! `engine::trajectory`), and recording more would change what a cell stores, so every
+//! finished cell's key (the results fingerprint hashes a cell's files). The episodes are
+//! played again instead, at report time, from the cell's config and checkpoint (a test episode
+//! is a pure function of them, as `harness audit` checks bit for bit), and measured as the
+//! report measures its recorded episodes (`behaviour::measure`). That is done once: the
+//! measurements are kept in the store's `behaviour_episodes` table, and a store without cells
+//! (a committed report's copy, tables only) is judged from that table alone.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use polars::prelude::*;
+use rayon::prelude::*;
+use world::World;
+
+use super::behaviour::measure;
+use super::columns::{GroupKey, PolicyKey, strings, u32s};
+use super::motion::{Motion, sin_theta};
+use super::verdicts::at_point;
+use engine::claims::{Claim, ClaimTest, Point};
+use engine::execution::{CellError, observed_test_episode, stored_policy};
+use engine::store::{CellRecord, Store, StoreError, tables};
+
+/// The store table of measured episodes (`NAME.parquet` and `NAME.csv` in the store's root).
+pub const TABLE: &str = "behaviour_episodes";
+
+/// One test episode's measured behaviour: a row of [`TABLE`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct EpisodeMeasure {
+    pub group: GroupKey,
+    pub cell_key: String,
+    pub repetition: u32,
+    pub episode: u32,
+    pub stationary: u32,
+    pub touring: u32,
+    pub periodic: bool,
+    /// Which recorded episodes the roles were pooled with ([`Pool::identity`]): a row whose
+    /// pool is no longer the store's is measured again where the store can replay it.
+    pub pool: String,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum BehaviourError {
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    #[error("replaying test episodes of cell {key}: {source}")]
+    /// Boxed: a cell's error is large, and this one is rare.
+    Replay { key: String, source: Box<CellError> },
+    #[error("the stored world parameters of cell {key} are not valid: {source}")]
+    World {
+        key: String,
+        source: world::ParamError,
+    },
+    #[error("{path}: {source}")]
+    Table { path: PathBuf, source: PolarsError },
+    #[error("the episodes table: {0}")]
+    Episodes(PolarsError),
+}
+
+/// The measured episodes of every behaviour claim's point of `claims`: read from the store's
+/// table where it holds every test episode the episodes table has at the point, measured
+/// again (and the table rewritten) where it does not or its rows were pooled with other
+/// recorded episodes, and the store has the cells to replay. A point neither held nor
+/// replayable has no rows, and its claims no data.
+pub fn measures(
+    store: &Store,
+    claims: &[Claim],
+    episodes: &DataFrame,
+    motions: &[Motion],
+) -> Result<Vec<EpisodeMeasure>, BehaviourError> {
+    let points = claimed_points(claims);
+    if points.is_empty() {
+        return Ok(Vec::new());
+    }
+    let index = EpisodeIndex::of(episodes).map_err(BehaviourError::Episodes)?;
+    let mut table = read_table(store)?;
+    let (mut measured, mut replayed) = (Vec::new(), false);
+    for (policy, point) in &points {
+        let needed = index.at(policy, point);
+        let pool = Pool::new(motions, policy, point);
+        let held: Vec<&EpisodeMeasure> = (table.iter())
+            .filter(|m| at_point(&m.group, policy, point))
+            .collect();
+        let covered = !needed.is_empty() && covers(&held, &needed);
+        let fresh = held.iter().all(|m| m.pool == pool.identity);
+        let replayable = cells_at_hand(store, &needed);
+        if replayable && !(covered && fresh) {
+            let rows = replay(store, &pool, &needed, point.n_test)?;
+            table.retain(|m| !at_point(&m.group, policy, point));
+            table.extend(rows);
+            replayed = true;
+        } else if !covered {
+            continue;
+        }
+        measured.push((policy, point));
+    }
+    if replayed {
+        tables::write_table(
+            store.root(),
+            TABLE,
+            &frame(&table).map_err(StoreError::from)?,
+        )?;
+    }
+    table.retain(|m| {
+        measured
+            .iter()
+            .any(|(p, point)| at_point(&m.group, p, point))
+    });
+    Ok(table)
+}
+
+/// Whether the store has every cell of `needed` to replay: not a table store (its cells are
+/// rows of a table, without checkpoints), and each cell finished.
+fn cells_at_hand(store: &Store, needed: &BTreeMap<String, BTreeSet<u32>>) -> bool {
+    !needed.is_empty()
+        && !store.is_table_store()
+        && needed.keys().all(|key| store.finished(key).is_some())
+}
+
+/// Every (policy, point) a behaviour claim of `claims` reads, once.
+fn claimed_points(claims: &[Claim]) -> Vec<(String, Point)> {
+    let points = claims.iter().filter_map(|claim| match &claim.test {
+        ClaimTest::Behaviour { policy, point, .. } => Some((policy.clone(), point.clone())),
+        _ => None,
+    });
+    engine::grouping::distinct(points)
+}
+
+/// Whether `held` is one row for each test episode of `needed`, and no more.
+fn covers(held: &[&EpisodeMeasure], needed: &BTreeMap<String, BTreeSet<u32>>) -> bool {
+    let rows: BTreeSet<(&str, u32)> = held
+        .iter()
+        .map(|m| (m.cell_key.as_str(), m.episode))
+        .collect();
+    let wanted: BTreeSet<(&str, u32)> = (needed.iter())
+        .flat_map(|(key, episodes)| episodes.iter().map(move |&e| (key.as_str(), e)))
+        .collect();
+    rows.len() == held.len() && rows == wanted
+}
+
+/// The episodes table's test episodes by group: which cells and episodes a point has.
+struct EpisodeIndex {
+    groups: Vec<GroupKey>,
+    cells: Vec<String>,
+    episodes: Vec<u32>,
+}
+
+impl EpisodeIndex {
+    fn of(episodes: &DataFrame) -> PolarsResult<Self> {
+        Ok(Self {
+            groups: GroupKey::of_rows(episodes)?,
+            cells: strings(episodes, "cell_key")?,
+            episodes: u32s(episodes, "episode")?,
+        })
+    }
+
+    /// The test episodes of `policy` at `point`, by cell key.
+    fn at(&self, policy: &str, point: &Point) -> BTreeMap<String, BTreeSet<u32>> {
+        let mut found: BTreeMap<String, BTreeSet<u32>> = BTreeMap::new();
+        for (row, group) in self.groups.iter().enumerate() {
+            if at_point(group, policy, point) {
+                let cell = found.entry(self.cells[row].clone()).or_default();
+                cell.insert(self.episodes[row]);
+            }
+        }
+        found
+    }
+}
+
+/// The recorded episodes of a point's map that a replayed episode's roles are pooled with:
+/// the report pools a map's recorded episodes (`behaviour` roles), and a replayed episode
+/// takes the place of its group's recorded one (the first test episode of the first run), so
+/// that this episode, replayed, is measured exactly as the report measures it.
+struct Pool<'a> {
+    members: Vec<&'a Motion>,
+    /// Where the replayed episode goes among `members`.
+    slot: usize,
+    /// A hash of the members' groups, `*` at the slot.
+    identity: String,
+}
+
+impl<'a> Pool<'a> {
+    fn new(motions: &'a [Motion], policy: &str, point: &Point) -> Self {
+        let members: Vec<&Motion> = (motions.iter())
+            .filter(|m| m.group.map == point.map)
+            .collect();
+        let slot = (members.iter())
+            .position(|m| at_point(&m.group, policy, point))
+            .unwrap_or(members.len());
+        let labels: Vec<String> = (0..members.len().max(slot + 1))
+            .map(|i| match members.get(i) {
+                Some(m) if i != slot => m.group.label(),
+                _ => "*".to_owned(),
+            })
+            .collect();
+        let identity = blake3::hash(labels.join("\n").as_bytes()).to_hex()[..16].to_owned();
+        Self {
+            members,
+            slot,
+            identity,
+        }
+    }
+
+    /// `replayed`'s stationary and touring agents and whether it is periodic.
+    fn measure(&self, replayed: &Motion) -> (u32, u32, bool) {
+        let mut members: Vec<&Motion> = self.members.clone();
+        match members.get_mut(self.slot) {
+            Some(member) => *member = replayed,
+            None => members.push(replayed),
+        }
+        // The slot is inside `members` by construction.
+        measure(&members, self.slot).map_or((0, 0, false), |b| {
+            (b.stationary as u32, b.touring as u32, b.periodic)
+        })
+    }
+}
+
+/// Plays the test episodes `needed` (by cell) with `n_test` agents again and measures them,
+/// the cells in parallel.
+fn replay(
+    store: &Store,
+    pool: &Pool,
+    needed: &BTreeMap<String, BTreeSet<u32>>,
+    n_test: u32,
+) -> Result<Vec<EpisodeMeasure>, BehaviourError> {
+    let records: Vec<CellRecord> = (needed.keys())
+        .map(|key| store.verified_record(key))
+        .collect::<Result<_, _>>()?;
+    let mut worlds: HashMap<String, Arc<World>> = HashMap::new();
+    for record in &records {
+        let config = &record.config;
+        if !worlds.contains_key(&config.map.hash) {
+            let params = config
+                .world
+                .params()
+                .map_err(|source| BehaviourError::World {
+                    key: record.key.clone(),
+                    source,
+                })?;
+            let map = store.map(&config.map.name, &config.map.hash)?;
+            worlds.insert(config.map.hash.clone(), World::new(map, params));
+        }
+    }
+    let per_cell: Vec<Vec<EpisodeMeasure>> = records
+        .par_iter()
+        .map(|record| {
+            let world = &worlds[&record.config.map.hash];
+            let episodes = &needed[&record.key];
+            replay_cell(store, pool, world, record, episodes, n_test).map_err(|source| {
+                BehaviourError::Replay {
+                    key: record.key.clone(),
+                    source: Box::new(source),
+                }
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(per_cell.concat())
+}
+
+fn replay_cell(
+    store: &Store,
+    pool: &Pool,
+    world: &Arc<World>,
+    record: &CellRecord,
+    episodes: &BTreeSet<u32>,
+    n_test: u32,
+) -> Result<Vec<EpisodeMeasure>, CellError> {
+    let mut policy = stored_policy(store, record, world)?;
+    let config = &record.config;
+    let group = GroupKey {
+        map: config.map.name.clone(),
+        policy: PolicyKey {
+            policy: config.policy.label(),
+            n_train: config.n_train,
+        },
+        n_test,
+    };
+    let centre = (
+        world.map().width() as f64 / 2.0,
+        world.map().height() as f64 / 2.0,
+    );
+    let mut rows = Vec::new();
+    for &episode in episodes {
+        let mut motion = empty_motion(group.clone());
+        observed_test_episode(
+            world,
+            policy.as_mut(),
+            config,
+            (n_test, episode),
+            None,
+            &mut |e, _, _| follow(&mut motion, e, centre),
+        )?;
+        let (stationary, touring, periodic) = pool.measure(&motion);
+        rows.push(EpisodeMeasure {
+            group: group.clone(),
+            cell_key: record.key.clone(),
+            repetition: config.repetition,
+            episode,
+            stationary,
+            touring,
+            periodic,
+            pool: pool.identity.clone(),
+        });
+    }
+    Ok(rows)
+}
+
+fn empty_motion(group: GroupKey) -> Motion {
+    let agents = group.n_test as usize;
+    Motion {
+        group,
+        agents,
+        steps: Vec::new(),
+        x: vec![Vec::new(); agents],
+        y: vec![Vec::new(); agents],
+        sin_theta: vec![Vec::new(); agents],
+        penalty: Vec::new(),
+    }
+}
+
+/// Adds the episode's state after a step to `motion`, as the trajectories table records it
+/// (`engine::trajectory`): every agent's cell and the team's penalty.
+fn follow(motion: &mut Motion, episode: &world::Episode, centre: (f64, f64)) {
+    motion.steps.push(episode.time() as u32);
+    motion.penalty.push(-episode.reward());
+    let agents = motion
+        .x
+        .iter_mut()
+        .zip(&mut motion.y)
+        .zip(&mut motion.sin_theta);
+    for (cell, ((x, y), sin)) in episode.positions().iter().zip(agents) {
+        let (cx, cy) = (f64::from(cell.x), f64::from(cell.y));
+        x.push(cx);
+        y.push(cy);
+        sin.push(sin_theta(cx, cy, centre));
+    }
+}
+
+/// The store's table as rows; none when it is not there.
+fn read_table(store: &Store) -> Result<Vec<EpisodeMeasure>, BehaviourError> {
+    let path = store.root().join(format!("{TABLE}.parquet"));
+    if !path.exists() {
+        return Ok(Vec::new());
+    }
+    let frame = store.table(TABLE)?;
+    rows(&frame).map_err(|source| BehaviourError::Table { path, source })
+}
+
+fn rows(frame: &DataFrame) -> PolarsResult<Vec<EpisodeMeasure>> {
+    let groups = GroupKey::of_rows(frame)?;
+    let cells = strings(frame, "cell_key")?;
+    let repetitions = u32s(frame, "repetition")?;
+    let episodes = u32s(frame, "episode")?;
+    let stationary = u32s(frame, "stationary")?;
+    let touring = u32s(frame, "touring")?;
+    let periodic = bools(frame, "periodic")?;
+    let pools = strings(frame, "pool")?;
+    Ok((0..frame.height())
+        .map(|i| EpisodeMeasure {
+            group: groups[i].clone(),
+            cell_key: cells[i].clone(),
+            repetition: repetitions[i],
+            episode: episodes[i],
+            stationary: stationary[i],
+            touring: touring[i],
+            periodic: periodic[i],
+            pool: pools[i].clone(),
+        })
+        .collect())
+}
+
+fn bools(frame: &DataFrame, name: &str) -> PolarsResult<Vec<bool>> {
+    let missing = || PolarsError::NoData(format!("a null in column {name}").into());
+    (frame.column(name)?.bool()?.iter())
+        .map(|v| v.ok_or_else(missing))
+        .collect()
+}
+
+/// The rows as the store's table: map, policy, n_train, n_test, cell_key, repetition,
+/// episode, stationary, touring, periodic, pool.
+pub fn frame(rows: &[EpisodeMeasure]) -> PolarsResult<DataFrame> {
+    let column = |f: fn(&EpisodeMeasure) -> u32| -> Vec<u32> { rows.iter().map(f).collect() };
+    let text = |f: fn(&EpisodeMeasure) -> &str| -> Vec<&str> { rows.iter().map(f).collect() };
+    df!(
+        "map" => text(|m| m.group.map.as_str()),
+        "policy" => text(|m| m.group.policy.policy.as_str()),
+        "n_train" => rows.iter().map(|m| m.group.policy.n_train).collect::<Vec<_>>(),
+        "n_test" => column(|m| m.group.n_test),
+        "cell_key" => text(|m| m.cell_key.as_str()),
+        "repetition" => column(|m| m.repetition),
+        "episode" => column(|m| m.episode),
+        "stationary" => column(|m| m.stationary),
+        "touring" => column(|m| m.touring),
+        "periodic" => rows.iter().map(|m| m.periodic).collect::<Vec<_>>(),
+        "pool" => text(|m| m.pool.as_str()),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(cell: &str, episode: u32, n_train: Option<u32>) -> EpisodeMeasure {
+        EpisodeMeasure {
+            group: GroupKey {
+                map: "open".into(),
+                policy: PolicyKey {
+                    policy: "gcs".into(),
+                    n_train,
+                },
+                n_test: 3,
+            },
+            cell_key: cell.into(),
+            repetition: 1,
+            episode,
+            stationary: 1,
+            touring: 2,
+            periodic: episode.is_multiple_of(2),
+            pool: "abc".into(),
+        }
+    }
+
+    #[test]
+    fn the_table_reads_back_what_it_wrote() {
+        let rows_written = vec![row("a", 0, None), row("b", 3, Some(2))];
+        let bytes = tables::parquet_bytes(&frame(&rows_written).unwrap()).unwrap();
+        let read = rows(&tables::read_parquet(bytes).unwrap()).unwrap();
+        assert_eq!(read, rows_written);
+    }
+
+    #[test]
+    fn a_point_is_covered_by_one_row_per_needed_episode() {
+        let needed: BTreeMap<String, BTreeSet<u32>> = [
+            ("a".to_owned(), BTreeSet::from([0, 1])),
+            ("b".to_owned(), BTreeSet::from([0, 1])),
+        ]
+        .into();
+        let held = [row("a", 0, None), row("a", 1, None), row("b", 0, None)];
+        let refs: Vec<&EpisodeMeasure> = held.iter().collect();
+        assert!(!covers(&refs, &needed), "an episode missing");
+        let more = [held.to_vec(), vec![row("b", 1, None)]].concat();
+        let refs: Vec<&EpisodeMeasure> = more.iter().collect();
+        assert!(covers(&refs, &needed));
+        let twice = [more.clone(), vec![row("b", 1, None)]].concat();
+        let refs: Vec<&EpisodeMeasure> = twice.iter().collect();
+        assert!(!covers(&refs, &needed), "an episode twice");
+    }
+}

@@ -1,0 +1,477 @@
+//! The report's header: how long and with how many seeds the learned policies trained, set
+//! against the paper's budget, how they were tested, what computed the cells and wrote the
+//! report, and whether the training runs were still improving when they stopped. Every
+//! verdict below is weighed by it: a claim about trained policies judged after 800 episodes,
+//! or on runs still learning, says little about the paper's 30,000.
+
+use polars::prelude::*;
+
+use super::columns::{PolicyKey, distinct, f64s, group_rows, named_seed, optional_u32s, strings};
+use super::{PENALTY_UNIT, ReportError, ReportWriter};
+use engine::stats::summarize;
+
+/// The paper's training budget per learned policy, in episodes.
+pub const PAPER_TRAINING_EPISODES: u64 = 30_000;
+
+/// Training slopes are shown per this many episodes.
+const SLOPE_EPISODES: f64 = 100.0;
+
+/// The store's tables the header reads.
+pub struct HeaderTables<'a> {
+    /// `None` when the sweep kept no cells table.
+    pub cells: Option<&'a DataFrame>,
+    pub episodes: &'a DataFrame,
+    pub training: Option<&'a DataFrame>,
+}
+
+pub fn section(report: &mut ReportWriter, tables: &HeaderTables) -> Result<(), ReportError> {
+    report.heading(2, "How were the policies trained and tested?");
+    let commits = match tables.cells {
+        Some(cells) => distinct(strings(cells, "git_commit")?),
+        None => Vec::new(),
+    };
+    let writer = engine::code_version::git_commit().to_owned();
+    if let Some(warning) = dirty_warning(&commits, &writer) {
+        report.paragraph(&warning);
+    }
+    let code = format!(
+        "- **Code**: cells computed at {}; this report written at {}.",
+        commit_list(&commits),
+        commit_list(std::slice::from_ref(&writer))
+    );
+    let testing = testing_line(tables.episodes)?;
+    let lines = match tables.cells {
+        Some(cells) => vec![
+            training_line(cells, tables.training)?,
+            testing,
+            compute_line(cells)?,
+            code,
+            format!("- **CPU**: {}.", platforms(cells)?),
+        ],
+        None => vec![
+            testing,
+            code,
+            "- **Cells**: the sweep kept no cells table, so its training runs, CPU time and \
+             CPUs are not recorded."
+                .to_owned(),
+        ],
+    };
+    report.paragraph(&lines.join("\n"));
+    if let Some(training) = tables.training {
+        improving_section(report, training)?;
+    }
+    Ok(())
+}
+
+/// A line in bold when a commit had uncommitted changes: no commit holds that code, so its
+/// numbers cannot be traced to the repository.
+fn dirty_warning(cells: &[String], writer: &str) -> Option<String> {
+    let mut what: Vec<String> = (cells.iter())
+        .filter(|c| is_dirty(c))
+        .map(|c| format!("`{c}` computed cells"))
+        .collect();
+    if is_dirty(writer) {
+        what.push(format!("`{writer}` wrote this report"));
+    }
+    (!what.is_empty()).then(|| {
+        format!(
+            "**DIRTY**: {}, from a working tree with uncommitted changes; no commit holds \
+             exactly that code.",
+            what.join("; ")
+        )
+    })
+}
+
+fn is_dirty(commit: &str) -> bool {
+    commit.ends_with("-dirty")
+}
+
+fn commit_list(commits: &[String]) -> String {
+    if commits.is_empty() {
+        return "unrecorded commits".to_owned();
+    }
+    let named: Vec<String> = commits
+        .iter()
+        .map(|c| match c.as_str() {
+            "" => "an unrecorded commit".to_owned(),
+            c if is_dirty(c) => format!("`{c}` (**DIRTY**)"),
+            c => format!("`{c}`"),
+        })
+        .collect();
+    named.join(", ")
+}
+
+/// Episodes per training run (against the paper's) and runs per learned setting.
+fn training_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResult<String> {
+    let n_trains = optional_u32s(cells, "n_train")?;
+    let learned: Vec<usize> = (0..n_trains.len())
+        .filter(|&r| n_trains[r].is_some())
+        .collect();
+    if learned.is_empty() {
+        return Ok("- **Training**: none; every policy is a baseline.".to_owned());
+    }
+    let settings = learned_settings(cells)?;
+    let runs: Vec<usize> = settings.iter().map(|(_, rows)| rows.len()).collect();
+    let budget = match training {
+        Some(training) => episodes_per_policy(training)?,
+        None => "not recorded (the sweep kept no training table)".to_owned(),
+    };
+    Ok(format!(
+        "- **Training**: {budget} episodes per training run, against the paper's {} per \
+         learned policy; {} training runs (seeds) per learned (map, policy, N_train).",
+        thousands(PAPER_TRAINING_EPISODES),
+        range(&runs)
+    ))
+}
+
+/// The cells table's learned rows grouped by (map, policy, N_train).
+fn learned_settings(cells: &DataFrame) -> PolarsResult<Vec<(Setting, Vec<usize>)>> {
+    let (maps, policies) = (strings(cells, "map")?, strings(cells, "policy")?);
+    let n_trains = optional_u32s(cells, "n_train")?;
+    let keys: Vec<Option<Setting>> = (0..cells.height())
+        .map(|r| {
+            n_trains[r].map(|n| {
+                let policy = PolicyKey {
+                    policy: policies[r].clone(),
+                    n_train: Some(n),
+                };
+                (maps[r].clone(), policy)
+            })
+        })
+        .collect();
+    Ok(group_rows(&keys)
+        .into_iter()
+        .filter_map(|(key, rows)| key.map(|k| (k, rows)))
+        .collect())
+}
+
+/// "800" when every learned policy's runs are that long, else "800 (ma-g-ppo), 400 (ma-ppo)".
+fn episodes_per_policy(training: &DataFrame) -> PolarsResult<String> {
+    let (keys, policies) = (strings(training, "cell_key")?, strings(training, "policy")?);
+    let runs = group_rows(&keys);
+    let per_run: Vec<(String, usize)> = runs
+        .iter()
+        .map(|(_, rows)| (policies[rows[0]].clone(), rows.len()))
+        .collect();
+    let all: Vec<usize> = per_run.iter().map(|(_, n)| *n).collect();
+    if distinct(all.iter().copied()).len() == 1 {
+        return Ok(thousands(all[0] as u64));
+    }
+    let labels: Vec<String> = distinct(per_run.iter().map(|(p, _)| p.clone()));
+    let parts: Vec<String> = labels
+        .iter()
+        .map(|label| {
+            let of: Vec<usize> = per_run
+                .iter()
+                .filter(|(p, _)| p == label)
+                .map(|(_, n)| *n)
+                .collect();
+            format!("{} ({label})", range(&of))
+        })
+        .collect();
+    Ok(parts.join(", "))
+}
+
+/// Test episodes per cell and N_test, and T, from the episodes table.
+fn testing_line(episodes: &DataFrame) -> Result<String, ReportError> {
+    let keys = strings(episodes, "cell_key")?;
+    let n_tests = optional_u32s(episodes, "n_test")?;
+    let plays: Vec<(&String, Option<u32>)> = keys.iter().zip(n_tests).collect();
+    let counts: Vec<usize> = group_rows(&plays)
+        .into_iter()
+        .map(|(_, rows)| rows.len())
+        .collect();
+    let steps: Vec<usize> = f64s(episodes, "steps")?
+        .into_iter()
+        .map(|s| s as usize)
+        .collect();
+    Ok(format!(
+        "- **Testing**: {} test episodes per cell and N_test, each of T = {} steps.",
+        range(&counts),
+        range(&steps)
+    ))
+}
+
+fn compute_line(cells: &DataFrame) -> PolarsResult<String> {
+    let seconds: f64 = f64s(cells, "wall_seconds")?.iter().sum();
+    Ok(format!(
+        "- **Compute**: {:.2} CPU hours ({seconds:.0} s), the wall time of the {} cells summed.",
+        seconds / 3600.0,
+        cells.height()
+    ))
+}
+
+/// Each CPU and kernel build with its count of cells: equal bits on every machine are the
+/// claim, and the report names the machines.
+fn platforms(cells: &DataFrame) -> PolarsResult<String> {
+    let (cpus, kernels) = (strings(cells, "cpu")?, strings(cells, "kernels")?);
+    let platforms: Vec<String> = cpus
+        .iter()
+        .zip(&kernels)
+        .map(|(cpu, kernels)| match (cpu.as_str(), kernels.as_str()) {
+            ("", _) => "an unrecorded CPU".to_owned(),
+            (cpu, kernels) => format!("{cpu} with {kernels} kernels"),
+        })
+        .collect();
+    let counted: Vec<String> = group_rows(&platforms)
+        .into_iter()
+        .map(|(platform, rows)| format!("{} cells on {platform}", rows.len()))
+        .collect();
+    Ok(counted.join("; "))
+}
+
+/// "3" for equal values, "2 to 3" otherwise.
+fn range(values: &[usize]) -> String {
+    let (low, high) = (values.iter().min(), values.iter().max());
+    match (low, high) {
+        (Some(low), Some(high)) if low == high => thousands(*low as u64),
+        (Some(low), Some(high)) => {
+            format!("{} to {}", thousands(*low as u64), thousands(*high as u64))
+        }
+        _ => "no".to_owned(),
+    }
+}
+
+/// 30000 as "30,000".
+fn thousands(value: u64) -> String {
+    let digits = value.to_string();
+    let mut text = String::new();
+    for (i, digit) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            text.push(',');
+        }
+        text.push(digit);
+    }
+    text
+}
+
+/// One training run's penalties in episode order.
+struct Run {
+    episode: Vec<f64>,
+    penalty: Vec<f64>,
+}
+
+impl Run {
+    /// The last quarter of the run, at least two episodes (none for a run of one).
+    fn last_quarter(&self) -> usize {
+        let n = self.episode.len();
+        if n < 2 { 0 } else { n.div_ceil(4).max(2) }
+    }
+
+    /// The least-squares slope of the penalty over the last quarter, per episode.
+    fn slope(&self) -> Option<f64> {
+        let window = self.last_quarter();
+        let start = self.episode.len() - window;
+        least_squares_slope(&self.episode[start..], &self.penalty[start..])
+    }
+}
+
+/// The slope of the least-squares line through (x, y); `None` for fewer than two distinct x.
+fn least_squares_slope(x: &[f64], y: &[f64]) -> Option<f64> {
+    let n = x.len() as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let sxx: f64 = x.iter().map(|v| (v - mx).powi(2)).sum();
+    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
+    (x.len() >= 2 && sxx > 0.0).then(|| sxy / sxx)
+}
+
+/// Whether the runs of one learned setting were still improving: the verdict of the
+/// interval of their mean slope.
+fn trend(slopes: &[f64], low: f64, high: f64) -> &'static str {
+    match slopes.len() {
+        0 => "too short",
+        1 => "one run: no interval",
+        _ if high < 0.0 => "still improving",
+        _ if low > 0.0 => "worse",
+        _ => "flat",
+    }
+}
+
+/// A learned setting: the map, and the policy with its N_train.
+type Setting = (String, PolicyKey);
+
+/// The training table's runs, grouped by learned setting in order.
+fn runs_by_setting(training: &DataFrame) -> PolarsResult<Vec<(Setting, Vec<Run>)>> {
+    let (maps, policies) = (strings(training, "map")?, strings(training, "policy")?);
+    let (n_trains, keys) = (
+        optional_u32s(training, "n_train")?,
+        strings(training, "cell_key")?,
+    );
+    let (episodes, penalties) = (f64s(training, "episode")?, f64s(training, "penalty")?);
+    let settings: Vec<Setting> = (0..training.height())
+        .map(|r| {
+            let policy = PolicyKey {
+                policy: policies[r].clone(),
+                n_train: n_trains[r],
+            };
+            (maps[r].clone(), policy)
+        })
+        .collect();
+    let run = |rows: &[usize]| {
+        let mut points: Vec<(f64, f64)> =
+            rows.iter().map(|&r| (episodes[r], penalties[r])).collect();
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Run {
+            episode: points.iter().map(|p| p.0).collect(),
+            penalty: points.iter().map(|p| p.1).collect(),
+        }
+    };
+    Ok(group_rows(&settings)
+        .into_iter()
+        .map(|(setting, rows)| {
+            let of_run: Vec<&String> = rows.iter().map(|&r| &keys[r]).collect();
+            let runs = group_rows(&of_run)
+                .into_iter()
+                .map(|(_, within)| run(&within.iter().map(|&i| rows[i]).collect::<Vec<_>>()))
+                .collect();
+            (setting, runs)
+        })
+        .collect())
+}
+
+/// One row of the improving table: a learned setting's runs and the trend of their slopes.
+struct Improving {
+    setting: Setting,
+    runs: u32,
+    /// The shortest run's episodes and last quarter.
+    episodes: u32,
+    last_quarter: u32,
+    /// The mean slope, 10^6 per [`SLOPE_EPISODES`] episodes; `None` when no run has one.
+    slope: Option<f64>,
+    /// Its interval over runs; `None` with fewer than two runs.
+    interval: Option<(f64, f64)>,
+    trend: &'static str,
+}
+
+impl Improving {
+    fn of(setting: Setting, runs: &[Run]) -> Result<Self, ReportError> {
+        let per_run: Vec<f64> = (runs.iter())
+            .filter_map(Run::slope)
+            .map(|s| s * SLOPE_EPISODES / PENALTY_UNIT)
+            .collect();
+        let (map, policy) = &setting;
+        let name = format!(
+            "improving\0{map}\0{}\0{}",
+            policy.policy,
+            policy.n_train.unwrap_or(0)
+        );
+        let summary = match per_run.is_empty() {
+            true => None,
+            false => Some(summarize(&per_run, named_seed(&name))?),
+        };
+        let interval = summary
+            .filter(|_| per_run.len() > 1)
+            .map(|s| (s.low, s.high));
+        let (low, high) = interval.unwrap_or((0.0, 0.0));
+        let shortest = runs.iter().min_by_key(|r| r.episode.len());
+        Ok(Self {
+            runs: runs.len() as u32,
+            episodes: shortest.map_or(0, |r| r.episode.len() as u32),
+            last_quarter: shortest.map_or(0, |r| r.last_quarter() as u32),
+            slope: summary.map(|s| s.mean),
+            interval,
+            trend: trend(&per_run, low, high),
+            setting,
+        })
+    }
+}
+
+/// The table of whether each learned setting's runs were still improving.
+fn improving_frame(training: &DataFrame) -> Result<DataFrame, ReportError> {
+    let rows: Vec<Improving> = runs_by_setting(training)?
+        .into_iter()
+        .map(|(setting, runs)| Improving::of(setting, &runs))
+        .collect::<Result<_, _>>()?;
+    let count = |f: fn(&Improving) -> u32| rows.iter().map(f).collect::<Vec<u32>>();
+    let value = |f: fn(&Improving) -> Option<f64>| rows.iter().map(f).collect::<Vec<_>>();
+    Ok(df!(
+        "map" => rows.iter().map(|r| r.setting.0.as_str()).collect::<Vec<_>>(),
+        "policy" => rows.iter().map(|r| r.setting.1.policy.as_str()).collect::<Vec<_>>(),
+        "n_train" => rows.iter().map(|r| r.setting.1.n_train).collect::<Vec<_>>(),
+        "runs" => count(|r| r.runs),
+        "episodes" => count(|r| r.episodes),
+        "last_quarter" => count(|r| r.last_quarter),
+        "slope" => value(|r| r.slope),
+        "slope_ci_low" => value(|r| r.interval.map(|i| i.0)),
+        "slope_ci_high" => value(|r| r.interval.map(|i| i.1)),
+        "trend" => rows.iter().map(|r| r.trend).collect::<Vec<_>>(),
+    )?)
+}
+
+fn improving_section(report: &mut ReportWriter, training: &DataFrame) -> Result<(), ReportError> {
+    report.heading(
+        3,
+        "Were the training runs still improving when they stopped?",
+    );
+    report.paragraph(
+        "For each learned (map, policy, N_train): the least-squares slope of each training \
+         run's training penalty over its last quarter of episodes (`last_quarter`, at least \
+         two), in 10^6 per 100 episodes; `slope` is their mean over the runs, with its 95 % \
+         interval over runs (`engine::stats::summarize`). *still improving*: the interval lies \
+         below 0 (the penalty was still falling, so longer training may change the verdicts \
+         below); *flat*: it holds 0; *worse*: it lies above 0. One run gives no interval. \
+         The episodes of one round are played in parallel by one policy, so a run of a few \
+         rounds has little trend to measure.",
+    );
+    let frame = improving_frame(training)?;
+    report.table("improving", &frame)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slopes_are_least_squares() {
+        let x = [0.0, 1.0, 2.0, 3.0];
+        let y = [1.0, 3.0, 5.0, 7.0];
+        assert_eq!(least_squares_slope(&x, &y), Some(2.0));
+        assert_eq!(least_squares_slope(&[4.0], &[1.0]), None);
+    }
+
+    #[test]
+    fn the_last_quarter_has_two_episodes_at_least() {
+        let run = |n: usize| Run {
+            episode: (0..n).map(|e| e as f64).collect(),
+            penalty: (0..n).map(|e| 10.0 - e as f64).collect(),
+        };
+        assert_eq!(run(800).last_quarter(), 200);
+        assert_eq!(run(8).last_quarter(), 2);
+        assert_eq!(run(5).last_quarter(), 2);
+        assert_eq!(run(1).last_quarter(), 0);
+        assert_eq!(run(1).slope(), None);
+        assert_eq!(run(8).slope(), Some(-1.0));
+    }
+
+    #[test]
+    fn trends_read_the_interval() {
+        assert_eq!(trend(&[-2.0, -1.0], -2.0, -1.0), "still improving");
+        assert_eq!(trend(&[-2.0, 1.0], -2.0, 1.0), "flat");
+        assert_eq!(trend(&[1.0, 2.0], 1.0, 2.0), "worse");
+        assert_eq!(trend(&[-1.0], -1.0, -1.0), "one run: no interval");
+        assert_eq!(trend(&[], 0.0, 0.0), "too short");
+    }
+
+    #[test]
+    fn dirty_commits_are_named() {
+        let cells = ["abc".to_owned(), "def-dirty".to_owned()];
+        let warning = dirty_warning(&cells, "ghi").unwrap();
+        assert!(warning.starts_with("**DIRTY**: `def-dirty` computed cells,"));
+        assert_eq!(dirty_warning(&cells[..1], "ghi"), None);
+        assert!(
+            dirty_warning(&[], "x-dirty")
+                .unwrap()
+                .contains("`x-dirty` wrote this report")
+        );
+        assert_eq!(commit_list(&cells), "`abc`, `def-dirty` (**DIRTY**)");
+    }
+
+    #[test]
+    fn numbers_get_thousands_separators() {
+        assert_eq!(thousands(30_000), "30,000");
+        assert_eq!(thousands(800), "800");
+        assert_eq!(thousands(1_234_567), "1,234,567");
+        assert_eq!(range(&[2, 3, 2]), "2 to 3");
+        assert_eq!(range(&[3, 3]), "3");
+    }
+}

@@ -137,6 +137,39 @@ pub fn diverging(fraction: f64) -> RGBColor {
     }
 }
 
+/// A vertical colour bar headed `caption` in `area`: each of `strips` (from, to, colour)
+/// filled between its values on the axis `y`, ticked in values on the right.
+pub fn draw_colour_bar<DB: DrawingBackend, Y>(
+    area: &DrawingArea<DB, Shift>,
+    caption: &str,
+    y: Y,
+    strips: impl Iterator<Item = (f64, f64, RGBColor)>,
+) -> Result<(), ChartError>
+where
+    Y: plotters::coord::ranged1d::AsRangedCoord<Value = f64>,
+    Y::CoordDescType: plotters::coord::ranged1d::ValueFormatter<f64>,
+{
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (FONT, 15))
+        .margin_top(30)
+        .margin_bottom(52)
+        .margin_left(16)
+        .margin_right(8)
+        .right_y_label_area_size(56)
+        .build_cartesian_2d(0.0..1.0, y)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_label_formatter(&tick_label)
+        .label_style((FONT, 13))
+        .draw()?;
+    chart.draw_series(
+        strips.map(|(from, to, colour)| Rectangle::new([(0.0, from), (1.0, to)], colour.filled())),
+    )?;
+    Ok(())
+}
+
 /// An axis tick: at most three significant digits and no trailing zeros, in powers of ten
 /// beyond five digits (`250000.0` reads `2.5e5`). Ticks are sums of steps, so a zero may
 /// arrive as a rounding residue (`2.2e-16`).

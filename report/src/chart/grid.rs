@@ -7,7 +7,9 @@ use plotters::prelude::*;
 
 use engine::palette;
 
-use super::{ChartError, FONT, Figure, draw_legend, rgb, series_colour, tick_label};
+use super::{
+    ChartError, FONT, Figure, draw_colour_bar, draw_legend, rgb, series_colour, tick_label,
+};
 
 /// What a cell shows.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -129,26 +131,11 @@ fn draw_scale<DB: DrawingBackend>(
     rmax: f64,
 ) -> Result<(), ChartError> {
     const STRIPS: usize = 100;
-    let mut chart = ChartBuilder::on(area)
-        .caption("penalty", (FONT, 16))
-        .margin_top(40)
-        .margin_bottom(42)
-        .margin_left(20)
-        .margin_right(10)
-        .right_y_label_area_size(50)
-        .build_cartesian_2d(0.0..1.0, -rmax..0.0)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .disable_x_axis()
-        .y_label_formatter(&tick_label)
-        .label_style((FONT, 13))
-        .draw()?;
     let strip = rmax / STRIPS as f64;
-    chart.draw_series((0..STRIPS).map(|i| {
+    let strips = (0..STRIPS).map(|i| {
         let top = -(i as f64) * strip;
         let colour = rgb(palette::penalty((i as f64 + 0.5) / STRIPS as f64));
-        Rectangle::new([(0.0, top - strip), (1.0, top)], colour.filled())
-    }))?;
-    Ok(())
+        (top - strip, top, colour)
+    });
+    draw_colour_bar(area, "penalty", -rmax..0.0, strips)
 }

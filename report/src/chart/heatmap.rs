@@ -10,7 +10,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor;
 
 use super::axis::log_ticks;
-use super::{ChartError, FONT, Figure, centre_label, diverging, tick_label};
+use super::{ChartError, FONT, Figure, centre_label, diverging, draw_colour_bar};
 use crate::markdown::number;
 
 pub struct HeatPanel {
@@ -47,9 +47,9 @@ impl Figure for HeatMaps {
             match scale.logarithmic {
                 true => {
                     let ticks = log_ticks(low, high);
-                    draw_colour_bar(&bar, scale, (low..high).log_scale().with_key_points(ticks))?
+                    draw_scale_bar(&bar, scale, (low..high).log_scale().with_key_points(ticks))?
                 }
-                false => draw_colour_bar(&bar, scale, low..high)?,
+                false => draw_scale_bar(&bar, scale, low..high)?,
             }
         }
         Ok(())
@@ -186,9 +186,9 @@ impl ColourScale {
     }
 }
 
-/// A vertical bar of the heat maps' colours from the lowest value (bottom) to the highest,
-/// ticked in values on the axis `y` (logarithmic where the colour is).
-fn draw_colour_bar<DB: DrawingBackend, Y>(
+/// The colour bar of `scale`, ticked in values on the axis `y` (logarithmic where the
+/// colour is).
+fn draw_scale_bar<DB: DrawingBackend, Y>(
     area: &DrawingArea<DB, Shift>,
     scale: ColourScale,
     y: Y,
@@ -198,34 +198,20 @@ where
     Y::CoordDescType: ValueFormatter<f64>,
 {
     const STRIPS: usize = 100;
-    let caption = match scale.logarithmic {
-        true => "log scale",
-        false => "linear scale",
+    let caption = if scale.logarithmic {
+        "log scale"
+    } else {
+        "linear scale"
     };
-    let mut chart = ChartBuilder::on(area)
-        .caption(caption, (FONT, 15))
-        .margin_top(30)
-        .margin_bottom(52)
-        .margin_left(16)
-        .margin_right(8)
-        .right_y_label_area_size(56)
-        .build_cartesian_2d(0.0..1.0, y)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .disable_x_axis()
-        .y_label_formatter(&tick_label)
-        .label_style((FONT, 13))
-        .draw()?;
-    chart.draw_series((0..STRIPS).map(|i| {
+    let strips = (0..STRIPS).map(|i| {
         let (from, to) = (i as f64 / STRIPS as f64, (i + 1) as f64 / STRIPS as f64);
-        let colour = diverging((from + to) / 2.0);
-        Rectangle::new(
-            [(0.0, scale.value(from)), (1.0, scale.value(to))],
-            colour.filled(),
+        (
+            scale.value(from),
+            scale.value(to),
+            diverging((from + to) / 2.0),
         )
-    }))?;
-    Ok(())
+    });
+    draw_colour_bar(area, caption, y, strips)
 }
 
 #[cfg(test)]

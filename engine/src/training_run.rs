@@ -165,6 +165,15 @@ mod tests {
             .unwrap()
     }
 
+    /// With value normalisation, whose statistics the folder's checkpoint must carry.
+    fn normalised_config() -> TrainingConfig {
+        let options = [
+            r#"value_normalisation={"beta":0.9}"#,
+            "grad_clip_per_network=true",
+        ];
+        config().with_overrides(&options).unwrap()
+    }
+
     fn folder(name: &str) -> PathBuf {
         let folder =
             std::env::temp_dir().join(format!("training-run-{}-{name}", std::process::id()));
@@ -180,17 +189,26 @@ mod tests {
 
     #[test]
     fn an_interrupted_run_continues_from_its_folder_bit_for_bit() {
-        let straight_folder = folder("straight");
-        let mut straight = TrainingRun::start(&straight_folder, world(), config(), 5).unwrap();
+        for (name, config) in [("plain", config()), ("normalised", normalised_config())] {
+            continues_bit_for_bit(name, config);
+        }
+    }
+
+    fn continues_bit_for_bit(name: &str, config: TrainingConfig) {
+        let straight_folder = folder(&format!("straight-{name}"));
+        let mut straight =
+            TrainingRun::start(&straight_folder, world(), config.clone(), 5).unwrap();
         straight.train(6, 2, &mut |_| ()).unwrap();
         let (weights, log) = outcome(straight);
 
-        let cut = folder("cut");
-        let mut first = TrainingRun::resume_or_start(&cut, world(), config(), 5).unwrap();
+        let cut = folder(&format!("cut-{name}"));
+        let mut first = TrainingRun::resume_or_start(&cut, world(), config.clone(), 5).unwrap();
         first.train(4, 2, &mut |_| ()).unwrap();
         drop(first); // as a kill would, after the save at episode 4
-        let mut resumed = TrainingRun::resume_or_start(&cut, world(), config(), 5).unwrap();
+        let mut resumed = TrainingRun::resume_or_start(&cut, world(), config.clone(), 5).unwrap();
         assert_eq!(resumed.state().episodes_done, 4);
+        let normalised = config.value_normalisation.is_some();
+        assert_eq!(resumed.state().value_norm.is_some(), normalised);
         resumed.train(6, 2, &mut |_| ()).unwrap();
         let (resumed_weights, resumed_log) = outcome(resumed);
         assert_eq!(resumed_weights, weights);
@@ -198,7 +216,7 @@ mod tests {
         assert_eq!(log.height(), 6);
 
         // Another seed is another run: the folder is not continued.
-        let other = TrainingRun::resume_or_start(&cut, world(), config(), 6).unwrap();
+        let other = TrainingRun::resume_or_start(&cut, world(), config, 6).unwrap();
         assert_eq!(other.state().episodes_done, 0);
         for dir in [straight_folder, cut] {
             std::fs::remove_dir_all(dir).unwrap();

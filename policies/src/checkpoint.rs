@@ -1,7 +1,7 @@
 //! Checkpoints: the weights as safetensors under the model's PyTorch-style tensor names (so
 //! `safetensors.torch.load_file` gives a state dict), Adam's moments in a second safetensors
 //! file under the same names, and the metadata (configuration, seed, episode, optimiser step,
-//! versions) as JSON. This module turns state into bytes and back; callers do the file I/O.
+//! value normalisation's statistics when on, versions) as JSON. This module turns state into bytes and back; callers do the file I/O.
 //!
 //! Tensors are stored in PyTorch's conventions, so that a state dict loaded into the paper's
 //! PyTorch network is the same network: convolution weights `[out, in, kh, kw]`, linear
@@ -20,6 +20,7 @@ use serde::{Deserialize, Serialize};
 use crate::nn::{ActorCritic, Adam, NnError, ParamSlot, ParamSpec, ParamStore};
 use crate::ppo::config::{ConfigError, TrainingConfig};
 use crate::ppo::trainer::{TrainingState, adam_config};
+use crate::ppo::value_norm::ValueNorm;
 
 pub const WEIGHTS_FILE: &str = "checkpoint.safetensors";
 pub const OPTIMIZER_FILE: &str = "checkpoint.optimizer.safetensors";
@@ -44,6 +45,10 @@ pub struct CheckpointMetadata {
     pub image_side: usize,
     pub adam_steps: u64,
     pub parameters: usize,
+    /// The critic's target statistics, when the run normalises values (left out otherwise,
+    /// so that other runs write the metadata they always wrote).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub value_norm: Option<ValueNorm>,
 }
 
 /// The three files' contents.
@@ -97,6 +102,7 @@ pub fn save(state: &TrainingState) -> CheckpointFiles {
         image_side: state.model.config().image_side,
         adam_steps: state.adam.steps(),
         parameters: params.len(),
+        value_norm: state.value_norm,
     };
     let layout = PyTorchLayout::of(&state.model);
     CheckpointFiles {
@@ -174,6 +180,7 @@ pub fn load_state(
         wall_seconds: metadata.wall_seconds,
         model,
         adam,
+        value_norm: metadata.value_norm,
     })
 }
 
@@ -328,6 +335,7 @@ mod tests {
             wall_seconds: 1.5,
             model,
             adam,
+            value_norm: None,
         }
     }
 

@@ -69,6 +69,7 @@ fn state(architecture: &str) -> TrainingState {
         wall_seconds: 0.0,
         model,
         adam,
+        value_norm: None,
     }
 }
 

@@ -184,6 +184,14 @@ mod tests {
                 "unknown field `netwrk`",
             ),
             (
+                "  - ma-ppo: {episodes: 5, set: {network: compact, grad_clip_per_network: 10}}\n",
+                "training configuration: grad_clip_per_network: invalid type",
+            ),
+            (
+                "  - ma-ppo: {episodes: 5, set: {network: compact, value_normalisation: {beta: 1}}}\n",
+                "training configuration: value_normalisation: beta 1 is not in [0, 1)",
+            ),
+            (
                 "  - ma-ppo: {profile: slow, episodes: 5}\n",
                 "unknown variant `slow`",
             ),

@@ -153,6 +153,9 @@ pub struct ActorCritic<T> {
     actor_mlp: Mlp,
     critic_cnn: CnnEncoder,
     critic_mlp: Mlp,
+    /// The first parameter of the critic: the actor's parameters come before it, the
+    /// critic's from it on (the order `new` draws them in).
+    critic_start: usize,
 }
 
 /// Activations of one batch, and the model outputs read after a forward pass.
@@ -236,6 +239,7 @@ impl<T: Real> ActorCritic<T> {
             policy_init,
             rng,
         )?;
+        let critic_start = params.len();
         let critic_cnn =
             CnnEncoder::new(&mut params, "critic.cnn", image, convs, hidden_init, rng)?;
         let critic_sizes = mlp_sizes(critic_cnn.features(), &config.hidden, 1);
@@ -256,6 +260,7 @@ impl<T: Real> ActorCritic<T> {
             actor_mlp,
             critic_cnn,
             critic_mlp,
+            critic_start,
         })
     }
 
@@ -283,6 +288,12 @@ impl<T: Real> ActorCritic<T> {
 
     pub fn params_mut(&mut self) -> &mut ParamStore<T> {
         &mut self.params
+    }
+
+    /// Where the actor's and the critic's parameters lie in the flat buffers, for what
+    /// treats the two networks apart (per-network gradient clipping).
+    pub fn network_ranges(&self) -> [std::ops::Range<usize>; 2] {
+        [0..self.critic_start, self.critic_start..self.params.len()]
     }
 
     /// Forward FLOPs per sample of actor and critic, when every agent has `neighbours`
@@ -348,12 +359,30 @@ impl<T: Real> ActorCritic<T> {
         ];
         CnnEncoder::forward_sharing_input(params, observations, batch, encoders);
         self.policy_from_features(ws, graph);
+        self.values_from_features(ws);
+    }
+
+    /// The values of a batch with the critic alone, read from [`ModelWorkspace::values`]: the
+    /// critic reads no actor output, so these are the bits [`ActorCritic::forward`] gives, at
+    /// the critic's share of the FLOPs (what GAE needs before an update). The workspace's
+    /// policy is left stale, so no backward pass may follow.
+    pub fn forward_values(&self, ws: &mut ModelWorkspace<T>, observations: &[T]) {
+        let batch = observations.len() / self.critic_cnn.input_len();
+        ws.batch = batch;
+        let params = self.params.values();
+        self.critic_cnn
+            .forward(params, &mut ws.critic_cnn, observations, batch);
+        self.values_from_features(ws);
+    }
+
+    /// The values from the critic's features of the last forward pass.
+    fn values_from_features(&self, ws: &mut ModelWorkspace<T>) {
         let features = self.critic_cnn.output(&ws.critic_cnn);
         let values = self
             .critic_mlp
-            .forward(params, &mut ws.critic_mlp, features);
+            .forward(self.params.values(), &mut ws.critic_mlp, features);
         ws.values
-            .slice_mut(batch)
+            .slice_mut(ws.batch)
             .copy_from_slice(values.as_slice().expect("buffer views are contiguous"));
     }
 
@@ -663,5 +692,31 @@ mod tests {
                 .zip(&double)
                 .all(|(a, b)| a.to_bits() == b.to_bits())
         );
+    }
+
+    #[test]
+    fn the_critic_alone_gives_the_values_of_the_whole_model() {
+        let mut rng = Pcg64Mcg::seed_from_u64(81);
+        let config = ModelConfig::paper(Architecture::MaGPpo { heads: PAPER_HEADS }, 2);
+        let model = ActorCritic::<f32>::new(&config, &mut rng).unwrap();
+        let (observations, graph, _) = paper_batch(40, 4, &mut rng);
+        let mut whole = ModelWorkspace::default();
+        model.forward(&mut whole, &observations, &graph);
+        let mut critic = ModelWorkspace::default();
+        model.forward_values(&mut critic, &observations);
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(critic.values()), bits(whole.values()));
+        let [actor, critic] = model.network_ranges();
+        let specs = model.params().specs();
+        for spec in specs {
+            let range = if spec.name.starts_with("actor.") {
+                &actor
+            } else {
+                &critic
+            };
+            assert!(range.contains(&spec.slot.range().start), "{}", spec.name);
+        }
+        assert_eq!((actor.start, actor.end), (0, critic.start));
+        assert_eq!(critic.end, model.params().len());
     }
 }

@@ -124,24 +124,41 @@ impl<T: Real> ParamStore<T> {
 
     /// The global L2 norm of all gradients (summed in `f64`, in a fixed order).
     pub fn grad_norm(&self) -> f64 {
-        self.grads
-            .iter()
-            .map(|g| g.as_f64() * g.as_f64())
-            .sum::<f64>()
-            .sqrt()
+        norm_of(&self.grads)
     }
 
     /// Scales all gradients so that their global norm is at most `max_norm` (as PyTorch's
     /// `clip_grad_norm_`), and returns the norm before clipping.
     pub fn clip_grad_norm(&mut self, max_norm: f64) -> f64 {
-        let norm = self.grad_norm();
-        let scale = max_norm / (norm + 1e-6);
-        if scale < 1.0 {
-            let scale = T::from_f64(scale);
-            self.grads.iter_mut().for_each(|g| *g *= scale);
-        }
-        norm
+        clip_to_norm(&mut self.grads, max_norm)
     }
+
+    /// [`ParamStore::clip_grad_norm`] on the gradients at `range` alone (one network of
+    /// several in the store), so that one network's large gradients cannot shrink another's
+    /// step; returns that part's norm before clipping.
+    pub fn clip_grad_norm_of(&mut self, range: std::ops::Range<usize>, max_norm: f64) -> f64 {
+        clip_to_norm(&mut self.grads[range], max_norm)
+    }
+}
+
+/// The L2 norm of `grads`, summed in `f64` in order.
+fn norm_of<T: Real>(grads: &[T]) -> f64 {
+    grads
+        .iter()
+        .map(|g| g.as_f64() * g.as_f64())
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Scales `grads` to norm at most `max_norm` (PyTorch's `1e-6` guard); returns the norm before.
+fn clip_to_norm<T: Real>(grads: &mut [T], max_norm: f64) -> f64 {
+    let norm = norm_of(grads);
+    let scale = max_norm / (norm + 1e-6);
+    if scale < 1.0 {
+        let scale = T::from_f64(scale);
+        grads.iter_mut().for_each(|g| *g *= scale);
+    }
+    norm
 }
 
 #[cfg(test)]
@@ -169,5 +186,22 @@ mod tests {
         assert_eq!(store.grads(), &[3.0, 4.0]);
         store.clip_grad_norm(1.0);
         assert!((store.grad_norm() - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn clipping_a_range_bounds_its_norm_and_leaves_the_rest() {
+        let mut store = ParamStore::<f64>::new();
+        store.allocate("actor".into(), &[2]);
+        store.allocate("critic".into(), &[2]);
+        store.grads_mut().copy_from_slice(&[0.3, 0.4, 30.0, 40.0]);
+        assert_eq!(store.clip_grad_norm_of(0..2, 10.0), 0.5);
+        assert_eq!(
+            &store.grads()[..2],
+            &[0.3, 0.4],
+            "a norm under the bound is kept"
+        );
+        assert_eq!(store.clip_grad_norm_of(2..4, 10.0), 50.0);
+        assert!((norm_of(&store.grads()[2..]) - 10.0).abs() < 1e-6);
+        assert_eq!(&store.grads()[..2], &[0.3, 0.4]);
     }
 }

@@ -12,6 +12,7 @@ use crate::nn::model::{PAPER_HEADS, PAPER_HIDDEN};
 use crate::nn::{
     ACTIONS, Architecture, ConvSpec, InitScheme, ModelConfig, Neighbours, PAPER_CONVOLUTIONS,
 };
+use crate::ppo::value_norm::ValueNormalisation;
 
 /// The two presets the issue names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -215,10 +216,25 @@ pub struct TrainingConfig {
     /// messages that stop. 0 (the paper, and left out of the file): never.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub loss_probability: f64,
+    /// The critic learns returns normalised by running statistics (`{beta: 0.99999}` is
+    /// MAPPO's; see [`crate::ppo::value_norm`]). `null` (the default, left out of the file):
+    /// raw targets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub value_normalisation: Option<ValueNormalisation>,
+    /// Clip the actor's and the critic's gradients each to `max_grad_norm` on its own, so
+    /// that the critic's large gradients do not shrink the actor's step. false (the default,
+    /// left out of the file): one clip over both together.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub grad_clip_per_network: bool,
 }
 
+// Defaults are left out of the JSON, so that a field added later keeps every cell's key.
 fn is_zero(value: &f64) -> bool {
     *value == 0.0
+}
+
+fn is_false(value: &bool) -> bool {
+    !*value
 }
 
 /// A configuration that cannot be trained, naming the field.
@@ -282,6 +298,8 @@ impl TrainingConfig {
             attention_entropy_coefficient: 0.01,
             max_grad_norm: None,
             loss_probability: 0.0,
+            value_normalisation: None,
+            grad_clip_per_network: false,
         }
     }
 
@@ -330,10 +348,15 @@ impl TrainingConfig {
         values: impl IntoIterator<Item = (String, serde_json::Value)>,
     ) -> Result<Self, ConfigError> {
         let mut tree = serde_json::to_value(self).expect("the configuration serialises");
-        let fields = tree.as_object_mut().expect("the configuration is a map");
-        fields.extend(values);
-        let config: Self =
-            serde_json::from_value(tree).map_err(|e| ConfigError::Override(e.to_string()))?;
+        let mut config = self.clone();
+        // One field at a time, so that a value of the wrong type names its field (serde's
+        // message names the type it expected, not the field).
+        for (field, value) in values {
+            let fields = tree.as_object_mut().expect("the configuration is a map");
+            fields.insert(field.clone(), value);
+            config = serde_json::from_value(tree.clone())
+                .map_err(|e| ConfigError::Override(format!("{field}: {e}")))?;
+        }
         config.check()?;
         Ok(config)
     }
@@ -403,6 +426,7 @@ impl TrainingConfig {
             let problem = "losing a robot needs at least 2 agents and 2 steps an episode";
             return Err(invalid("loss_probability", problem));
         }
+        self.check_value_and_clipping_options()?;
         if self.mini_map_block == Some(0) {
             return Err(invalid("mini_map_block", "must be at least 1"));
         }
@@ -413,6 +437,24 @@ impl TrainingConfig {
                 "neighbours",
                 format!("radius {radius} must be >= 0"),
             ));
+        }
+        Ok(())
+    }
+
+    fn check_value_and_clipping_options(&self) -> Result<(), ConfigError> {
+        if let Some(ValueNormalisation { beta }) = self.value_normalisation {
+            if !(0.0..1.0).contains(&beta) {
+                let problem = format!("beta {beta} is not in [0, 1)");
+                return Err(invalid("value_normalisation", problem));
+            }
+            if self.normalise_returns {
+                let problem = "the returns are normalised already; set normalise_returns=false";
+                return Err(invalid("value_normalisation", problem));
+            }
+        }
+        if self.grad_clip_per_network && self.max_grad_norm.is_none() {
+            let problem = "clips to max_grad_norm, which is null";
+            return Err(invalid("grad_clip_per_network", problem));
         }
         Ok(())
     }
@@ -514,6 +556,48 @@ mod tests {
         );
         let compact = paper.with_overrides(&["network=compact"]).unwrap();
         assert_eq!(compact.model_config(8).unwrap().image_side, 8);
+    }
+
+    #[test]
+    fn the_profile_options_are_off_by_default_left_out_of_the_json_and_checked() {
+        for profile in [Profile::Paper, Profile::Fast] {
+            let text = serde_json::to_string(&TrainingConfig::profile(profile)).unwrap();
+            assert!(!text.contains("value_normalisation"), "{text}");
+            assert!(!text.contains("grad_clip_per_network"), "{text}");
+        }
+        let fast = TrainingConfig::profile(Profile::Fast);
+        let on = fast
+            .with_overrides(&[
+                "value_normalisation={\"beta\":0.99999}",
+                "grad_clip_per_network=true",
+                "max_grad_norm=10",
+            ])
+            .unwrap();
+        assert_eq!(on.value_normalisation.unwrap().beta, 0.99999);
+        assert!(on.grad_clip_per_network);
+        let text = serde_json::to_string(&on).unwrap();
+        assert_eq!(serde_json::from_str::<TrainingConfig>(&text).unwrap(), on);
+        let errors = [
+            (
+                &fast,
+                "value_normalisation={\"beta\":1.0}",
+                "value_normalisation",
+            ),
+            (&fast, "value_normalisation=0.5", "value_normalisation"),
+            (&fast, "value_normalisation={\"bet\":0.5}", "bet"),
+            (&fast, "grad_clip_per_network=yes", "grad_clip_per_network"),
+            (&on, "max_grad_norm=null", "grad_clip_per_network"),
+        ];
+        for (base, given, named) in errors {
+            let error = base.with_overrides(&[given]).unwrap_err().to_string();
+            assert!(error.contains(named), "{given}: {error}");
+        }
+        let paper = TrainingConfig::profile(Profile::Paper);
+        let error = paper
+            .with_overrides(&["value_normalisation={\"beta\":0.9}"])
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("normalise_returns=false"), "{error}");
     }
 
     #[test]

@@ -6,6 +6,7 @@
 //! - `loss`: the clipped surrogate, value and entropy terms, and their output gradients.
 //! - `update`: epochs of minibatches, backward passes and Adam steps.
 //! - `trainer`: the loop, per-episode records, resumable state.
+//! - `value_norm`: running statistics that normalise the critic's targets (an option).
 
 pub mod advantage;
 pub mod config;
@@ -13,9 +14,11 @@ pub mod loss;
 pub mod rollout;
 pub mod trainer;
 pub mod update;
+pub mod value_norm;
 
 pub use config::{
     AgentCount, ArchitectureName, ConfigError, NeighbourRule, Profile, TrainingConfig,
 };
 pub use trainer::{EpisodeRecord, TrainError, Trainer, TrainingState};
 pub use update::UpdateStats;
+pub use value_norm::{ValueNorm, ValueNormalisation};

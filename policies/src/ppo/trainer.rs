@@ -2,8 +2,9 @@
 //! by one PPO update, one record per episode.
 //!
 //! Every random stream is derived from the training seed and an index (episode, update), so
-//! the state needed to resume is the weights, the optimiser state and the episode counter, and
-//! a resumed run continues bit for bit as if it had never stopped.
+//! the state needed to resume is the weights, the optimiser state, the value normalisation's
+//! statistics (when on) and the episode counter, and a resumed run continues bit for bit as if
+//! it had never stopped.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -14,6 +15,7 @@ use crate::nn::{ActorCritic, Adam, AdamConfig, NnError};
 use crate::ppo::config::{ConfigError, TrainingConfig};
 use crate::ppo::rollout::{EnvironmentRollout, RolloutWorkspace};
 use crate::ppo::update::{UpdateStats, UpdateWorkspace};
+use crate::ppo::value_norm::ValueNorm;
 
 /// Children of the training seed.
 mod stream {
@@ -71,6 +73,9 @@ pub struct TrainingState {
     pub wall_seconds: f64,
     pub model: ActorCritic<f32>,
     pub adam: Adam<f32>,
+    /// The statistics the critic's targets are normalised by; `None` when the configuration
+    /// does not normalise values.
+    pub value_norm: Option<ValueNorm>,
 }
 
 /// A training run in progress.
@@ -98,13 +103,17 @@ impl Trainer {
             wall_seconds: 0.0,
             model,
             adam,
+            value_norm: None,
         };
         Self::resume(world, state)
     }
 
-    /// Continues a run from its saved state.
-    pub fn resume(world: Arc<World>, state: TrainingState) -> Result<Self, TrainError> {
+    /// Continues a run from its saved state. Value normalisation switched on by an override
+    /// starts from empty statistics; switched off, it drops them.
+    pub fn resume(world: Arc<World>, mut state: TrainingState) -> Result<Self, TrainError> {
         state.config.check()?;
+        let statistics = state.value_norm.unwrap_or_default();
+        state.value_norm = state.config.value_normalisation.map(|_| statistics);
         let free = world.map().free_cells().len();
         if state.config.agents.max > free {
             return Err(TrainError::Agents {
@@ -179,6 +188,7 @@ impl Trainer {
             config,
             &environments,
             shuffle,
+            state.value_norm.as_mut(),
         );
         let update_seconds = started.elapsed().as_secs_f64() - rollout_seconds;
         if !state.model.params().values().iter().all(|w| w.is_finite()) {
@@ -303,6 +313,7 @@ mod tests {
                 "advantage=monte_carlo",
                 "normalise_returns=true",
             ][..],
+            &[VALUE_NORMALISATION, "grad_clip_per_network=true"][..],
         ] {
             let config = tiny_config(profile);
             let mut straight = Trainer::new(tiny_world(), config.clone(), 9).unwrap();
@@ -319,9 +330,44 @@ mod tests {
             records.extend(resumed.train(8, &mut |_| ()).unwrap());
             assert_eq!(penalties(&records), penalties(&all));
             assert_eq!(weights(resumed.state()), weights(straight.state()));
+            assert_eq!(resumed.state().value_norm, straight.state().value_norm);
+            let normalised = straight.state().config.value_normalisation.is_some();
+            assert_eq!(straight.state().value_norm.is_some(), normalised);
+            assert_eq!(files.metadata.contains("value_norm"), normalised);
             assert_eq!(resumed.state().adam.steps(), straight.state().adam.steps());
             assert!(all.iter().any(|r| r.agents == 1) && all.iter().any(|r| r.agents == 3));
         }
+    }
+
+    /// Value normalisation that forgets fast enough for a tiny run to move its statistics.
+    const VALUE_NORMALISATION: &str = "value_normalisation={\"beta\":0.9}";
+
+    #[test]
+    fn each_profile_option_changes_the_run_and_off_is_the_run_without_it() {
+        let run = |overrides: &[&str]| {
+            let mut trainer = Trainer::new(tiny_world(), tiny_config(overrides), 6).unwrap();
+            let records = trainer.train(8, &mut |_| ()).unwrap();
+            assert_eq!(records.len(), 8, "{overrides:?}");
+            trainer.into_state()
+        };
+        let plain = run(&[]);
+        let plain_monte_carlo = run(&["advantage=monte_carlo"]);
+        let variants = [
+            (vec![VALUE_NORMALISATION], &plain),
+            (vec!["grad_clip_per_network=true"], &plain),
+            (
+                vec![VALUE_NORMALISATION, "advantage=monte_carlo"],
+                &plain_monte_carlo,
+            ),
+        ];
+        for (overrides, without) in variants {
+            let state = run(&overrides);
+            assert_ne!(weights(&state), weights(without), "{overrides:?}");
+        }
+        let (mean, deviation) = run(&[VALUE_NORMALISATION]).value_norm.unwrap().moments();
+        assert!(mean < 0.0 && deviation > 0.0, "{mean} {deviation}");
+        let off = ["grad_clip_per_network=false", "value_normalisation=null"];
+        assert_eq!(weights(&run(&off)), weights(&plain));
     }
 
     #[test]

@@ -8,12 +8,12 @@
 use rand::RngExt;
 use world::Seed;
 
-use crate::learned::push_agents;
 use crate::nn::{ActorCritic, Adam, AgentGraph, ModelWorkspace, Neighbours};
 use crate::ppo::advantage::{discounted_returns, gae, normalise};
 use crate::ppo::config::{AdvantageEstimator, TrainingConfig};
 use crate::ppo::loss::{Advantages, LossCoefficients, LossGradients, LossTerms, Samples, ppo_loss};
 use crate::ppo::rollout::EnvironmentRollout;
+use crate::ppo::value_norm::ValueNorm;
 
 /// Steps per forward pass when computing the values GAE needs.
 const VALUE_PASS_STEPS: usize = 256;
@@ -22,7 +22,8 @@ const VALUE_PASS_STEPS: usize = 256;
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct UpdateStats {
     pub loss: LossTerms,
-    /// Global gradient norm before clipping.
+    /// Global gradient norm before clipping (of actor and critic together, also when each is
+    /// clipped on its own).
     pub grad_norm: f64,
     pub learning_rate: f64,
 }
@@ -57,7 +58,9 @@ pub struct UpdateWorkspace {
 }
 
 impl UpdateWorkspace {
-    /// Updates `model` on `environments`; `shuffle` seeds the minibatch order.
+    /// Updates `model` on `environments`; `shuffle` seeds the minibatch order. `value_norm`
+    /// holds the running statistics when the configuration normalises values; they take in
+    /// this round's returns before the epochs.
     pub fn update(
         &mut self,
         model: &mut ActorCritic<f32>,
@@ -65,9 +68,14 @@ impl UpdateWorkspace {
         config: &TrainingConfig,
         environments: &[EnvironmentRollout],
         shuffle: Seed,
+        value_norm: Option<&mut ValueNorm>,
     ) -> UpdateStats {
         let neighbours = config.neighbours.to_nn();
-        self.compute_targets(model, config, neighbours, environments);
+        self.compute_targets(model, config, environments, value_norm.as_deref());
+        if let (Some(norm), Some(option)) = (value_norm, config.value_normalisation) {
+            norm.update(option.beta, &self.targets.returns);
+            norm.normalise(&mut self.targets.returns);
+        }
         self.groups.clear();
         for (e, env) in environments.iter().enumerate() {
             self.groups.extend((0..env.steps).map(|t| (e, t)));
@@ -105,12 +113,14 @@ impl UpdateWorkspace {
         stats
     }
 
+    /// Returns (and GAE's advantages) of every sample, in raw units: a normalised critic's
+    /// values are de-normalised with the statistics from before this update.
     fn compute_targets(
         &mut self,
         model: &ActorCritic<f32>,
         config: &TrainingConfig,
-        neighbours: Neighbours,
         environments: &[EnvironmentRollout],
+        value_norm: Option<&ValueNorm>,
     ) {
         let targets = &mut self.targets;
         targets.offsets.clear();
@@ -131,15 +141,10 @@ impl UpdateWorkspace {
                     }
                 }
                 AdvantageEstimator::Gae { lambda } => {
-                    values_of(
-                        model,
-                        &mut self.model,
-                        &mut self.graph,
-                        &mut self.points,
-                        neighbours,
-                        env,
-                        &mut self.values,
-                    );
+                    values_of(model, &mut self.model, env, &mut self.values);
+                    if let Some(norm) = value_norm {
+                        norm.denormalise(&mut self.values);
+                    }
                     targets.advantages.resize(start + rows, 0.0);
                     let advantages = &mut targets.advantages[start..];
                     gae(
@@ -229,24 +234,33 @@ impl UpdateWorkspace {
             &self.graph,
             &self.grads.outputs(),
         );
-        let norm = match config.max_grad_norm {
-            Some(max) => model.params_mut().clip_grad_norm(max),
-            None => model.params().grad_norm(),
-        };
+        let norm = clip_gradients(model, config);
         let (values, grads) = model.params_mut().values_mut_and_grads();
         adam.step(values, grads);
         (terms, norm)
     }
 }
 
+/// Clips the gradients as configured (to `max_grad_norm` jointly, or each network to it on
+/// its own) and returns their global norm before clipping.
+fn clip_gradients(model: &mut ActorCritic<f32>, config: &TrainingConfig) -> f64 {
+    match config.max_grad_norm {
+        Some(max) if config.grad_clip_per_network => {
+            let ranges = model.network_ranges();
+            let params = model.params_mut();
+            let squares = ranges.map(|range| params.clip_grad_norm_of(range, max).powi(2));
+            squares.iter().sum::<f64>().sqrt()
+        }
+        Some(max) => model.params_mut().clip_grad_norm(max),
+        None => model.params().grad_norm(),
+    }
+}
+
 /// The critic's value of every agent at each of the `steps + 1` observations of `env`,
-/// `[step][agent]`.
+/// `[step][agent]`: the critic alone, since it reads neither the actor nor the graph.
 fn values_of(
     model: &ActorCritic<f32>,
     ws: &mut ModelWorkspace<f32>,
-    graph: &mut AgentGraph,
-    points: &mut Vec<[f64; 2]>,
-    neighbours: Neighbours,
     env: &EnvironmentRollout,
     values: &mut Vec<f32>,
 ) {
@@ -255,12 +269,8 @@ fn values_of(
     let per_step = env.agents * env.per_agent();
     for first in (0..steps).step_by(VALUE_PASS_STEPS) {
         let last = (first + VALUE_PASS_STEPS).min(steps);
-        graph.clear();
-        for t in first..last {
-            push_agents(graph, neighbours, env.positions_at(t), points);
-        }
         let observations = &env.observations[first * per_step..last * per_step];
-        model.forward(ws, observations, graph);
+        model.forward_values(ws, observations);
         values.extend_from_slice(ws.values());
     }
 }

@@ -4,6 +4,7 @@ mod common;
 
 use common::{harness, repo_file, scratch, succeed};
 
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Output;
 
@@ -11,41 +12,39 @@ fn small_map() -> String {
     repo_file("scenarios/maps/small_two_room.txt")
 }
 
-fn train(out: &Path, until: &str, resume: bool) -> Output {
+/// `harness train` of a small run (8 episodes, checkpoint every 4) into `out`, with
+/// `changes` replacing the values of its flags or adding flags (a bare flag with "").
+fn train(out: &Path, changes: &[(&str, &str)]) -> Output {
     let map = small_map();
-    let mut args = vec![
-        "train",
-        "--map",
-        &map,
-        "--fov",
-        "7",
-        "--agents",
-        "1..3",
-        "--architecture",
-        "ma-g-ppo",
-        "--channels",
-        "both",
-        "--profile",
-        "fast",
-        "--episodes",
-        "8",
-        "--until",
-        until,
-        "--seed",
-        "3",
-        "--out",
-        out.to_str().unwrap(),
-        "--checkpoint-every",
-        "4",
-        "--set",
-        "network=compact",
-        "--set",
-        "steps_per_episode=20",
-        "--set",
-        "environments=2",
+    let out = out.to_str().unwrap();
+    let mut flags = vec![
+        ("--map", map.as_str()),
+        ("--fov", "7"),
+        ("--agents", "1..3"),
+        ("--architecture", "ma-g-ppo"),
+        ("--channels", "both"),
+        ("--profile", "fast"),
+        ("--episodes", "8"),
+        ("--until", "8"),
+        ("--seed", "3"),
+        ("--out", out),
+        ("--checkpoint-every", "4"),
+        ("--set", "network=compact"),
+        ("--set", "steps_per_episode=20"),
+        ("--set", "environments=2"),
     ];
-    if resume {
-        args.push("--resume");
+    for &(flag, value) in changes {
+        match flags.iter_mut().find(|(given, _)| *given == flag) {
+            Some(slot) => slot.1 = value,
+            None => flags.push((flag, value)),
+        }
+    }
+    let mut args = vec!["train"];
+    for (flag, value) in flags {
+        args.push(flag);
+        if !value.is_empty() {
+            args.push(value);
+        }
     }
     harness(&args)
 }
@@ -54,14 +53,15 @@ fn train(out: &Path, until: &str, resume: bool) -> Output {
 fn trains_writes_its_files_and_resumes_to_the_same_weights() {
     let dir = scratch("train");
     let (straight, resumed) = (dir.join("straight"), dir.join("resumed"));
-    succeed(train(&straight, "8", false));
-    succeed(train(&resumed, "4", false));
-    succeed(train(&resumed, "8", true));
+    succeed(train(&straight, &[]));
+    succeed(train(&resumed, &[("--until", "4")]));
+    succeed(train(&resumed, &[("--resume", "")]));
     for name in [
         "checkpoint.safetensors",
         "checkpoint.optimizer.safetensors",
         "checkpoint.json",
         "training.parquet",
+        "world.json",
     ] {
         assert!(straight.join(name).is_file(), "{name}");
     }
@@ -100,6 +100,116 @@ fn trains_writes_its_files_and_resumes_to_the_same_weights() {
     ]);
     assert_eq!(probed, sampled, "probing changes nothing in the episode");
     check_probe(&probe, &trace);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Every file of a folder, by name.
+fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|entry| {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            (name, std::fs::read(&path).unwrap())
+        })
+        .collect()
+}
+
+/// The error output of a command that must have failed.
+fn fail(output: Output) -> String {
+    assert!(!output.status.success(), "succeeded");
+    String::from_utf8(output.stderr).unwrap()
+}
+
+#[test]
+fn a_resume_that_asks_for_another_run_is_refused_and_changes_nothing() {
+    let dir = scratch("train-resume-mismatch");
+    let run = dir.join("run");
+    let stderr = fail(train(&run, &[("--resume", "")]));
+    let expected = format!(
+        "cannot resume {}: it holds no checkpoint.json",
+        run.display()
+    );
+    assert!(stderr.contains(&expected), "{stderr}");
+    succeed(train(&run, &[("--until", "4")]));
+    let saved = files(&run);
+    let refused = |changes: &[(&str, &str)], expected: &str| {
+        let stderr = fail(train(&run, &[&[("--resume", "")], changes].concat()));
+        let expected = format!("cannot resume {}: {expected}", run.display());
+        assert!(stderr.contains(&expected), "{stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        assert_eq!(files(&run), saved, "a refused resume changes nothing");
+    };
+    refused(
+        &[("--architecture", "ma-ppo")],
+        "it was saved with architecture ma-g-ppo, this command asks for ma-ppo",
+    );
+    let (map, other) = (small_map(), repo_file("scenarios/maps/two_room.txt"));
+    refused(
+        &[("--map", &other)],
+        &format!("it was saved with map {map}, this command asks for {other}"),
+    );
+    refused(
+        &[("--fov", "9")],
+        "it was saved with fov 7, this command asks for 9",
+    );
+    refused(
+        &[("--agents", "2")],
+        r#"it was saved with agents {"max":3,"min":1}, this command asks for {"max":2,"min":2}"#,
+    );
+    refused(
+        &[("--episodes", "6")],
+        "it was saved with episodes 8, this command asks for 6",
+    );
+    refused(
+        &[("--seed", "4")],
+        "it was saved with seed 3, this command asks for 4",
+    );
+
+    // Training longer, from a copy of the map under another name, is the same run.
+    let moved = dir.join("moved-map.txt");
+    std::fs::copy(&map, &moved).unwrap();
+    let longer = [
+        ("--resume", ""),
+        ("--episodes", "12"),
+        ("--until", "6"),
+        ("--map", moved.to_str().unwrap()),
+    ];
+    succeed(train(&run, &longer));
+    let metadata = std::fs::read_to_string(run.join("checkpoint.json")).unwrap();
+    assert!(metadata.contains("\"episodes_done\": 6"), "{metadata}");
+    assert!(metadata.contains("\"episodes\": 12"), "{metadata}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_new_run_onto_an_existing_one_needs_replace() {
+    let dir = scratch("train-replace");
+    succeed(train(&dir, &[("--until", "4")]));
+    let saved = files(&dir);
+    let stderr = fail(train(&dir, &[("--architecture", "ma-ppo")]));
+    let expected = format!(
+        "{} already holds a training run (checkpoint.json, checkpoint.safetensors, \
+         checkpoint.optimizer.safetensors, training.parquet): continue it with --resume, or \
+         pass --replace to train a new run in its place",
+        dir.display()
+    );
+    assert!(stderr.contains(&expected), "{stderr}");
+    assert_eq!(files(&dir), saved, "a refused run changes nothing");
+
+    let replace = [
+        ("--architecture", "ma-ppo"),
+        ("--until", "4"),
+        ("--replace", ""),
+    ];
+    succeed(train(&dir, &replace));
+    let metadata = std::fs::read_to_string(dir.join("checkpoint.json")).unwrap();
+    assert!(
+        metadata.contains("\"architecture\": \"ma_ppo\""),
+        "{metadata}"
+    );
+    let resumed = [("--architecture", "ma-ppo"), ("--resume", "")];
+    succeed(train(&dir, &resumed));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -1,6 +1,8 @@
 //! `harness train`: trains MA-G-PPO or MA-PPO, writing a checkpoint and the training log to a
 //! folder every so often and at the end; `--resume` continues from that folder.
 
+mod run_folder;
+
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -24,16 +26,18 @@ pub struct TrainArgs {
     architecture: Option<String>,
     #[arg(long, value_parser = ["both", "local", "mini"])]
     channels: Option<String>,
-    #[arg(long, value_parser = ["fast", "paper"], default_value = "fast")]
-    profile: String,
+    /// The preset the configuration starts from (default fast); on resume, the saved one.
+    #[arg(long, value_parser = ["fast", "paper"])]
+    profile: Option<String>,
     /// Train until this many episodes are done (the learning rate anneals over them).
     #[arg(long)]
     episodes: Option<u64>,
-    /// Training seed: weights, episodes and minibatch order all derive from it.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Folder for checkpoint.safetensors, checkpoint.optimizer.safetensors, checkpoint.json
-    /// and training.parquet.
+    /// Training seed: weights, episodes and minibatch order all derive from it (default 0; on
+    /// resume, the saved one).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Folder for checkpoint.safetensors, checkpoint.optimizer.safetensors, checkpoint.json,
+    /// training.parquet and world.json.
     #[arg(long)]
     out: PathBuf,
     /// Override any configuration field: key=value, the value as JSON or a bare word.
@@ -42,9 +46,13 @@ pub struct TrainArgs {
     /// Stop after this many episodes, as an interruption would (resume with --resume).
     #[arg(long)]
     until: Option<u64>,
-    /// Continue the run saved in --out.
+    /// Continue the run saved in --out: refused unless every setting given is the saved one,
+    /// except --episodes, which may grow.
     #[arg(long)]
     resume: bool,
+    /// Train a new run in --out even if it holds one, whose files are then removed.
+    #[arg(long, conflicts_with = "resume")]
+    replace: bool,
     /// Write the checkpoint and the log every this many episodes.
     #[arg(long, default_value_t = 100)]
     checkpoint_every: u64,
@@ -100,17 +108,7 @@ fn parse_agents(text: &str) -> anyhow::Result<AgentCount> {
 
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let world = args.world.load()?;
-    let overrides = args.overrides()?;
-    let mut run = if args.resume {
-        TrainingRun::resume(&args.out, world.clone(), &overrides)?
-    } else {
-        let profile = match args.profile.as_str() {
-            "paper" => Profile::Paper,
-            _ => Profile::Fast,
-        };
-        let config = TrainingConfig::profile(profile).with_overrides(&overrides)?;
-        TrainingRun::start(&args.out, world.clone(), config, args.seed)?
-    };
+    let mut run = open(&args, &world)?;
     let configured = run.state().config.episodes;
     let total = args.until.map_or(configured, |until| until.min(configured));
     let progress = progress_bar(total, run.state().episodes_done);
@@ -126,6 +124,32 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         test(&args, &world, run.into_parts().0)?;
     }
     Ok(())
+}
+
+/// The run in `--out`: the saved one if it is what `--resume` asks for, else a new one where
+/// no run is, or where `--replace` says to replace it. Nothing is written when refused.
+fn open(args: &TrainArgs, world: &std::sync::Arc<world::World>) -> anyhow::Result<TrainingRun> {
+    let overrides = args.overrides()?;
+    let record = run_folder::world_record(&args.world, world);
+    if args.resume {
+        let asked = run_folder::Asked {
+            overrides: &overrides,
+            profile: args.profile.as_deref(),
+            seed: args.seed,
+            world: &record,
+        };
+        run_folder::check_resume(&args.out, &asked)?;
+        return Ok(TrainingRun::resume(&args.out, world.clone(), &overrides)?);
+    }
+    run_folder::refuse_existing_run(&args.out, args.replace)?;
+    let profile = match args.profile.as_deref() {
+        Some("paper") => Profile::Paper,
+        _ => Profile::Fast,
+    };
+    let config = TrainingConfig::profile(profile).with_overrides(&overrides)?;
+    let run = TrainingRun::start(&args.out, world.clone(), config, args.seed.unwrap_or(0))?;
+    run_folder::begin(&args.out, &record)?;
+    Ok(run)
 }
 
 /// Mean seconds of a round's rollout and update over this run's episodes.
@@ -190,7 +214,7 @@ fn test(
     state: TrainingState,
 ) -> anyhow::Result<()> {
     let agents = args.test_agents.unwrap_or(state.config.agents.max);
-    let seed = Seed::new(args.seed).child(u64::MAX);
+    let seed = Seed::new(state.seed).child(u64::MAX);
     let evaluate = |policy: &mut dyn policies::Policy| {
         mean_penalty(
             world,

@@ -9,18 +9,26 @@
 //! order on NCHW (channel, then row, then column). Our CNN flattens channels-last, so those
 //! columns are reordered on the way out and back (format version 2). Version 1 files, written
 //! in our own order, are still read.
+//!
+//! A load trusts nothing in the files: the sizes in the metadata are bounded and must make
+//! the network the metadata and the weights file describe before that network is allocated,
+//! and every tensor must be there, known, of its shape and finite.
 
-use std::collections::HashMap;
+mod checks;
+
+use std::collections::{HashMap, HashSet};
 
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use serde::{Deserialize, Serialize};
 
-use crate::nn::{ActorCritic, Adam, NnError, ParamSlot, ParamSpec, ParamStore};
+use crate::nn::{ActorCritic, Adam, ModelConfig, NnError, ParamSlot, ParamSpec, ParamStore};
 use crate::ppo::config::{ConfigError, TrainingConfig};
 use crate::ppo::trainer::{TrainingState, adam_config};
 use crate::ppo::value_norm::ValueNorm;
+
+pub use checks::MAX_IMAGE_SIDE;
 
 pub const WEIGHTS_FILE: &str = "checkpoint.safetensors";
 pub const OPTIMIZER_FILE: &str = "checkpoint.optimizer.safetensors";
@@ -63,8 +71,24 @@ pub struct CheckpointFiles {
 pub enum CheckpointError {
     #[error("{file}: {message}")]
     Format { file: &'static str, message: String },
-    #[error("{file}: tensor `{name}` is missing")]
-    MissingTensor { file: &'static str, name: String },
+    #[error("{file}: missing {}", tensor_list(.names))]
+    MissingTensors {
+        file: &'static str,
+        names: Vec<String>,
+    },
+    #[error("{file}: unknown {} (the network of {METADATA_FILE} has none such)", tensor_list(.names))]
+    UnknownTensors {
+        file: &'static str,
+        names: Vec<String>,
+    },
+    #[error("{file}: tensor `{name}` holds {value} at flat index {index} (index {position:?})")]
+    NotFinite {
+        file: &'static str,
+        name: String,
+        value: f32,
+        index: usize,
+        position: Vec<usize>,
+    },
     #[error("{file}: tensor `{name}` is {got:?} of shape {shape:?}, expected F32 of {expected:?}")]
     Tensor {
         file: &'static str,
@@ -75,10 +99,53 @@ pub enum CheckpointError {
     },
     #[error("{METADATA_FILE}: format version {found}, this build reads 1 and {FORMAT_VERSION}")]
     Version { found: u32 },
+    #[error(
+        "{METADATA_FILE}: image_side {found} is above {MAX_IMAGE_SIDE}, the largest observation \
+         side (maps are at most {} cells a side, the field of view at most {})",
+        world::map::MAX_SIDE,
+        world::params::MAX_FOV
+    )]
+    ImageSide { found: usize },
+    #[error(
+        "{METADATA_FILE}: convolution {layer}'s {field} {value} is above {MAX_IMAGE_SIDE}, the \
+         largest observation side"
+    )]
+    Convolution {
+        layer: usize,
+        field: &'static str,
+        value: usize,
+    },
+    #[error(
+        "{METADATA_FILE}: image_side {image_side} and the configuration make a network of {} \
+         parameters, but `parameters` says {stated}",
+        count_text(*.counted)
+    )]
+    Parameters {
+        image_side: usize,
+        counted: Option<usize>,
+        stated: usize,
+    },
+    #[error(
+        "{WEIGHTS_FILE}: {bytes} bytes are far too few for the {parameters} parameters (4 bytes \
+         each) of the network in {METADATA_FILE}"
+    )]
+    TooSmall { bytes: usize, parameters: usize },
     #[error("{METADATA_FILE}: {0}")]
     Config(#[from] ConfigError),
     #[error("{METADATA_FILE}: the network cannot be built: {0}")]
     Network(#[from] NnError),
+}
+
+/// The names, quoted, after "tensor" or "tensors", for the messages.
+fn tensor_list(names: &[String]) -> String {
+    let quoted: Vec<String> = names.iter().map(|name| format!("`{name}`")).collect();
+    let plural = if names.len() == 1 { "" } else { "s" };
+    format!("tensor{plural} {}", quoted.join(", "))
+}
+
+/// A parameter count, or what overflowed a `usize`.
+fn count_text(count: Option<usize>) -> String {
+    count.map_or_else(|| format!("more than {}", usize::MAX), |n| n.to_string())
 }
 
 fn format_error(file: &'static str, error: impl std::fmt::Display) -> CheckpointError {
@@ -134,14 +201,57 @@ pub fn load_model(
     metadata: &CheckpointMetadata,
     weights: &[u8],
 ) -> Result<ActorCritic<f32>, CheckpointError> {
-    let model_config = metadata.config.model_config(metadata.image_side)?;
+    let model_config = bounded_model_config(metadata, weights.len())?;
     // The initial draw is overwritten by the stored weights.
     let mut model = ActorCritic::new(&model_config, &mut Pcg64Mcg::seed_from_u64(0))?;
     let specs = model.params().specs().to_vec();
     let layout = PyTorchLayout::of_file(&model, metadata);
+    let tensors = open_tensors(WEIGHTS_FILE, weights, &specs, &[""])?;
     let values = model.params_mut().values_mut();
-    read_tensors(WEIGHTS_FILE, weights, &specs, &layout, "", values)?;
+    read_tensors(WEIGHTS_FILE, &tensors, &specs, &layout, "", values)?;
     Ok(model)
+}
+
+/// The network of the metadata, once its sizes are known to be bounded: the image side and
+/// every convolution's kernel, stride and padding by the largest observation, and the
+/// parameter count (computed with checked arithmetic) by the
+/// metadata's own `parameters` and by the weights file: at most one parameter per byte of the
+/// file (four bytes each in a valid one), so that memory stays linear in what was read while a
+/// file with tensors missing still loads far enough to name them.
+fn bounded_model_config(
+    metadata: &CheckpointMetadata,
+    weights_bytes: usize,
+) -> Result<ModelConfig, CheckpointError> {
+    let image_side = metadata.image_side;
+    if image_side > MAX_IMAGE_SIDE {
+        return Err(CheckpointError::ImageSide { found: image_side });
+    }
+    if let Some((layer, field, value)) = checks::oversized_convolution(&metadata.config.network) {
+        return Err(CheckpointError::Convolution {
+            layer,
+            field,
+            value,
+        });
+    }
+    let model_config = metadata.config.model_config(image_side)?;
+    let counted = checks::parameter_count(&model_config);
+    let parameters = match counted {
+        Some(parameters) if parameters == metadata.parameters => parameters,
+        _ => {
+            return Err(CheckpointError::Parameters {
+                image_side,
+                counted,
+                stated: metadata.parameters,
+            });
+        }
+    };
+    if parameters > weights_bytes {
+        return Err(CheckpointError::TooSmall {
+            bytes: weights_bytes,
+            parameters,
+        });
+    }
+    Ok(model_config)
 }
 
 /// The whole training state, to resume from.
@@ -153,22 +263,29 @@ pub fn load_state(
     let model = load_model(metadata, weights)?;
     let specs = model.params().specs();
     let layout = PyTorchLayout::of_file(&model, metadata);
+    let (first_prefix, second_prefix) = ("exp_avg.", "exp_avg_sq.");
+    let tensors = open_tensors(
+        OPTIMIZER_FILE,
+        optimizer,
+        specs,
+        &[first_prefix, second_prefix],
+    )?;
     let mut first = vec![0.0; model.params().len()];
     let mut second = vec![0.0; model.params().len()];
     read_tensors(
         OPTIMIZER_FILE,
-        optimizer,
+        &tensors,
         specs,
         &layout,
-        "exp_avg.",
+        first_prefix,
         &mut first,
     )?;
     read_tensors(
         OPTIMIZER_FILE,
-        optimizer,
+        &tensors,
         specs,
         &layout,
-        "exp_avg_sq.",
+        second_prefix,
         &mut second,
     )?;
     let adam_config = adam_config(&metadata.config);
@@ -276,23 +393,67 @@ fn tensors_to_bytes(
     safetensors::tensor::serialize(views, Some(header)).expect("tensors serialise")
 }
 
-/// Fills `flat` from the tensors named `prefix + name`, checking every dtype and shape.
+/// A file's tensors, once its names are exactly `prefix + name` for every prefix and spec:
+/// a missing tensor would leave a parameter at its initial draw, an unknown one means the
+/// file is not of this network.
+fn open_tensors<'a>(
+    file: &'static str,
+    bytes: &'a [u8],
+    specs: &[ParamSpec],
+    prefixes: &[&str],
+) -> Result<SafeTensors<'a>, CheckpointError> {
+    let tensors = SafeTensors::deserialize(bytes).map_err(|e| format_error(file, e))?;
+    let expected: Vec<String> = prefixes
+        .iter()
+        .flat_map(|prefix| {
+            specs
+                .iter()
+                .map(move |spec| format!("{prefix}{}", spec.name))
+        })
+        .collect();
+    let stored: HashSet<&str> = tensors.names().into_iter().collect();
+    let missing: Vec<String> = expected
+        .iter()
+        .filter(|name| !stored.contains(name.as_str()))
+        .cloned()
+        .collect();
+    if !missing.is_empty() {
+        return Err(CheckpointError::MissingTensors {
+            file,
+            names: missing,
+        });
+    }
+    let expected: HashSet<&str> = expected.iter().map(String::as_str).collect();
+    let mut unknown: Vec<String> = stored
+        .difference(&expected)
+        .map(|name| (*name).to_owned())
+        .collect();
+    if !unknown.is_empty() {
+        unknown.sort_unstable();
+        return Err(CheckpointError::UnknownTensors {
+            file,
+            names: unknown,
+        });
+    }
+    Ok(tensors)
+}
+
+/// Fills `flat` from the tensors named `prefix + name`, checking every dtype, shape and value.
 fn read_tensors(
     file: &'static str,
-    bytes: &[u8],
+    tensors: &SafeTensors<'_>,
     specs: &[ParamSpec],
     layout: &PyTorchLayout,
     prefix: &str,
     flat: &mut [f32],
 ) -> Result<(), CheckpointError> {
-    let tensors = SafeTensors::deserialize(bytes).map_err(|e| format_error(file, e))?;
     for spec in specs {
         let name = format!("{prefix}{}", spec.name);
         let tensor = tensors
             .tensor(&name)
-            .map_err(|_| CheckpointError::MissingTensor {
+            .map_err(|_| CheckpointError::MissingTensors {
                 file,
-                name: name.clone(),
+                names: vec![name.clone()],
             })?;
         if tensor.dtype() != Dtype::F32 || tensor.shape() != spec.shape {
             return Err(CheckpointError::Tensor {
@@ -308,6 +469,16 @@ fn read_tensors(
             .chunks_exact(4)
             .map(|chunk| f32::from_le_bytes(chunk.try_into().expect("chunks of four bytes")))
             .collect();
+        // Stored order, so that the index is the one PyTorch shows for the state dict.
+        if let Some((index, position)) = checks::first_non_finite(&stored, &spec.shape) {
+            return Err(CheckpointError::NotFinite {
+                file,
+                name,
+                value: stored[index],
+                index,
+                position,
+            });
+        }
         layout.to_ours(spec, &stored, spec.slot.of_mut(flat));
     }
     Ok(())

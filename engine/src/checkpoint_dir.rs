@@ -23,6 +23,9 @@ pub enum CheckpointDirError {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// Missing, not a regular file, or over the size limit of a store's file.
+    #[error("{0}")]
+    Input(#[from] world::InputError),
     #[error("{path}: not UTF-8")]
     NotUtf8 { path: PathBuf },
     #[error("checkpoint {dir}: {source}")]
@@ -47,7 +50,8 @@ fn in_checkpoint(dir: &Path) -> impl FnOnce(CheckpointError) -> CheckpointDirErr
 
 fn read(dir: &Path, name: &str) -> Result<Vec<u8>, CheckpointDirError> {
     let path = dir.join(name);
-    std::fs::read(&path).map_err(io(&path))
+    let limit = crate::store::MAX_FILE_BYTES;
+    Ok(world::read_bounded(&path, limit, "a store's file")?)
 }
 
 /// Writes the weights, the optimiser state and the metadata (metadata last, so a folder whose

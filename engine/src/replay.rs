@@ -14,6 +14,19 @@ pub struct ActionsError {
     pub problem: String,
 }
 
+/// The largest actions file read. A row per step and an action per agent (a digit and a
+/// comma): the world bounds neither count usefully (steps are unbounded, agents reach the
+/// free cells of a 1024 x 1024 map), so the limit is one of memory. 16 MiB holds a million
+/// steps of eight agents, and its parsed rows take at most some 16 times the file (one agent's
+/// row is 2 bytes on disk and a vector in memory); a wrong path (a device, a huge file) is
+/// refused before it fills memory.
+pub const MAX_ACTIONS_BYTES: u64 = 16 << 20;
+
+/// The text of the actions file `path`: a regular file of at most [`MAX_ACTIONS_BYTES`].
+pub fn read_actions_text(path: &Path) -> Result<String, world::InputError> {
+    world::read_bounded_text(path, MAX_ACTIONS_BYTES, "an actions file")
+}
+
 /// Reads an actions CSV: one row per step, one column per agent, each an action 0..=4. Blank
 /// lines and a first line that starts with a letter (a header) are skipped.
 pub fn parse_actions(

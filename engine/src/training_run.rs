@@ -25,6 +25,9 @@ pub enum TrainingRunError {
     Train(#[from] TrainError),
     #[error(transparent)]
     Config(#[from] ConfigError),
+    /// The training log missing, not a regular file, or over its size limit.
+    #[error(transparent)]
+    Input(#[from] world::InputError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -67,10 +70,8 @@ impl TrainingRun {
         let mut state = checkpoint_dir::read_state(folder)?;
         state.config = state.config.with_overrides(overrides)?;
         let path = folder.join(LOG_FILE);
-        let bytes = std::fs::read(&path).map_err(|source| TrainingRunError::Io {
-            path: path.clone(),
-            source,
-        })?;
+        let limit = crate::store::MAX_FILE_BYTES;
+        let bytes = world::read_bounded(&path, limit, "a store's file")?;
         let log = training_log::from_parquet(&bytes)
             .map_err(|source| TrainingRunError::Log { path, source })?;
         let log = training_log::append(&log, state.episodes_done, &[])?;

@@ -307,8 +307,9 @@ fn a_full_store_stops_the_sweep_and_a_later_run_goes_on() {
     use std::os::unix::process::CommandExt;
     let out = scratch("full").join("store");
     let mut limited = tiny_sweep(&out);
-    // SAFETY: between fork and exec the closure calls only setrlimit and signal, which are
-    // async-signal-safe, and allocates nothing.
+    // SAFETY: between fork and exec the closure calls only setrlimit, which is
+    // async-signal-safe, and allocates nothing. SIGXFSZ keeps its default action (death) here:
+    // the binary must ignore it itself, so that the write fails with EFBIG as on a full disk.
     unsafe {
         limited.pre_exec(|| {
             let limit = libc::rlimit {
@@ -318,9 +319,6 @@ fn a_full_store_stops_the_sweep_and_a_later_run_goes_on() {
             if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) != 0 {
                 return Err(std::io::Error::last_os_error());
             }
-            // A write past the limit then fails with EFBIG, as on a full disk, instead of
-            // killing the process.
-            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
             Ok(())
         });
     }

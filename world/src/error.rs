@@ -21,6 +21,12 @@ impl MapError {
     }
 }
 
+impl From<crate::input::InputError> for MapError {
+    fn from(error: crate::input::InputError) -> Self {
+        Self::new(&error.path, None, MapErrorKind::Input(error.problem))
+    }
+}
+
 impl fmt::Display for MapError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.line {
@@ -32,8 +38,9 @@ impl fmt::Display for MapError {
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MapErrorKind {
-    #[error("cannot read the map: {0}")]
-    Io(String),
+    /// Not read: missing, not a regular file, or over its size limit.
+    #[error("{0}")]
+    Input(crate::input::InputProblem),
     #[error("the map has no rows")]
     Empty,
     #[error("row has {found} cells where the first row has {expected}")]

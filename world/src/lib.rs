@@ -7,6 +7,7 @@
 
 pub mod episode;
 pub mod error;
+pub mod input;
 pub mod links;
 pub mod map;
 pub mod observation;
@@ -20,6 +21,7 @@ pub mod visibility;
 
 pub use episode::{Action, Episode, World};
 pub use error::{MapError, MapErrorKind, ParamError, StartError};
+pub use input::{InputError, InputProblem, read_bounded, read_bounded_text};
 pub use links::Links;
 pub use map::{Cell, Map};
 pub use observation::{Channels, ImageGeometry, ObservationConfig, Observer};

@@ -10,6 +10,12 @@ use crate::error::{MapError, MapErrorKind};
 /// The largest side a map may have: keeps cell indices in `u32` and per-map tables in memory.
 pub const MAX_SIDE: usize = 1024;
 
+/// The largest text map file read: every row of a map at its widest with a CRLF ending
+/// (1 MiB + 2 KiB), and 4 KiB more for a byte-order mark and blank lines. A longer file cannot
+/// be a valid map, and refusing it before reading keeps a wrong path (a device, a huge file)
+/// from filling memory.
+pub const MAX_TEXT_MAP_BYTES: u64 = (MAX_SIDE * (MAX_SIDE + 2) + 4096) as u64;
+
 /// A cell of the grid, x from the left, y from the bottom.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Cell {
@@ -115,8 +121,8 @@ impl Map {
 
     /// Loads a text map from a file; the map is named after the file stem.
     pub fn load_text(path: &Path) -> Result<Self, MapError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| MapError::new(path, None, MapErrorKind::Io(e.to_string())))?;
+        let text = crate::input::read_bounded_text(path, MAX_TEXT_MAP_BYTES, "a text map")
+            .map_err(MapError::from)?;
         let name = path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())

@@ -12,6 +12,12 @@ use serde::Deserialize;
 use crate::error::{MapError, MapErrorKind};
 use crate::map::{MAX_SIDE, Map};
 
+/// The largest polygon map file read. Its vertices lie within a map of at most
+/// [`MAX_SIDE`] cells a side, so the format has no natural bound on their number; 4 MiB holds
+/// some 100,000 vertices, far beyond any drawn map, and keeps a wrong path (a device, a huge
+/// file) from filling memory.
+pub const MAX_POLYGON_FILE_BYTES: u64 = 4 << 20;
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct PolygonMap {
@@ -35,8 +41,8 @@ enum PolygonKind {
 
 /// Loads the map `name` (or the only map) of a polygon file.
 pub fn load_polygon_map(path: &Path, name: Option<&str>) -> Result<Map, MapError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| MapError::new(path, None, MapErrorKind::Io(e.to_string())))?;
+    let text = crate::input::read_bounded_text(path, MAX_POLYGON_FILE_BYTES, "a polygon map file")
+        .map_err(MapError::from)?;
     parse_polygon_map(&text, path, name)
 }
 

@@ -19,6 +19,18 @@ pub use format::Output;
 pub use policy::{Learned, PolicyError, ScenarioPolicy};
 pub use size::{Limits, Size};
 
+/// The largest scenario file read. A scenario may hold its maps inline, each up to a text
+/// map's limit ([`world::map::MAX_TEXT_MAP_BYTES`], a little over 1 MiB) plus indentation;
+/// 8 MiB leaves room for several maps of the largest side, and keeps a wrong path (a device,
+/// a huge file) from filling memory. Larger maps belong in map files.
+pub const MAX_SCENARIO_BYTES: u64 = 8 << 20;
+
+/// The text of the scenario file `path`: a regular file of at most [`MAX_SCENARIO_BYTES`].
+pub fn read_scenario_text(path: &Path) -> Result<String, ScenarioError> {
+    world::read_bounded_text(path, MAX_SCENARIO_BYTES, "a scenario")
+        .map_err(|e| ScenarioError::new(&e.path, None, "", e.problem))
+}
+
 /// A checked scenario: every map loaded, every value possible.
 #[derive(Debug)]
 pub struct Scenario {
@@ -89,8 +101,7 @@ impl Scenario {
 
     /// [`Scenario::load`], refusing a scenario larger than `limits`.
     pub fn load_within(path: &Path, limits: &Limits) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| ScenarioError::new(path, None, "", format!("cannot read: {e}")))?;
+        let text = read_scenario_text(path)?;
         Self::parse_within(&text, path, limits)
     }
 

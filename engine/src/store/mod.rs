@@ -60,6 +60,9 @@ pub enum StoreError {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// A file not read: missing, not a regular file, or over its size limit.
+    #[error("{0}")]
+    Input(#[from] world::InputError),
     #[error("{0}")]
     Polars(#[from] PolarsError),
     #[error("summary: {0}")]
@@ -281,7 +284,8 @@ impl Store {
             .files
             .get(file)
             .ok_or_else(|| StoreError::corrupt(&path, "is not among the cell's files"))?;
-        let bytes = std::fs::read(&path).map_err(|e| StoreError::io(&path, e))?;
+        let limit = record.sizes.get(file).copied().unwrap_or(MAX_FILE_BYTES);
+        let bytes = read(&path, limit, "a cell's file (its recorded size)")?;
         if blake3::hash(&bytes).to_hex().as_str() != recorded {
             return Err(StoreError::corrupt(
                 &path,
@@ -301,14 +305,14 @@ impl Store {
             return Ok(None);
         }
         let path = self.cell_folder(&record.key).join(file);
-        let bytes = std::fs::read(&path).map_err(|e| StoreError::io(&path, e))?;
+        let bytes = read(&path, MAX_FILE_BYTES, "a store's file")?;
         tables::read_parquet(bytes).map(Some)
     }
 
     /// A table of the sweep (`episodes`, `cells`, ...), read from its Parquet file.
     pub fn table(&self, name: &str) -> Result<DataFrame, StoreError> {
         let path = self.root.join(format!("{name}.parquet"));
-        let bytes = std::fs::read(&path).map_err(|e| StoreError::io(&path, e))?;
+        let bytes = read(&path, MAX_FILE_BYTES, "a store's file")?;
         tables::read_parquet(bytes)
     }
 
@@ -319,12 +323,14 @@ impl Store {
 
     pub fn scenario_text(&self) -> Result<String, StoreError> {
         let path = self.scenario_path();
-        std::fs::read_to_string(&path).map_err(|e| StoreError::io(&path, e))
+        let limit = crate::scenario::MAX_SCENARIO_BYTES;
+        Ok(world::read_bounded_text(&path, limit, "a scenario")?)
     }
 
     pub fn map_text(&self, hash: &str) -> Result<String, StoreError> {
         let path = self.map_path(hash);
-        std::fs::read_to_string(&path).map_err(|e| StoreError::io(&path, e))
+        let limit = world::map::MAX_TEXT_MAP_BYTES;
+        Ok(world::read_bounded_text(&path, limit, "a text map")?)
     }
 
     /// The stored map `name` of content hash `hash`, checked against the hash.
@@ -356,11 +362,11 @@ impl Store {
             .keys()
             .map(|name| {
                 let path = other.cell_folder(key).join(name);
-                std::fs::read(&path)
-                    .map(|bytes| (name.as_str(), bytes))
-                    .map_err(|e| StoreError::io(&path, e))
+                let limit = record.sizes.get(name).copied().unwrap_or(MAX_FILE_BYTES);
+                let bytes = read(&path, limit, "a cell's file (its recorded size)")?;
+                Ok((name.as_str(), bytes))
             })
-            .collect::<Result<_, _>>()?;
+            .collect::<Result<_, StoreError>>()?;
         let hash = &record.config.map.hash;
         write(&self.map_path(hash), other.map_text(hash)?.as_bytes())?;
         self.save_cell(
@@ -459,7 +465,17 @@ fn json_bytes<T: serde::Serialize>(value: &T) -> Vec<u8> {
     bytes
 }
 
+/// The largest file a store reads whose size it did not record (its tables, its records):
+/// the memory a checked sweep's tables may take, so no file of a sweep within the limits
+/// is larger. A cell's files are held to the sizes its record gives.
+pub const MAX_FILE_BYTES: u64 = crate::scenario::Limits::DEFAULT.memory_bytes;
+
+/// A file of the store: a regular file of at most `limit` bytes.
+pub(crate) fn read(path: &Path, limit: u64, what: &'static str) -> Result<Vec<u8>, StoreError> {
+    Ok(world::read_bounded(path, limit, what)?)
+}
+
 fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, StoreError> {
-    let bytes = std::fs::read(path).map_err(|e| StoreError::io(path, e))?;
+    let bytes = read(path, MAX_FILE_BYTES, "a store's file")?;
     serde_json::from_slice(&bytes).map_err(|e| StoreError::corrupt(path, e))
 }

@@ -24,7 +24,10 @@ use std::path::{Component, Path};
 use serde::{Deserialize, Serialize};
 
 use super::columns::{f64s, strings};
-use super::{CellRecord, MANIFEST_FILE, SCENARIO_FILE, Store, StoreError, read_json, write};
+use super::{
+    CellRecord, MANIFEST_FILE, MAX_FILE_BYTES, SCENARIO_FILE, Store, StoreError, read, read_json,
+    write,
+};
 use crate::scenario::Output;
 
 /// The file that makes a folder a table store.
@@ -90,8 +93,7 @@ impl Store {
                 format!("lists {name:?}, which is not a file inside the store"),
             ));
         }
-        let path = self.root.join(name);
-        std::fs::read(&path).map_err(|e| StoreError::io(&path, e))
+        read(&self.root.join(name), MAX_FILE_BYTES, "a store's file")
     }
 
     /// Writes this store's tables, scenario and maps as a table store in `folder`, with
@@ -113,8 +115,7 @@ impl Store {
             std::fs::create_dir_all(&maps).map_err(|e| StoreError::io(&maps, e))?;
         }
         for name in &names {
-            let bytes = std::fs::read(self.root.join(name))
-                .map_err(|e| StoreError::io(&self.root.join(name), e))?;
+            let bytes = read(&self.root.join(name), MAX_FILE_BYTES, "a store's file")?;
             if !same {
                 write(&folder.join(name), &bytes)?;
             }

@@ -3,7 +3,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use polars::prelude::*;
 
 use engine::grouping::group_rows;
@@ -20,7 +19,7 @@ pub struct CurveArgs {
 
 pub fn run(args: CurveArgs) -> anyhow::Result<()> {
     let path = args.dir.join("training.parquet");
-    let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+    let bytes = world::read_bounded(&path, engine::store::MAX_FILE_BYTES, "a store's file")?;
     let log = anyhow::Context::with_context(training_log::from_parquet(&bytes), || {
         format!("reading {}", path.display())
     })?;

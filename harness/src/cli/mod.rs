@@ -67,7 +67,19 @@ enum Command {
 
 /// Parses the process's arguments and runs the command.
 pub fn main() -> anyhow::Result<()> {
+    ignore_file_size_signal();
     Cli::parse().run()
+}
+
+/// A write past the file-size limit (`ulimit -f`) raises SIGXFSZ, whose default action kills
+/// the process with no message and leaves temporary files behind. Ignored, the write fails
+/// with EFBIG instead, and the store reports it as it reports a full disk: naming the file,
+/// removing the temporary one.
+fn ignore_file_size_signal() {
+    // SAFETY: called first in `main`, before any thread starts; SIG_IGN installs no handler.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
 }
 
 impl Cli {

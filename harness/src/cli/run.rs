@@ -7,7 +7,7 @@ use anyhow::Context;
 use engine::atomic_file::write_atomic;
 use engine::checkpoint_dir;
 use engine::probe::ProbingPolicy;
-use engine::replay::{ReplayPolicy, parse_actions, parse_starts};
+use engine::replay::{ReplayPolicy, parse_actions, parse_starts, read_actions_text};
 use engine::runner::run_episode;
 use engine::trace::Trace;
 use policies::{ActionChoice, Baseline, Policy};
@@ -65,8 +65,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         .map_err(anyhow::Error::msg)?;
     let (mut policy, steps) = match &args.actions {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
+            let text = read_actions_text(path)?;
             let rows = parse_actions(&text, args.agents, path)?;
             let steps = args.steps.unwrap_or(rows.len());
             anyhow::ensure!(

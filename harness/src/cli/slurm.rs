@@ -49,8 +49,7 @@ pub struct SlurmArgs {
 }
 
 pub fn run(args: SlurmArgs) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(&args.scenario)
-        .with_context(|| format!("{}: cannot read", args.scenario.display()))?;
+    let text = engine::scenario::read_scenario_text(&args.scenario)?;
     let limits = super::check::limits(args.no_limits);
     let scenario = Scenario::parse_within(&text, &args.scenario, &limits)?;
     let cells = scenario.cells();

@@ -2,8 +2,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
-
 use engine::scenario::Scenario;
 use engine::shard::Shard;
 use engine::store::Store;
@@ -43,8 +41,7 @@ pub struct SweepArgs {
 }
 
 pub fn run(args: SweepArgs) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(&args.scenario)
-        .with_context(|| format!("{}: cannot read", args.scenario.display()))?;
+    let text = engine::scenario::read_scenario_text(&args.scenario)?;
     let limits = super::check::limits(args.no_limits);
     let scenario = Scenario::parse_within(&text, &args.scenario, &limits)?;
     if args.record {

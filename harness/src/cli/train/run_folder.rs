@@ -132,7 +132,8 @@ fn read_world(folder: &Path) -> anyhow::Result<Option<Settings>> {
     if !path.exists() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&path).with_context(|| path.display().to_string())?;
+    let limit = engine::store::MAX_FILE_BYTES;
+    let text = world::read_bounded_text(&path, limit, "a store's file")?;
     serde_json::from_str(&text)
         .map(Some)
         .with_context(|| format!("{}: not a world record", path.display()))

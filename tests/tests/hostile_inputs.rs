@@ -1,0 +1,160 @@
+//! Inputs that are not what they claim: a device, a FIFO, a huge sparse file named as a map,
+//! a scenario or an actions file. Each must fail at once with a message naming the file (and
+//! the limit, for a file too large), and write nothing.
+
+mod common;
+
+use std::os::unix::ffi::OsStringExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use common::{repo_file, scratch};
+
+/// Longer than any of these commands takes when it refuses its input at once; a regression
+/// that reads `/dev/zero` or waits on a FIFO is killed instead of hanging the suite.
+const TIMEOUT: Duration = Duration::from_secs(20);
+
+/// Runs the harness in `dir` and returns its output, or fails the test if it runs past
+/// [`TIMEOUT`] (killing it first).
+fn harness_in(dir: &Path, args: &[&str]) -> Output {
+    let child = Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("harness starts");
+    let pid = child.id() as libc::pid_t;
+    let (sender, receiver) = mpsc::channel();
+    std::thread::spawn(move || sender.send(child.wait_with_output()));
+    match receiver.recv_timeout(TIMEOUT) {
+        Ok(output) => output.expect("harness runs"),
+        Err(_) => {
+            // SAFETY: `pid` is our own child, not yet reaped (its waiter has not returned).
+            unsafe { libc::kill(pid, libc::SIGKILL) };
+            panic!("harness {args:?} ran past {TIMEOUT:?}");
+        }
+    }
+}
+
+/// A scratch folder holding a FIFO, a 1 GB sparse file and an empty working folder.
+struct Inputs {
+    dir: PathBuf,
+    work: PathBuf,
+}
+
+impl Inputs {
+    fn new(test: &str) -> Self {
+        let dir = scratch(test);
+        let fifo = std::ffi::CString::new(dir.join("fifo.yaml").into_os_string().into_vec())
+            .expect("no NUL in the path");
+        // SAFETY: `fifo` is a NUL-terminated path that outlives the call.
+        assert_eq!(unsafe { libc::mkfifo(fifo.as_ptr(), 0o600) }, 0);
+        let sparse = std::fs::File::create(dir.join("sparse.txt")).unwrap();
+        sparse.set_len(1 << 30).unwrap();
+        let work = dir.join("work");
+        std::fs::create_dir(&work).unwrap();
+        Self { dir, work }
+    }
+
+    fn path(&self, name: &str) -> String {
+        self.dir.join(name).display().to_string()
+    }
+
+    /// Runs the harness in the working folder: it must fail, print `expected`, and leave the
+    /// scratch folder as it was (the working folder, where default outputs would go, empty).
+    fn refused(&self, args: &[&str], expected: &str) {
+        let before = listing(&self.dir);
+        let output = harness_in(&self.work, args);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert_eq!(listing(&self.dir), before, "{args:?} wrote a file");
+    }
+}
+
+/// Every path under `dir`, sorted.
+fn listing(dir: &Path) -> Vec<PathBuf> {
+    let mut paths = Vec::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            paths.extend(listing(&path));
+        }
+        paths.push(path);
+    }
+    paths.sort();
+    paths
+}
+
+#[test]
+fn a_device_a_fifo_or_a_huge_file_as_a_map_is_refused_at_once() {
+    let inputs = Inputs::new("hostile-maps");
+    let run = |map: &str, expected: &str| {
+        inputs.refused(
+            &["run", "--map", map, "--agents", "2", "--steps", "5"],
+            expected,
+        );
+    };
+    run(
+        "/dev/zero",
+        "/dev/zero: not a regular file (a character device)",
+    );
+    let fifo = inputs.path("fifo.yaml");
+    run(&fifo, &format!("{fifo}: not a regular file (a FIFO)"));
+    let sparse = inputs.path("sparse.txt");
+    run(
+        &sparse,
+        &format!("{sparse}: larger than 1.01 MiB (1054720 bytes), the limit for a text map"),
+    );
+}
+
+#[test]
+fn a_device_a_fifo_or_a_huge_file_as_a_scenario_is_refused_at_once() {
+    let inputs = Inputs::new("hostile-scenarios");
+    inputs.refused(
+        &["check", "/dev/zero"],
+        "/dev/zero: not a regular file (a character device)",
+    );
+    let fifo = inputs.path("fifo.yaml");
+    inputs.refused(
+        &["check", &fifo],
+        &format!("{fifo}: not a regular file (a FIFO)"),
+    );
+    inputs.refused(
+        &["sweep", &fifo, "--no-report"],
+        &format!("{fifo}: not a regular file (a FIFO)"),
+    );
+    let sparse = inputs.path("sparse.txt");
+    inputs.refused(
+        &["check", &sparse],
+        &format!("{sparse}: larger than 8 MiB (8388608 bytes), the limit for a scenario"),
+    );
+}
+
+#[test]
+fn a_device_or_a_fifo_as_an_actions_file_is_refused_at_once() {
+    let inputs = Inputs::new("hostile-actions");
+    let map = repo_file("scenarios/maps/open.txt");
+    let replay = |actions: &str, expected: &str| {
+        inputs.refused(
+            &["run", "--map", &map, "--agents", "2", "--actions", actions],
+            expected,
+        );
+    };
+    replay(
+        "/dev/zero",
+        "/dev/zero: not a regular file (a character device)",
+    );
+    let fifo = inputs.path("fifo.yaml");
+    replay(&fifo, &format!("{fifo}: not a regular file (a FIFO)"));
+    let sparse = inputs.path("sparse.txt");
+    replay(
+        &sparse,
+        &format!("{sparse}: larger than 16 MiB (16777216 bytes), the limit for an actions file"),
+    );
+}

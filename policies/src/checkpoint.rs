@@ -15,6 +15,8 @@
 //! and every tensor must be there, known, of its shape and finite.
 
 mod checks;
+#[cfg(test)]
+mod refusals;
 
 use std::collections::{HashMap, HashSet};
 
@@ -493,21 +495,7 @@ mod tests {
         let config = TrainingConfig::profile(Profile::Fast)
             .with_overrides(&[format!("architecture={architecture}")])
             .unwrap();
-        let model_config = config.model_config(25).unwrap();
-        let mut rng = Pcg64Mcg::seed_from_u64(4);
-        let model = ActorCritic::new(&model_config, &mut rng).unwrap();
-        let len = model.params().len();
-        let moment = |scale: f32| (0..len).map(|i| i as f32 * scale).collect::<Vec<_>>();
-        let adam = Adam::from_state(adam_config(&config), 3, moment(1e-3), moment(1e-6));
-        TrainingState {
-            config,
-            seed: 4,
-            episodes_done: 8,
-            wall_seconds: 1.5,
-            model,
-            adam,
-            value_norm: None,
-        }
+        super::refusals::state(config, 25)
     }
 
     fn bits(values: &[f32]) -> Vec<u32> {

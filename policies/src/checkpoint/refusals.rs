@@ -5,17 +5,17 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use policies::checkpoint::{self, CheckpointFiles};
-use policies::nn::{ActorCritic, Adam};
-use policies::ppo::trainer::adam_config;
-use policies::ppo::{Profile, TrainingConfig, TrainingState};
+use crate::checkpoint::{self, CheckpointFiles};
+use crate::nn::{ActorCritic, Adam};
+use crate::ppo::trainer::adam_config;
+use crate::ppo::{Profile, TrainingConfig, TrainingState};
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 
 /// A training state of `config` for `side` x `side` observations, with moments unlike the
 /// weights.
-fn state(config: TrainingConfig, side: usize) -> TrainingState {
+pub(super) fn state(config: TrainingConfig, side: usize) -> TrainingState {
     let model_config = config.model_config(side).unwrap();
     let model = ActorCritic::new(&model_config, &mut Pcg64Mcg::seed_from_u64(4)).unwrap();
     let len = model.params().len();

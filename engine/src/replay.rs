@@ -6,12 +6,18 @@ use std::path::{Path, PathBuf};
 use policies::Policy;
 use world::{Action, Cell, Episode, Seed};
 
+/// An actions file that cannot be replayed: a bad row, or no row at all.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{file}:{line}: {problem}")]
-pub struct ActionsError {
-    pub file: PathBuf,
-    pub line: usize,
-    pub problem: String,
+pub enum ActionsError {
+    #[error("{file}:{line}: {problem}")]
+    Row {
+        file: PathBuf,
+        line: usize,
+        problem: String,
+    },
+    /// Replaying it would run an episode of no step, whose penalty of 0 means nothing.
+    #[error("{file}: no rows of actions (one row per step, one column per agent)")]
+    Empty { file: PathBuf },
 }
 
 /// The largest actions file read. A row per step and an action per agent (a digit and a
@@ -34,7 +40,7 @@ pub fn parse_actions(
     agents: usize,
     file: &Path,
 ) -> Result<Vec<Vec<Action>>, ActionsError> {
-    let error = |line: usize, problem: String| ActionsError {
+    let error = |line: usize, problem: String| ActionsError::Row {
         file: file.to_owned(),
         line,
         problem,
@@ -71,6 +77,11 @@ pub fn parse_actions(
             ));
         }
         rows.push(row);
+    }
+    if rows.is_empty() {
+        return Err(ActionsError::Empty {
+            file: file.to_owned(),
+        });
     }
     Ok(rows)
 }
@@ -136,12 +147,25 @@ mod tests {
         );
         let e = parse_actions("0,4\n1,5\n", 2, file).unwrap_err();
         assert_eq!(
-            (e.line, e.to_string().contains("a.csv:2: column 2")),
-            (2, true),
-            "{e}"
+            e.to_string(),
+            "a.csv:2: column 2: \"5\" is not an action 0..=4"
         );
         let e = parse_actions("0,4,1\n", 2, file).unwrap_err();
-        assert!(e.problem.contains("3 actions for 2 agents"), "{e}");
+        assert_eq!(e.to_string(), "a.csv:1: 3 actions for 2 agents");
+    }
+
+    #[test]
+    fn a_file_without_rows_is_an_error_naming_it() {
+        let file = Path::new("a.csv");
+        for empty in ["", "\n\n", "a0,a1\n"] {
+            assert_eq!(
+                parse_actions(empty, 2, file),
+                Err(ActionsError::Empty {
+                    file: file.to_owned()
+                }),
+                "{empty:?}"
+            );
+        }
     }
 
     #[test]

@@ -158,3 +158,85 @@ fn a_device_or_a_fifo_as_an_actions_file_is_refused_at_once() {
         &format!("{sparse}: larger than 16 MiB (16777216 bytes), the limit for an actions file"),
     );
 }
+
+#[test]
+fn no_agent_no_step_or_no_row_of_actions_is_refused() {
+    let inputs = Inputs::new("hostile-counts");
+    let map = repo_file("scenarios/maps/open.txt");
+    let run = |extra: &[&str], expected: &str| {
+        let mut args = vec!["run", "--map", &map];
+        args.extend_from_slice(extra);
+        inputs.refused(&args, expected);
+    };
+    run(
+        &["--agents", "0", "--steps", "5"],
+        "--agents must be at least 1",
+    );
+    run(
+        &["--agents", "2", "--steps", "0"],
+        "--steps must be at least 1",
+    );
+    let empty = inputs.path("empty.csv");
+    std::fs::write(&empty, "a0,a1\n\n").unwrap();
+    run(
+        &["--agents", "2", "--actions", &empty],
+        &format!("{empty}: no rows of actions (one row per step, one column per agent)"),
+    );
+}
+
+#[test]
+fn a_map_with_a_byte_order_mark_or_a_hash_in_its_name_is_read_as_written() {
+    let inputs = Inputs::new("hostile-map-names");
+    let open = repo_file("scenarios/maps/open.txt");
+    let penalty = |map: &str| {
+        let output = harness_in(
+            &inputs.work,
+            &["run", "--map", map, "--agents", "2", "--steps", "5"],
+        );
+        common::succeed(output)
+    };
+    let named = inputs.path("a#b.txt");
+    let mut text = b"\xEF\xBB\xBF".to_vec();
+    text.extend(std::fs::read(&open).unwrap());
+    std::fs::write(&named, text).unwrap();
+    assert_eq!(penalty(&named), penalty(&open));
+    let missing = inputs.path("c#d.txt");
+    inputs.refused(
+        &["run", "--map", &missing, "--agents", "2", "--steps", "5"],
+        &format!("{missing}: cannot read: No such file or directory (os error 2)"),
+    );
+}
+
+#[test]
+fn a_polygon_on_one_line_is_refused_naming_the_map_and_the_polygon() {
+    let inputs = Inputs::new("hostile-polygons");
+    let maps = inputs.path("maps.yaml");
+    let polygons = "room:\n  size: [8, 8]\n  polygons:\n    - kind: free\n      \
+                    vertices: [[0, 0], [8, 0], [8, 8], [0, 8]]\n    - kind: obstacle\n      \
+                    vertices: [[1, 1], [2, 2], [4, 4]]\n";
+    std::fs::write(&maps, polygons).unwrap();
+    inputs.refused(
+        &["run", "--map", &format!("{maps}#room"), "--agents", "2", "--steps", "5"],
+        &format!(
+            "{maps}: map \"room\", polygon 1: has all its vertices on one line, so it covers no cell"
+        ),
+    );
+}
+
+#[test]
+fn a_store_whose_cells_folder_links_elsewhere_is_refused_before_any_write() {
+    let inputs = Inputs::new("hostile-linked-cells");
+    let (store, elsewhere) = (inputs.dir.join("store"), inputs.dir.join("elsewhere"));
+    std::fs::create_dir_all(&store).unwrap();
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    std::os::unix::fs::symlink(&elsewhere, store.join("cells")).unwrap();
+    let out = store.display().to_string();
+    let smoke = repo_file("scenarios/smoke.yaml");
+    inputs.refused(
+        &["sweep", &smoke, "--out", &out, "--no-report"],
+        &format!(
+            "{out}/cells is a symbolic link; a store's folders must be real folders inside it"
+        ),
+    );
+    assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0);
+}

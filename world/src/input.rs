@@ -62,17 +62,26 @@ fn io(error: std::io::Error) -> InputProblem {
     InputProblem::Io(error.to_string())
 }
 
-/// [`read_bounded`] for a text format: the file must also be UTF-8.
+/// [`read_bounded`] for a text format: the file must also be UTF-8. A leading byte-order mark
+/// is dropped: editors on Windows write one, and it is no part of any format read here (a map
+/// would otherwise fail on an unknown character in its first column).
 pub fn read_bounded_text(
     path: &Path,
     limit: u64,
     what: &'static str,
 ) -> Result<String, InputError> {
-    String::from_utf8(read_bounded(path, limit, what)?).map_err(|_| InputError {
+    let mut bytes = read_bounded(path, limit, what)?;
+    if bytes.starts_with(BOM) {
+        bytes.drain(..BOM.len());
+    }
+    String::from_utf8(bytes).map_err(|_| InputError {
         path: path.to_owned(),
         problem: InputProblem::NotText,
     })
 }
+
+/// The UTF-8 byte-order mark.
+const BOM: &[u8] = b"\xEF\xBB\xBF";
 
 /// Opens `path` without blocking (a FIFO would wait for a writer) and keeps it only if the
 /// opened file is a regular one; checking the open file, not the path, leaves no gap for the
@@ -147,6 +156,20 @@ mod tests {
         assert_eq!(
             read_bounded_text(&path, 8, "a text map").unwrap(),
             "..#\n...\n"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_leading_byte_order_mark_is_dropped_once() {
+        let dir = scratch("bom");
+        let path = dir.join("map.txt");
+        std::fs::write(&path, b"\xEF\xBB\xBF..#\n").unwrap();
+        assert_eq!(read_bounded_text(&path, 8, "a text map").unwrap(), "..#\n");
+        std::fs::write(&path, b"\xEF\xBB\xBF\xEF\xBB\xBF.\n").unwrap();
+        assert_eq!(
+            read_bounded_text(&path, 8, "a text map").unwrap(),
+            "\u{feff}.\n"
         );
         std::fs::remove_dir_all(&dir).unwrap();
     }

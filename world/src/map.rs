@@ -3,7 +3,7 @@
 //! Cell (x, y): x is the column from the left, y the row from the bottom. The text format lists
 //! the top row first, as a person reads a map, so parsing flips the rows.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::error::{MapError, MapErrorKind};
 
@@ -15,6 +15,28 @@ pub const MAX_SIDE: usize = 1024;
 /// be a valid map, and refusing it before reading keeps a wrong path (a device, a huge file)
 /// from filling memory.
 pub const MAX_TEXT_MAP_BYTES: u64 = (MAX_SIDE * (MAX_SIDE + 2) + 4096) as u64;
+
+/// Splits `FILE#NAME` into a polygon file and the name of one of its maps. Only a polygon file
+/// names its maps, so a `#` is part of the file's name (`a#b.txt`) unless what comes before it
+/// is a polygon file (the last such `#`, so a name may hold one), and a path that exists whole
+/// is read whole.
+fn split_map_name(spec: &str) -> (&Path, Option<&str>) {
+    if Path::new(spec).exists() {
+        return (Path::new(spec), None);
+    }
+    spec.rmatch_indices('#')
+        .map(|(at, _)| (Path::new(&spec[..at]), Some(&spec[at + 1..])))
+        .find(|(file, _)| is_polygon_file(file))
+        .unwrap_or((Path::new(spec), None))
+}
+
+/// Whether `path` names a polygon map file (by its extension, `.yaml` or `.yml`).
+fn is_polygon_file(path: &Path) -> bool {
+    matches!(
+        path.extension().and_then(|e| e.to_str()),
+        Some("yaml" | "yml")
+    )
+}
 
 /// A cell of the grid, x from the left, y from the bottom.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -133,18 +155,11 @@ impl Map {
     /// Loads a map file by its extension: `.yaml`/`.yml` polygon files hold one or more named
     /// maps (pick one with `path#name`), anything else is the text format.
     pub fn load(spec: &str) -> Result<Self, MapError> {
-        let (path, name) = match spec.rsplit_once('#') {
-            Some((path, name)) => (PathBuf::from(path), Some(name)),
-            None => (PathBuf::from(spec), None),
-        };
-        let is_yaml = matches!(
-            path.extension().and_then(|e| e.to_str()),
-            Some("yaml" | "yml")
-        );
-        if is_yaml {
-            crate::polygon::load_polygon_map(&path, name)
+        let (path, name) = split_map_name(spec);
+        if is_polygon_file(path) {
+            crate::polygon::load_polygon_map(path, name)
         } else {
-            Self::load_text(&path)
+            Self::load_text(path)
         }
     }
 
@@ -280,5 +295,32 @@ mod tests {
             e.kind,
             MapErrorKind::TooFewFreeCells { free: 3, agents: 4 }
         ));
+    }
+
+    #[test]
+    fn only_a_polygon_file_is_split_at_its_hash() {
+        let split = |spec| split_map_name(spec);
+        assert_eq!(
+            split("maps.yaml#room"),
+            (Path::new("maps.yaml"), Some("room"))
+        );
+        assert_eq!(split("m.yml#a#b"), (Path::new("m.yml"), Some("a#b")));
+        assert_eq!(split("a#b.txt"), (Path::new("a#b.txt"), None));
+        assert_eq!(split("a#b.yaml"), (Path::new("a#b.yaml"), None));
+        assert_eq!(split("dir#1/open.txt"), (Path::new("dir#1/open.txt"), None));
+    }
+
+    #[test]
+    fn a_text_map_with_a_hash_in_its_name_is_read_whole() {
+        let dir = std::env::temp_dir().join(format!("world-map-hash-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a#b.txt");
+        std::fs::write(&path, "..\n").unwrap();
+        let map = Map::load(path.to_str().unwrap()).unwrap();
+        assert_eq!((map.name(), map.width()), ("a#b", 2));
+        let missing = dir.join("c#d.txt").display().to_string();
+        let e = Map::load(&missing).unwrap_err();
+        assert_eq!(e.file, Path::new(&missing), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

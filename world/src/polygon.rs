@@ -121,6 +121,8 @@ fn check_polygon(
         ))
     } else if polygon.vertices.iter().flatten().any(|v| !v.is_finite()) {
         Some("has a vertex that is not a finite number".to_owned())
+    } else if collinear(&polygon.vertices) {
+        Some("has all its vertices on one line, so it covers no cell".to_owned())
     } else {
         None
     };
@@ -135,6 +137,22 @@ fn check_polygon(
         }
         None => Ok(()),
     }
+}
+
+/// Whether every vertex lies on the line through the first two distinct ones: such a polygon
+/// has no inside, so it is a drawing mistake that would otherwise vanish without a word. (A
+/// zero signed area is not the test: a self-crossing polygon has it and still covers cells.)
+fn collinear(vertices: &[[f64; 2]]) -> bool {
+    let [ox, oy] = vertices[0];
+    let offsets = vertices.iter().map(|&[x, y]| [x - ox, y - oy]);
+    let Some([dx, dy]) = offsets.clone().find(|&offset| offset != [0.0, 0.0]) else {
+        return true;
+    };
+    offsets.into_iter().all(|[x, y]| {
+        // The cross product, against a tolerance scaled by both lengths for rounding.
+        let scale = dx.hypot(dy) * x.hypot(y);
+        (dx * y - dy * x).abs() <= 1e-9 * scale
+    })
 }
 
 /// Even-odd rule: a ray to +x crosses the boundary an odd number of times from inside.
@@ -178,6 +196,29 @@ mod tests {
         assert!(e.line.is_some(), "{e}");
         let e = parse_polygon_map(SQUARE, Path::new("m.yaml"), Some("hall")).unwrap_err();
         assert!(e.to_string().contains("room"), "{e}");
+    }
+
+    #[test]
+    fn collinear_polygon_is_an_error_naming_map_and_polygon() {
+        let line = SQUARE.replace(
+            "[[1, 1], [1, 2], [3, 2], [3, 1]]",
+            "[[0, 0], [1, 0.5], [3, 1.5], [2, 1]]",
+        );
+        let e = parse_polygon_map(&line, Path::new("m.yaml"), None).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "m.yaml: map \"room\", polygon 0: has all its vertices on one line, so it covers no cell"
+        );
+        let point = SQUARE.replace(
+            "[[1, 1], [1, 2], [3, 2], [3, 1]]",
+            "[[1, 1], [1, 1], [1, 1]]",
+        );
+        assert!(parse_polygon_map(&point, Path::new("m.yaml"), None).is_err());
+        let bowtie = SQUARE.replace(
+            "[[1, 1], [1, 2], [3, 2], [3, 1]]",
+            "[[0, 0], [2, 2], [2, 0], [0, 2]]",
+        );
+        assert!(parse_polygon_map(&bowtie, Path::new("m.yaml"), None).is_ok());
     }
 
     #[test]

@@ -245,6 +245,10 @@ mod tests {
                 "agents.test: the list is empty",
             ),
             (
+                scenario("", &inline("a")).replace("test: [1, 2]", "test: [0, 2]"),
+                "agents.test[0]: an agent count must be at least 1",
+            ),
+            (
                 scenario("", &inline("a")).replace("test_episodes: 4", "test_episodes: 0"),
                 "unit.yaml:15: test_episodes: must be at least 1",
             ),

@@ -79,6 +79,8 @@ pub enum StoreError {
         "{folder} is a table store ({TABLE_STORE_FILE}): it keeps a sweep's tables, not {wanted}"
     )]
     TableOnly { folder: PathBuf, wanted: String },
+    #[error("{folder} is a symbolic link; a store's folders must be real folders inside it")]
+    LinkedFolder { folder: PathBuf },
 }
 
 impl StoreError {
@@ -95,6 +97,18 @@ impl StoreError {
             problem: problem.to_string(),
         }
     }
+}
+
+/// Refuses a store's folder that is a symbolic link: writing through it would put the store's
+/// cells somewhere else (another sweep's store, a shared disk) where nothing expects them.
+fn real_folder(folder: &Path) -> Result<(), StoreError> {
+    let metadata = std::fs::symlink_metadata(folder).map_err(|e| StoreError::io(folder, e))?;
+    if metadata.file_type().is_symlink() {
+        return Err(StoreError::LinkedFolder {
+            folder: folder.to_owned(),
+        });
+    }
+    Ok(())
 }
 
 /// A sweep's output folder.
@@ -170,6 +184,7 @@ impl Store {
         }
         for folder in [self.root.join("cells"), self.root.join("maps")] {
             std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
+            real_folder(&folder)?;
         }
         Ok(())
     }
@@ -478,4 +493,28 @@ pub(crate) fn read(path: &Path, limit: u64, what: &'static str) -> Result<Vec<u8
 fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, StoreError> {
     let bytes = read(path, MAX_FILE_BYTES, "a store's file")?;
     serde_json::from_slice(&bytes).map_err(|e| StoreError::corrupt(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cells_folder_linked_elsewhere_is_refused_and_nothing_is_written_there() {
+        let dir = std::env::temp_dir().join(format!("store-linked-{}", std::process::id()));
+        let (root, elsewhere) = (dir.join("store"), dir.join("elsewhere"));
+        std::fs::create_dir_all(&root).unwrap();
+        std::fs::create_dir_all(&elsewhere).unwrap();
+        std::os::unix::fs::symlink(&elsewhere, root.join("cells")).unwrap();
+        let error = Store::new(&root).prepare_cache().unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            format!(
+                "{} is a symbolic link; a store's folders must be real folders inside it",
+                root.join("cells").display()
+            )
+        );
+        assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -53,6 +53,7 @@ pub struct RunArgs {
 }
 
 pub fn run(args: RunArgs) -> anyhow::Result<()> {
+    check_counts(&args)?;
     let world = args.world.load()?;
     world
         .map()
@@ -114,6 +115,14 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         "idleness: average {:.2} steps, worst {} steps",
         outcome.idleness.average, outcome.idleness.worst
     );
+    Ok(())
+}
+
+/// Refuses an episode of no agent or no step: it would run and print a penalty that means
+/// nothing.
+fn check_counts(args: &RunArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.agents >= 1, "--agents must be at least 1");
+    anyhow::ensure!(args.steps != Some(0), "--steps must be at least 1");
     Ok(())
 }
 

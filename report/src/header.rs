@@ -7,8 +7,9 @@
 use polars::prelude::*;
 
 use super::columns::{PolicyKey, distinct, f64s, group_rows, named_seed, optional_u32s, strings};
+use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use engine::stats::summarize;
+use engine::stats::{least_squares_slope, summarize};
 
 /// The paper's training budget per learned policy, in episodes.
 pub const PAPER_TRAINING_EPISODES: u64 = 30_000;
@@ -108,7 +109,11 @@ fn training_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResul
         .filter(|&r| n_trains[r].is_some())
         .collect();
     if learned.is_empty() {
-        return Ok("- **Training**: none; every policy is a baseline.".to_owned());
+        return Ok(format!(
+            "- **Training**: none; every policy is a baseline (the paper trained its learned \
+             policies {} episodes).",
+            thousands(PAPER_TRAINING_EPISODES)
+        ));
     }
     let settings = learned_settings(cells)?;
     let runs: Vec<usize> = settings.iter().map(|(_, rows)| rows.len()).collect();
@@ -147,12 +152,7 @@ fn learned_settings(cells: &DataFrame) -> PolarsResult<Vec<(Setting, Vec<usize>)
 
 /// "800" when every learned policy's runs are that long, else "800 (ma-g-ppo), 400 (ma-ppo)".
 fn episodes_per_policy(training: &DataFrame) -> PolarsResult<String> {
-    let (keys, policies) = (strings(training, "cell_key")?, strings(training, "policy")?);
-    let runs = group_rows(&keys);
-    let per_run: Vec<(String, usize)> = runs
-        .iter()
-        .map(|(_, rows)| (policies[rows[0]].clone(), rows.len()))
-        .collect();
+    let per_run = episodes_per_run(training)?;
     let all: Vec<usize> = per_run.iter().map(|(_, n)| *n).collect();
     if distinct(all.iter().copied()).len() == 1 {
         return Ok(thousands(all[0] as u64));
@@ -266,15 +266,6 @@ impl Run {
     }
 }
 
-/// The slope of the least-squares line through (x, y); `None` for fewer than two distinct x.
-fn least_squares_slope(x: &[f64], y: &[f64]) -> Option<f64> {
-    let n = x.len() as f64;
-    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let sxx: f64 = x.iter().map(|v| (v - mx).powi(2)).sum();
-    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
-    (x.len() >= 2 && sxx > 0.0).then(|| sxy / sxx)
-}
-
 /// Whether the runs of one learned setting were still improving: the verdict of the
 /// interval of their mean slope.
 fn trend(slopes: &[f64], low: f64, high: f64) -> &'static str {
@@ -355,9 +346,10 @@ impl Improving {
             policy.policy,
             policy.n_train.unwrap_or(0)
         );
-        let summary = match per_run.is_empty() {
-            true => None,
-            false => Some(summarize(&per_run, named_seed(&name))?),
+        let summary = if per_run.is_empty() {
+            None
+        } else {
+            Some(summarize(&per_run, named_seed(&name))?)
         };
         let interval = summary
             .filter(|_| per_run.len() > 1)
@@ -420,14 +412,6 @@ fn improving_section(report: &mut ReportWriter, training: &DataFrame) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn slopes_are_least_squares() {
-        let x = [0.0, 1.0, 2.0, 3.0];
-        let y = [1.0, 3.0, 5.0, 7.0];
-        assert_eq!(least_squares_slope(&x, &y), Some(2.0));
-        assert_eq!(least_squares_slope(&[4.0], &[1.0]), None);
-    }
 
     #[test]
     fn the_last_quarter_has_two_episodes_at_least() {

@@ -171,6 +171,16 @@ fn spread(curve: &Curve, label: String) -> Spread {
     }
 }
 
+/// Each training run's learned policy and its episodes (rows of the training table), runs in
+/// order of first appearance: what the header and a claim's budget read.
+pub(crate) fn episodes_per_run(training: &DataFrame) -> PolarsResult<Vec<(String, usize)>> {
+    let (keys, policies) = (strings(training, "cell_key")?, strings(training, "policy")?);
+    Ok(group_rows(&keys)
+        .into_iter()
+        .map(|(_, rows)| (policies[rows[0]].clone(), rows.len()))
+        .collect())
+}
+
 /// The training table's penalties (10^6) by (map, policy) and, within, by run (cell), each
 /// run sorted by episode.
 fn runs_of(training: &DataFrame) -> Result<Vec<(Trained, RunsByCell)>, ReportError> {

@@ -16,9 +16,10 @@ use super::columns::{GroupKey, PolicyKey, f64s, group_rows, named_seed, optional
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, difference_and_improvement, samples};
 use super::disturbance::{DisturbedSamples, ratio};
 use super::markdown::number;
+use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use engine::claims::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
-use engine::stats::{Bootstrap, StatsError, holm, mean, mean_difference};
+use engine::stats::{Bootstrap, StatsError, holm, least_squares_slope, mean, mean_difference};
 
 /// The family-wise level of a claim's contradiction, and each point's own level.
 const ALPHA: f64 = 1.0 - CONFIDENCE;
@@ -213,18 +214,10 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
 
 /// Each learned policy's training episodes per run: the fewest any of its runs logged.
 fn trained_episodes(training: &DataFrame) -> Result<HashMap<String, u64>, ReportError> {
-    let policies = strings(training, "policy")?;
-    let cells = strings(training, "cell_key")?;
-    let episodes = episode_numbers(training)?;
-    let mut per_run: HashMap<(&str, &str), u64> = HashMap::new();
-    for ((policy, cell), episode) in policies.iter().zip(&cells).zip(episodes) {
-        let last = per_run.entry((policy, cell)).or_default();
-        *last = (*last).max(episode + 1);
-    }
     let mut fewest: HashMap<String, u64> = HashMap::new();
-    for ((policy, _), count) in per_run {
-        let entry = fewest.entry(policy.to_owned()).or_insert(count);
-        *entry = (*entry).min(count);
+    for (policy, episodes) in episodes_per_run(training)? {
+        let entry = fewest.entry(policy).or_insert(episodes as u64);
+        *entry = (*entry).min(episodes as u64);
     }
     Ok(fewest)
 }
@@ -457,18 +450,11 @@ fn scale_name(scale: Scale) -> &'static str {
     }
 }
 
-/// The least-squares slope of `values` against their positions 0, 1, 2, ...
+/// The least-squares slope of `values` against their positions 0, 1, 2, ... (NaN for fewer
+/// than two values, which a `gap_grows` claim never has).
 fn slope(values: &[f64]) -> f64 {
-    let n = values.len() as f64;
-    let centre = (n - 1.0) / 2.0;
-    let average = values.iter().sum::<f64>() / n;
-    let (mut cross, mut square) = (0.0, 0.0);
-    for (i, v) in values.iter().enumerate() {
-        let dx = i as f64 - centre;
-        cross += dx * (v - average);
-        square += dx * dx;
-    }
-    cross / square
+    let positions: Vec<f64> = (0..values.len()).map(|i| i as f64).collect();
+    least_squares_slope(&positions, values).unwrap_or(f64::NAN)
 }
 
 /// The gaps `mean(b) - mean(a)` of consecutive (a, b) units.

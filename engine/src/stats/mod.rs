@@ -130,6 +130,15 @@ pub fn probability_of_improvement(x: &[f64], y: &[f64]) -> Result<f64, StatsErro
     Ok(wins / (x.len() * y.len()) as f64)
 }
 
+/// The slope of the least-squares line through (x, y); `None` for fewer than two distinct x.
+pub fn least_squares_slope(x: &[f64], y: &[f64]) -> Option<f64> {
+    let n = x.len() as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let sxx: f64 = x.iter().map(|v| (v - mx).powi(2)).sum();
+    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
+    (x.len() >= 2 && sxx > 0.0).then(|| sxy / sxx)
+}
+
 /// `mean(x) - mean(y)`.
 pub fn mean_difference(x: &[f64], y: &[f64]) -> Result<f64, StatsError> {
     Ok(mean(x)? - mean(y)?)
@@ -216,6 +225,14 @@ mod tests {
             summarize(&[1.0, f64::NAN], Seed::new(2)),
             Err(StatsError::NotFinite { index: 1, .. })
         ));
+    }
+
+    #[test]
+    fn slopes_are_least_squares() {
+        let x = [0.0, 1.0, 2.0, 3.0];
+        let y = [1.0, 3.0, 5.0, 7.0];
+        assert_eq!(least_squares_slope(&x, &y), Some(2.0));
+        assert_eq!(least_squares_slope(&[4.0], &[1.0]), None);
     }
 
     #[test]

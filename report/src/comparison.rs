@@ -147,29 +147,41 @@ pub fn samples_of(frame: &DataFrame, column: &str, unit: f64) -> Result<Vec<Samp
     let groups = GroupKey::of_rows(frame)?;
     let cells = strings(frame, "cell_key")?;
     let numbers = u32s(frame, "episode")?;
-    let values = f64s(frame, column)?;
+    let values: Vec<f64> = f64s(frame, column)?.iter().map(|v| v / unit).collect();
     Ok(group_rows(&groups)
         .into_iter()
-        .map(|(group, rows)| {
-            let keys: Vec<&String> = rows.iter().map(|&r| &cells[r]).collect();
-            let by_cell = group_rows(&keys);
-            let pick = |within: &[usize], f: &dyn Fn(usize) -> f64| -> Vec<f64> {
-                within.iter().map(|&i| f(rows[i])).collect()
-            };
-            Sample {
-                group,
-                cells: by_cell.iter().map(|(key, _)| (*key).clone()).collect(),
-                episodes: by_cell
-                    .iter()
-                    .map(|(_, within)| within.iter().map(|&i| numbers[rows[i]]).collect())
-                    .collect(),
-                strata: by_cell
-                    .iter()
-                    .map(|(_, within)| pick(within, &|row| values[row] / unit))
-                    .collect(),
-            }
-        })
+        .map(|(group, rows)| Sample::of_rows(group, &rows, &cells, &numbers, &values))
         .collect())
+}
+
+impl Sample {
+    /// The sample of a table's `rows`, by cell in order of first appearance, from the table's
+    /// cell keys, episode numbers and values (all indexed by row).
+    pub fn of_rows(
+        group: GroupKey,
+        rows: &[usize],
+        cells: &[String],
+        episodes: &[u32],
+        values: &[f64],
+    ) -> Self {
+        let keys: Vec<&String> = rows.iter().map(|&r| &cells[r]).collect();
+        let by_cell = group_rows(&keys);
+        let column = |of: &dyn Fn(usize) -> f64| -> Vec<Vec<f64>> {
+            by_cell
+                .iter()
+                .map(|(_, within)| within.iter().map(|&i| of(rows[i])).collect())
+                .collect()
+        };
+        Sample {
+            group,
+            cells: by_cell.iter().map(|(key, _)| (*key).clone()).collect(),
+            episodes: by_cell
+                .iter()
+                .map(|(_, within)| within.iter().map(|&i| episodes[rows[i]]).collect())
+                .collect(),
+            strata: column(&|row| values[row]),
+        }
+    }
 }
 
 /// Difference of means and probability of improvement over units (rliable's, over runs for

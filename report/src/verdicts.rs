@@ -12,7 +12,7 @@ use polars::prelude::*;
 
 use super::behaviour_claims;
 use super::behaviour_replay::EpisodeMeasure;
-use super::columns::{GroupKey, PolicyKey, f64s, group_rows, named_seed, optional_u32s, strings};
+use super::columns::{GroupKey, PolicyKey, f64s, named_seed, optional_u32s, strings};
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, difference_and_improvement, samples};
 use super::disturbance::{DisturbedSamples, ratio};
 use super::markdown::number;
@@ -604,15 +604,9 @@ fn curve_samples(
                 .push(row);
         }
     }
+    let numbers: Vec<u32> = episodes.iter().map(|&e| e as u32).collect();
+    let values: Vec<f64> = penalties.iter().map(|p| p / PENALTY_UNIT).collect();
     let sample = |policy: String, rows: Vec<usize>| {
-        let keys: Vec<&String> = rows.iter().map(|&r| &cells[r]).collect();
-        let by_cell = group_rows(&keys);
-        let column = |f: &dyn Fn(usize) -> f64| -> Vec<Vec<f64>> {
-            by_cell
-                .iter()
-                .map(|(_, within)| within.iter().map(|&i| f(rows[i])).collect())
-                .collect()
-        };
         let group = GroupKey {
             map: map.to_owned(),
             policy: PolicyKey {
@@ -621,17 +615,10 @@ fn curve_samples(
             },
             n_test: n_train,
         };
-        let numbers = column(&|r| episodes[r] as f64);
-        let sample = Sample {
-            group,
-            cells: by_cell.iter().map(|(key, _)| (*key).clone()).collect(),
-            episodes: numbers
-                .iter()
-                .map(|e| e.iter().map(|&v| v as u32).collect())
-                .collect(),
-            strata: column(&|r| penalties[r] / PENALTY_UNIT),
-        };
-        (policy, sample)
+        (
+            policy,
+            Sample::of_rows(group, &rows, &cells, &numbers, &values),
+        )
     };
     Ok(by_policy
         .into_iter()

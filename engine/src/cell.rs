@@ -66,7 +66,9 @@ impl CellConfig {
     /// What a learned cell's training run depends on, hashed: the code version, the map, the
     /// world's parameters, the resolved training configuration and the training seed. Cells
     /// with the same identity (two scenarios' cells that differ in their tests only) train the
-    /// same weights bit for bit, so one run serves them all. `None` for a baseline.
+    /// same weights bit for bit, so one run serves them all. A run with a test curve
+    /// (`evaluate_every`) also plays the cell's test episodes along the way, so its identity
+    /// adds what those depend on. `None` for a baseline.
     pub fn training_identity(&self) -> Option<String> {
         let training = self.training_config()?.ok()?;
         let world = (self.world.fov, self.world.decay, self.world.rmax);
@@ -76,7 +78,20 @@ impl CellConfig {
         hasher.update(code_version().as_bytes());
         hasher.update(b"\ntraining\n");
         hasher.update(json.as_bytes());
+        if let Some(curve) = self.test_curve_identity() {
+            hasher.update(b"\ntest curve\n");
+            hasher.update(curve.as_bytes());
+        }
         Some(hasher.finalize().to_hex()[..20].to_owned())
+    }
+
+    /// What a learned cell's test curve depends on besides its training run; `None` without
+    /// one, so that runs without a curve keep their identity.
+    fn test_curve_identity(&self) -> Option<String> {
+        let learned = self.policy.learned()?;
+        let every = learned.evaluate_every?;
+        let tests = (self.test_seed, self.test_episodes, self.world.test_steps);
+        Some(format!("{every} {:?} {tests:?}", learned.test_actions))
     }
 
     /// The disturbance called `name` (`none`, the undisturbed play, is `Ok(None)`), or the

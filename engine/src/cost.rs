@@ -61,9 +61,11 @@ impl CellConfig {
         self.training_cost() + self.test_cost()
     }
 
-    /// The cost of the cell's training run alone (nothing for a baseline).
+    /// The cost of the cell's training run alone, its test curve included (nothing for a
+    /// baseline).
     pub fn training_cost(&self) -> Cost {
-        Cost::of_training(&self.world, self.policy.learned(), self.n_train)
+        let learned = self.policy.learned();
+        Cost::of_training(&self.world, learned, self.n_train, self.test_episodes)
     }
 
     /// The cost of the cell's test episodes alone.
@@ -90,22 +92,41 @@ impl Cost {
         n_test: &[u32],
         test_episodes: u32,
     ) -> Cost {
-        Self::of_training(world, learned, n_train)
+        Self::of_training(world, learned, n_train, test_episodes)
             + Self::of_tests(world, learned, n_test, test_episodes)
     }
 
-    fn of_training(world: &WorldConfig, learned: Option<&Learned>, n_train: Option<u32>) -> Cost {
+    /// Training `learned` with `n_train` agents, and the plays of its test curve (the test
+    /// episodes at N_train, before training and after every `evaluate_every` episodes).
+    fn of_training(
+        world: &WorldConfig,
+        learned: Option<&Learned>,
+        n_train: Option<u32>,
+        test_episodes: u32,
+    ) -> Cost {
         let training_episodes = learned.map_or(0, |l| u64::from(l.episodes));
         let training_steps = training_episodes * u64::from(world.train_steps);
         let training_step = learned.map_or(0, |l| work::training_step(l.architecture));
-        Cost {
+        let training = Cost {
             training_episodes,
             test_episodes: 0,
             env_steps: training_steps,
             work: training_steps
                 .saturating_mul(u64::from(n_train.unwrap_or(0)))
                 .saturating_mul(training_step),
-        }
+        };
+        let Some((every, n_train)) = learned.and_then(|l| l.evaluate_every).zip(n_train) else {
+            return training;
+        };
+        let plays = crate::test_curve::plays(training_episodes, u64::from(every));
+        let plays = u32::try_from(plays.saturating_mul(u64::from(test_episodes)));
+        let curve = Self::of_tests(world, learned, &[n_train], plays.unwrap_or(u32::MAX));
+        // The curve's episodes are not the cell's test episodes (its tables count those).
+        training
+            + Cost {
+                test_episodes: 0,
+                ..curve
+            }
     }
 
     fn of_tests(

@@ -22,8 +22,9 @@ use crate::store::disturbed::{self, DisturbedRow};
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{
     CellRecord, DISTURBED_FILE, DISTURBED_STEPS_FILE, EPISODES_FILE, Store, StoreError,
-    TRAINING_FILE,
+    TEST_CURVE_FILE, TRAINING_FILE,
 };
+use crate::test_curve::{CurvePoint, TestCurve};
 use crate::training_run::{TrainingRun, TrainingRunError};
 use crate::trajectory::CellRecording;
 
@@ -79,10 +80,15 @@ pub fn run_cell(
                 }
                 None => {
                     let training = config.training_config_of(learned)?;
-                    let (state, log) = train_cell(store, cell, world, training, advance)?;
+                    let (state, log, curve) =
+                        train_cell(store, cell, world, (training, learned), advance)?;
                     let checkpoint = checkpoint::save(&state);
                     let log = tables::training_frame(&cell.key, config, &log)?;
                     files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
+                    if let Some(curve) = curve {
+                        let frame = curve.frame(&cell.key, config)?;
+                        files.push((TEST_CURVE_FILE, tables::parquet_bytes(&frame)?));
+                    }
                     files.push((WEIGHTS_FILE, checkpoint.weights));
                     files.push((METADATA_FILE, checkpoint.metadata.into_bytes()));
                     (state.model, state.config)
@@ -193,27 +199,79 @@ fn shared_training(
     let log = log.drop_many(tables::CELL_COLUMNS);
     let log = tables::training_frame(&cell.key, &cell.config, &log)?;
     files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
+    // The same identity plays the same test curve (`CellConfig::training_identity`).
+    if let Some(curve) = source.cell_table(&record, TEST_CURVE_FILE)? {
+        let curve = curve.drop_many(tables::CELL_COLUMNS);
+        let curve = tables::training_frame(&cell.key, &cell.config, &curve)?;
+        files.push((TEST_CURVE_FILE, tables::parquet_bytes(&curve)?));
+    }
     files.push((WEIGHTS_FILE, weights));
     files.push((METADATA_FILE, metadata_bytes));
     Ok(Some((model, metadata.config)))
 }
 
-/// Trains a learned cell's policy, continuing the run an interrupted sweep saved.
+/// Trains a learned cell's policy, continuing the run an interrupted sweep saved, and plays
+/// its test curve along the way when the policy asks for one.
 fn train_cell(
     store: &Store,
     cell: &SweepCell,
     world: &Arc<World>,
-    training: TrainingConfig,
+    (training, learned): (TrainingConfig, &Learned),
     advance: &dyn Fn(u64),
-) -> Result<(TrainingState, DataFrame), CellError> {
+) -> Result<(TrainingState, DataFrame, Option<TestCurve>), CellError> {
     let folder = store.partial_training_folder(&cell.key);
     let seed = cell.config.training_seed;
     let mut run = TrainingRun::resume_or_start(&folder, world.clone(), training, seed)?;
     let steps = cell.config.world.train_steps as u64;
-    advance(run.state().episodes_done * steps);
     let total = run.state().config.episodes;
-    run.train(total, SAVE_EVERY, &mut |_| advance(steps))?;
-    Ok(run.into_parts())
+    let Some(every) = learned.evaluate_every else {
+        advance(run.state().episodes_done * steps);
+        run.train(total, SAVE_EVERY, &mut |_| advance(steps))?;
+        let (state, log) = run.into_parts();
+        return Ok((state, log, None));
+    };
+    let done = run.state().episodes_done;
+    let mut curve = TestCurve::resume(&folder, u64::from(every), done)?;
+    let play_steps = u64::from(cell.config.test_episodes) * u64::from(cell.config.world.test_steps);
+    advance(done * steps + curve.points().len() as u64 * play_steps);
+    loop {
+        let done = run.state().episodes_done;
+        if curve.due(done, total) {
+            curve.push(curve_point(world, &cell.config, learned, run.state())?);
+            curve.save(&folder, &cell.key, &cell.config)?;
+            advance(play_steps);
+        }
+        if done >= total {
+            break;
+        }
+        run.train(curve.next_stop(done, total), SAVE_EVERY, &mut |_| {
+            advance(steps)
+        })?;
+    }
+    let (state, log) = run.into_parts();
+    Ok((state, log, Some(curve)))
+}
+
+/// The cell's test episodes at N_train played with the policy of `state`.
+fn curve_point(
+    world: &Arc<World>,
+    config: &CellConfig,
+    learned: &Learned,
+    state: &TrainingState,
+) -> Result<CurvePoint, CellError> {
+    let agents = config.n_train.ok_or_else(|| ConfigError::Invalid {
+        field: "agents",
+        reason: "a learned policy's cell has no N_train".to_owned(),
+    })?;
+    let mut policy = learned_policy(world, state.model.clone(), &state.config, learned)?;
+    let rows = (0..config.test_episodes)
+        .map(|episode| test_episode(world, policy.as_mut(), config, agents, episode))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(CurvePoint {
+        training_episode: state.episodes_done,
+        cpu_seconds: state.wall_seconds * rayon::current_num_threads() as f64,
+        rows,
+    })
 }
 
 /// The policy a finished cell tests, from the store alone: a baseline is built again, a

@@ -32,6 +32,7 @@ pub mod stop;
 pub mod store;
 pub mod summary;
 pub mod sweep;
+pub mod test_curve;
 pub mod trace;
 pub mod training_log;
 pub mod training_run;

@@ -163,6 +163,11 @@ pub struct LearnedSpec {
     /// How test episodes pick actions: `sampled` (the paper) or `greedy`.
     #[serde(default)]
     pub test_actions: TestActions,
+    /// Play the cell's test episodes at N_train before training and after every this many
+    /// training episodes (and at the end): the learning curve in test units, the table
+    /// `test_curve`. Absent (the default, and left out of the key): no curve.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub evaluate_every: Option<u32>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
@@ -193,10 +198,12 @@ pub enum Output {
     /// Only cells with disturbances have these.
     Disturbed,
     DisturbedSteps,
+    /// Only learned cells with `evaluate_every` have it.
+    TestCurve,
 }
 
 impl Output {
-    pub const ALL: [Output; 8] = [
+    pub const ALL: [Output; 9] = [
         Output::Episodes,
         Output::Training,
         Output::Cells,
@@ -205,6 +212,7 @@ impl Output {
         Output::Snapshots,
         Output::Disturbed,
         Output::DisturbedSteps,
+        Output::TestCurve,
     ];
 
     /// The table's file name, without extension.
@@ -218,6 +226,7 @@ impl Output {
             Output::Snapshots => "snapshots",
             Output::Disturbed => "disturbed",
             Output::DisturbedSteps => "disturbed_steps",
+            Output::TestCurve => "test_curve",
         }
     }
 

@@ -37,6 +37,8 @@ pub struct Learned {
     /// checked against every N_train and map when the scenario is loaded.
     pub set: BTreeMap<String, serde_json::Value>,
     pub test_actions: ActionChoice,
+    /// Training episodes between two plays of the test episodes (`test_curve`), if any.
+    pub evaluate_every: Option<u32>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -45,6 +47,8 @@ pub enum PolicyError {
     UnknownBaseline(#[from] UnknownBaseline),
     #[error("episodes must be at least 1")]
     NoEpisodes,
+    #[error("evaluate_every must be at least 1 (leave it out for no test curve)")]
+    NoEvaluation,
     #[error("channels is empty (use [local, mini], [local] or [mini])")]
     NoChannels,
     #[error("channels lists one channel twice")]
@@ -143,6 +147,9 @@ impl TryFrom<PolicySpec> for ScenarioPolicy {
         if learned.episodes == 0 {
             return Err(PolicyError::NoEpisodes);
         }
+        if learned.evaluate_every == Some(0) {
+            return Err(PolicyError::NoEvaluation);
+        }
         if let Some(key) = learned
             .set
             .keys()
@@ -161,6 +168,7 @@ impl TryFrom<PolicySpec> for ScenarioPolicy {
                 TestActions::Sampled => ActionChoice::Sampled,
                 TestActions::Greedy => ActionChoice::Greedy,
             },
+            evaluate_every: learned.evaluate_every,
         }))
     }
 }
@@ -199,6 +207,7 @@ impl From<ScenarioPolicy> for PolicySpec {
                 ActionChoice::Sampled => TestActions::Sampled,
                 ActionChoice::Greedy => TestActions::Greedy,
             },
+            evaluate_every: learned.evaluate_every,
         };
         match learned.architecture {
             ArchitectureName::MaGPpo => PolicySpec::MaGPpo(spec),

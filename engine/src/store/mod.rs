@@ -48,6 +48,7 @@ pub const TRAJECTORIES_FILE: &str = "trajectories.parquet";
 pub const SNAPSHOTS_FILE: &str = "snapshots.parquet";
 pub const DISTURBED_FILE: &str = "disturbed.parquet";
 pub const DISTURBED_STEPS_FILE: &str = "disturbed_steps.parquet";
+pub const TEST_CURVE_FILE: &str = "test_curve.parquet";
 const RECORD_FILE: &str = "cell.json";
 const FAILURE_FILE: &str = "failed.json";
 const MANIFEST_FILE: &str = "sweep.json";
@@ -419,6 +420,7 @@ impl Store {
                 Output::Snapshots => per_cell(SNAPSHOTS_FILE)?,
                 Output::Disturbed => per_cell(DISTURBED_FILE)?,
                 Output::DisturbedSteps => per_cell(DISTURBED_STEPS_FILE)?,
+                Output::TestCurve => per_cell(TEST_CURVE_FILE)?,
                 Output::Cells => Some(tables::cells_frame(&records)?),
                 Output::Summary => episodes
                     .as_ref()

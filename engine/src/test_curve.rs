@@ -1,0 +1,241 @@
+//! The learning curve in test units. A learned cell whose policy sets `evaluate_every: K`
+//! plays its test episodes at N_train (the seeds of its final tests) with the policy before
+//! training, after every K training episodes and at the end. The paper's claims are about test
+//! penalty, not the training episodes' own, and a training profile is judged by the CPU it
+//! takes to reach a test penalty (time to quality), so every point records the training's
+//! CPU-seconds so far beside its training episodes.
+//!
+//! Training stops only where a round of `environments` episodes ends, so a point lands on the
+//! first round's end at or after each multiple of K (choose K a multiple of `environments`
+//! for even points). The points are saved beside the run in progress after every play: an
+//! interrupted run resumes with them and plays no point twice. Playing reads the weights only
+//! and draws from the test episodes' own seeds, so the training run is the same bit for bit
+//! with or without a curve.
+
+use std::path::Path;
+
+use polars::prelude::*;
+
+use crate::atomic_file::write_atomic;
+use crate::cell::CellConfig;
+use crate::store::tables::{self, CELL_COLUMNS, EpisodeRow};
+use crate::store::{MAX_FILE_BYTES, StoreError, TEST_CURVE_FILE};
+
+/// The columns a test curve adds to an episodes table's.
+pub const TRAINING_EPISODE: &str = "training_episode";
+pub const CPU_SECONDS: &str = "cpu_seconds";
+
+/// The test episodes played with the policy of one moment of training.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CurvePoint {
+    /// Training episodes done when the policy was played.
+    pub training_episode: u64,
+    /// CPU-seconds of training so far: the run's wall seconds times the threads its cell
+    /// runs on (a sweep gives every cell threads of its own; one per core when it runs as
+    /// many cells at once as there are cores). Playing the curve is not counted.
+    pub cpu_seconds: f64,
+    pub rows: Vec<EpisodeRow>,
+}
+
+/// The points of one training run so far.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TestCurve {
+    every: u64,
+    points: Vec<CurvePoint>,
+}
+
+/// How many times a run of `episodes` training episodes plays its test episodes: before
+/// training, after every `every` episodes and at the end (at most; rounds may merge two).
+pub fn plays(episodes: u64, every: u64) -> u64 {
+    episodes.div_ceil(every.max(1)) + 1
+}
+
+impl TestCurve {
+    pub fn new(every: u64) -> Self {
+        Self {
+            every: every.max(1),
+            points: Vec::new(),
+        }
+    }
+
+    /// The points saved in `folder` by a run now resumed after `done` training episodes
+    /// (points after them belong to training the run repeats, and are dropped); none when
+    /// nothing was saved.
+    pub fn resume(folder: &Path, every: u64, done: u64) -> Result<Self, StoreError> {
+        let mut curve = Self::new(every);
+        let path = folder.join(TEST_CURVE_FILE);
+        if !path.exists() {
+            return Ok(curve);
+        }
+        let bytes = crate::store::read(&path, MAX_FILE_BYTES, "a run's test curve")?;
+        let frame = tables::read_parquet(bytes)?;
+        curve.points = points(&frame)?;
+        curve.points.retain(|p| p.training_episode <= done);
+        Ok(curve)
+    }
+
+    /// Whether the policy after `done` of `total` training episodes is due a play: before
+    /// training, at the end, and at the first stop at or after each multiple of K.
+    pub fn due(&self, done: u64, total: u64) -> bool {
+        let last = self.points.last().map(|p| p.training_episode);
+        let since = done / self.every * self.every;
+        match last {
+            Some(last) if last == done => false,
+            Some(last) => done == total || last < since,
+            None => true,
+        }
+    }
+
+    /// Where training should stop next after `done` episodes: the next multiple of K, or
+    /// `total`.
+    pub fn next_stop(&self, done: u64, total: u64) -> u64 {
+        ((done / self.every + 1) * self.every).min(total)
+    }
+
+    pub fn push(&mut self, point: CurvePoint) {
+        self.points.push(point);
+    }
+
+    pub fn points(&self) -> &[CurvePoint] {
+        &self.points
+    }
+
+    /// The curve as a cell's table: the episodes table's columns, with the training
+    /// episode and CPU-seconds after the cell's.
+    pub fn frame(&self, key: &str, config: &CellConfig) -> Result<DataFrame, StoreError> {
+        let rows: Vec<EpisodeRow> = self.points.iter().flat_map(|p| p.rows.clone()).collect();
+        let mut frame = tables::episodes_frame(key, config, &rows)?;
+        let per_row = |value: fn(&CurvePoint) -> f64| -> Vec<f64> {
+            let each = |p: &CurvePoint| vec![value(p); p.rows.len()];
+            self.points.iter().flat_map(each).collect()
+        };
+        let episodes: Vec<u64> = (self.points.iter())
+            .flat_map(|p| vec![p.training_episode; p.rows.len()])
+            .collect();
+        frame.insert_column(
+            CELL_COLUMNS.len(),
+            Column::new(TRAINING_EPISODE.into(), episodes),
+        )?;
+        let seconds = Column::new(CPU_SECONDS.into(), per_row(|p| p.cpu_seconds));
+        frame.insert_column(CELL_COLUMNS.len() + 1, seconds)?;
+        Ok(frame)
+    }
+
+    /// Writes the curve beside the run in progress in `folder`.
+    pub fn save(&self, folder: &Path, key: &str, config: &CellConfig) -> Result<(), StoreError> {
+        let bytes = tables::parquet_bytes(&self.frame(key, config)?)?;
+        // The first play comes before the run's first save, which makes the folder.
+        std::fs::create_dir_all(folder).map_err(|e| StoreError::io(folder, e))?;
+        let path = folder.join(TEST_CURVE_FILE);
+        write_atomic(&path, &bytes).map_err(|e| StoreError::io(&path, e))
+    }
+}
+
+/// The points of a curve table as [`TestCurve::frame`] wrote them, in its order.
+fn points(frame: &DataFrame) -> Result<Vec<CurvePoint>, StoreError> {
+    let episodes = frame.column(TRAINING_EPISODE)?.u64()?;
+    let seconds = frame.column(CPU_SECONDS)?.f64()?;
+    let rows = tables::episode_rows(frame)?;
+    let mut points: Vec<CurvePoint> = Vec::new();
+    for (i, row) in rows.into_iter().enumerate() {
+        let episode = episodes.get(i).ok_or_else(tables::missing_value)?;
+        let cpu_seconds = seconds.get(i).ok_or_else(tables::missing_value)?;
+        match points.last_mut() {
+            Some(point) if point.training_episode == episode => point.rows.push(row),
+            _ => points.push(CurvePoint {
+                training_episode: episode,
+                cpu_seconds,
+                rows: vec![row],
+            }),
+        }
+    }
+    Ok(points)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(training_episode: u64) -> CurvePoint {
+        let row = |episode| EpisodeRow {
+            n_test: 2,
+            episode,
+            test_seed: 7,
+            cumulative_penalty: -(training_episode as f64) - f64::from(episode),
+            average_idleness: 1.5,
+            worst_idleness: 3,
+            steps: 10,
+        };
+        CurvePoint {
+            training_episode,
+            cpu_seconds: training_episode as f64 * 0.25,
+            rows: vec![row(0), row(1)],
+        }
+    }
+
+    #[test]
+    fn plays_come_before_training_at_every_multiple_and_at_the_end() {
+        let mut curve = TestCurve::new(40);
+        assert!(curve.due(0, 100));
+        curve.push(point(0));
+        assert!(!curve.due(0, 100));
+        assert_eq!(curve.next_stop(0, 100), 40);
+        // A round of 8 environments overshoots 40: the play lands at 48, once.
+        assert!(curve.due(48, 100));
+        curve.push(point(48));
+        assert!(!curve.due(48, 100));
+        assert!(!curve.due(56, 100), "56 is not past the next multiple");
+        assert_eq!(curve.next_stop(48, 100), 80);
+        assert!(curve.due(80, 100));
+        curve.push(point(80));
+        assert_eq!(curve.next_stop(80, 100), 100);
+        assert!(curve.due(100, 100), "the end is always played");
+        assert_eq!(plays(100, 40), 4);
+        assert_eq!(plays(80, 40), 3);
+    }
+
+    fn learned_cell() -> CellConfig {
+        let text = "name: unit\nseed: 3\nmaps:\n  - inline: {name: a, grid: \"....\\n....\\n\"}\n\
+                    world: {fov: 3, test_steps: 10, train_steps: 4}\npolicies:\n  \
+                    - ma-ppo: {profile: fast, episodes: 100, evaluate_every: 40, \
+                    set: {network: compact}}\nagents: {train: [2], test: [2]}\ntest_episodes: 2\n";
+        let scenario = crate::scenario::Scenario::parse(text, Path::new("unit.yaml")).unwrap();
+        scenario.cells().remove(0).config
+    }
+
+    #[test]
+    fn a_saved_curve_resumes_without_the_points_after_the_checkpoint() {
+        let folder = std::env::temp_dir().join(format!("test-curve-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&folder);
+        let config = learned_cell();
+        let mut curve = TestCurve::new(40);
+        for episode in [0, 40, 80] {
+            curve.push(point(episode));
+        }
+        curve.save(&folder, "key", &config).unwrap();
+        let frame = curve.frame("key", &config).unwrap();
+        let names: Vec<&str> = frame
+            .get_column_names()
+            .into_iter()
+            .map(|n| n.as_str())
+            .collect();
+        assert_eq!(
+            &names[..7],
+            &[
+                "cell_key",
+                "map",
+                "policy",
+                "n_train",
+                "training_seed",
+                TRAINING_EPISODE,
+                CPU_SECONDS
+            ]
+        );
+        assert_eq!(frame.height(), 6);
+        let resumed = TestCurve::resume(&folder, 40, 60).unwrap();
+        assert_eq!(resumed.points(), &curve.points()[..2]);
+        let fresh = TestCurve::resume(&folder.join("none"), 40, 60).unwrap();
+        assert!(fresh.points().is_empty());
+        std::fs::remove_dir_all(folder).unwrap();
+    }
+}

@@ -2,7 +2,7 @@
 //! same process (the machine's GEMM peak, one world step, the authors' environment), because a
 //! ratio carries over between machines and a time does not.
 
-pub mod cpu_clock;
+pub use engine::cpu_clock;
 pub mod network;
 pub mod policy;
 pub mod scale;

@@ -24,7 +24,7 @@ use crate::store::{
     CellRecord, DISTURBED_FILE, DISTURBED_STEPS_FILE, EPISODES_FILE, Store, StoreError,
     TEST_CURVE_FILE, TRAINING_FILE,
 };
-use crate::test_curve::{CurvePoint, TestCurve};
+use crate::test_curve::{CpuMeter, CurvePoint, TestCurve};
 use crate::training_run::{TrainingRun, TrainingRunError};
 use crate::trajectory::CellRecording;
 
@@ -232,32 +232,38 @@ fn train_cell(
     };
     let done = run.state().episodes_done;
     let mut curve = TestCurve::resume(&folder, u64::from(every), done)?;
+    let mut cpu_seconds = curve.cpu_at_resume(run.state().wall_seconds);
     let play_steps = u64::from(cell.config.test_episodes) * u64::from(cell.config.world.test_steps);
     advance(done * steps + curve.points().len() as u64 * play_steps);
     loop {
         let done = run.state().episodes_done;
         if curve.due(done, total) {
-            curve.push(curve_point(world, &cell.config, learned, run.state())?);
+            let point = curve_point(world, &cell.config, learned, run.state(), cpu_seconds)?;
+            curve.push(point);
             curve.save(&folder, &cell.key, &cell.config)?;
             advance(play_steps);
         }
         if done >= total {
             break;
         }
+        let meter = CpuMeter::start();
         run.train(curve.next_stop(done, total), SAVE_EVERY, &mut |_| {
             advance(steps)
         })?;
+        cpu_seconds += meter.seconds();
     }
     let (state, log) = run.into_parts();
     Ok((state, log, Some(curve)))
 }
 
-/// The cell's test episodes at N_train played with the policy of `state`.
+/// The cell's test episodes at N_train played with the policy of `state`, whose training
+/// took `cpu_seconds`.
 fn curve_point(
     world: &Arc<World>,
     config: &CellConfig,
     learned: &Learned,
     state: &TrainingState,
+    cpu_seconds: f64,
 ) -> Result<CurvePoint, CellError> {
     let agents = config.n_train.ok_or_else(|| ConfigError::Invalid {
         field: "agents",
@@ -269,7 +275,8 @@ fn curve_point(
         .collect::<Result<Vec<_>, _>>()?;
     Ok(CurvePoint {
         training_episode: state.episodes_done,
-        cpu_seconds: state.wall_seconds * rayon::current_num_threads() as f64,
+        cpu_seconds,
+        wall_seconds: state.wall_seconds,
         rows,
     })
 }

@@ -9,6 +9,7 @@ pub mod checkpoint_dir;
 pub mod claims;
 pub mod code_version;
 pub mod cost;
+pub mod cpu_clock;
 pub mod disturbance;
 pub mod execution;
 pub mod grouping;

@@ -5,6 +5,13 @@
 //! takes to reach a test penalty (time to quality), so every point records the training's
 //! CPU-seconds so far beside its training episodes.
 //!
+//! **CPU.** A cell that runs on one thread (a sweep's cells do when it runs as many at once
+//! as there are cores) counts its thread's own CPU clock: other work on the machine (a build,
+//! another sweep) does not inflate it, where wall time would. A cell on several threads
+//! counts wall time times its threads, an upper bound. After a resume, the training between
+//! the last point and the checkpoint the run resumed from counts by its wall time (the run
+//! keeps that, not its CPU).
+//!
 //! Training stops only where a round of `environments` episodes ends, so a point lands on the
 //! first round's end at or after each multiple of K (choose K a multiple of `environments`
 //! for even points). The points are saved beside the run in progress after every play: an
@@ -13,27 +20,31 @@
 //! with or without a curve.
 
 use std::path::Path;
+use std::time::{Duration, Instant};
 
 use polars::prelude::*;
 
 use crate::atomic_file::write_atomic;
 use crate::cell::CellConfig;
+use crate::cpu_clock::thread_cpu_time;
 use crate::store::tables::{self, CELL_COLUMNS, EpisodeRow};
 use crate::store::{MAX_FILE_BYTES, StoreError, TEST_CURVE_FILE};
 
 /// The columns a test curve adds to an episodes table's.
 pub const TRAINING_EPISODE: &str = "training_episode";
 pub const CPU_SECONDS: &str = "cpu_seconds";
+pub const WALL_SECONDS: &str = "wall_seconds";
 
 /// The test episodes played with the policy of one moment of training.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CurvePoint {
     /// Training episodes done when the policy was played.
     pub training_episode: u64,
-    /// CPU-seconds of training so far: the run's wall seconds times the threads its cell
-    /// runs on (a sweep gives every cell threads of its own; one per core when it runs as
-    /// many cells at once as there are cores). Playing the curve is not counted.
+    /// CPU-seconds of training so far (see the module's notes); playing the curve is not
+    /// counted.
     pub cpu_seconds: f64,
+    /// The run's training wall seconds so far, as its checkpoint keeps them.
+    pub wall_seconds: f64,
     pub rows: Vec<EpisodeRow>,
 }
 
@@ -92,6 +103,15 @@ impl TestCurve {
         ((done / self.every + 1) * self.every).min(total)
     }
 
+    /// The training CPU-seconds of a run resumed with `wall_seconds` of training: the last
+    /// point's, plus the wall time trained after it.
+    pub fn cpu_at_resume(&self, wall_seconds: f64) -> f64 {
+        match self.points.last() {
+            Some(p) => p.cpu_seconds + (wall_seconds - p.wall_seconds).max(0.0),
+            None => wall_seconds,
+        }
+    }
+
     pub fn push(&mut self, point: CurvePoint) {
         self.points.push(point);
     }
@@ -118,6 +138,8 @@ impl TestCurve {
         )?;
         let seconds = Column::new(CPU_SECONDS.into(), per_row(|p| p.cpu_seconds));
         frame.insert_column(CELL_COLUMNS.len() + 1, seconds)?;
+        let wall = Column::new(WALL_SECONDS.into(), per_row(|p| p.wall_seconds));
+        frame.insert_column(CELL_COLUMNS.len() + 2, wall)?;
         Ok(frame)
     }
 
@@ -131,20 +153,49 @@ impl TestCurve {
     }
 }
 
+/// The CPU of the code that runs between [`CpuMeter::start`] and [`CpuMeter::seconds`] on
+/// the current rayon pool: its thread's clock on a pool of one thread, else wall time times
+/// the pool's threads.
+pub struct CpuMeter {
+    threads: usize,
+    thread: Duration,
+    wall: Instant,
+}
+
+impl CpuMeter {
+    pub fn start() -> Self {
+        Self {
+            threads: rayon::current_num_threads(),
+            thread: thread_cpu_time(),
+            wall: Instant::now(),
+        }
+    }
+
+    pub fn seconds(&self) -> f64 {
+        match self.threads {
+            1 => (thread_cpu_time() - self.thread).as_secs_f64(),
+            threads => self.wall.elapsed().as_secs_f64() * threads as f64,
+        }
+    }
+}
+
 /// The points of a curve table as [`TestCurve::frame`] wrote them, in its order.
 fn points(frame: &DataFrame) -> Result<Vec<CurvePoint>, StoreError> {
     let episodes = frame.column(TRAINING_EPISODE)?.u64()?;
     let seconds = frame.column(CPU_SECONDS)?.f64()?;
+    let wall = frame.column(WALL_SECONDS)?.f64()?;
     let rows = tables::episode_rows(frame)?;
     let mut points: Vec<CurvePoint> = Vec::new();
     for (i, row) in rows.into_iter().enumerate() {
         let episode = episodes.get(i).ok_or_else(tables::missing_value)?;
         let cpu_seconds = seconds.get(i).ok_or_else(tables::missing_value)?;
+        let wall_seconds = wall.get(i).ok_or_else(tables::missing_value)?;
         match points.last_mut() {
             Some(point) if point.training_episode == episode => point.rows.push(row),
             _ => points.push(CurvePoint {
                 training_episode: episode,
                 cpu_seconds,
+                wall_seconds,
                 rows: vec![row],
             }),
         }
@@ -169,6 +220,7 @@ mod tests {
         CurvePoint {
             training_episode,
             cpu_seconds: training_episode as f64 * 0.25,
+            wall_seconds: training_episode as f64 * 0.5,
             rows: vec![row(0), row(1)],
         }
     }
@@ -234,6 +286,9 @@ mod tests {
         assert_eq!(frame.height(), 6);
         let resumed = TestCurve::resume(&folder, 40, 60).unwrap();
         assert_eq!(resumed.points(), &curve.points()[..2]);
+        // The point at 40 took 10 CPU-seconds and 20 wall; 5 more wall seconds to the
+        // checkpoint count as 5 CPU-seconds.
+        assert_eq!(resumed.cpu_at_resume(25.0), 15.0);
         let fresh = TestCurve::resume(&folder.join("none"), 40, 60).unwrap();
         assert!(fresh.points().is_empty());
         std::fs::remove_dir_all(folder).unwrap();

@@ -17,6 +17,8 @@ mod illustration;
 pub mod markdown;
 pub mod motion;
 mod penalty;
+mod test_curve;
+mod time_to_quality;
 mod training;
 mod transfer;
 pub mod verdicts;
@@ -114,6 +116,7 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
         training,
         motions,
         disturbed,
+        test_curve,
         ..
     } = loaded;
     let summary = store.table("summary")?;
@@ -127,6 +130,9 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
     }
     if let Some(training) = &training {
         training::section(&mut report, training)?;
+    }
+    if let Some(curve) = &test_curve {
+        test_curve::section(&mut report, curve, &comparison::samples(&episodes)?)?;
     }
     if let Some((maps, motions)) = &motions {
         motion::section(&mut report, motions, maps, &claims)?;
@@ -199,6 +205,8 @@ pub struct StoreTables {
     pub motions: Option<(HashMap<String, Map>, Vec<motion::Motion>)>,
     /// The episodes played under disturbances, when the scenario declared any.
     pub disturbed: Option<DataFrame>,
+    /// The learned runs' test penalty along training, when their policies asked for it.
+    pub test_curve: Option<DataFrame>,
     /// Where behaviour claims' test episodes are replayed from, and their measures kept.
     store: Store,
 }
@@ -217,6 +225,7 @@ impl StoreTables {
             training: optional_table(store, "training")?,
             motions,
             disturbed: optional_table(store, "disturbed")?,
+            test_curve: optional_table(store, "test_curve")?,
             store: store.clone(),
         })
     }
@@ -240,6 +249,7 @@ impl StoreTables {
             training: self.training.as_ref(),
             behaviours: Some(behaviours),
             disturbed: self.disturbed.as_ref(),
+            test_curve: self.test_curve.as_ref(),
         };
         verdicts::evaluate(claims, &recorded)
     }

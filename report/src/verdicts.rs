@@ -16,6 +16,8 @@ use super::columns::{GroupKey, PolicyKey, f64s, named_seed, optional_u32s, strin
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, difference_and_improvement, samples};
 use super::disturbance::{DisturbedSamples, ratio};
 use super::markdown::number;
+use super::test_curve::trained_curves;
+use super::time_to_quality;
 use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use engine::claims::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
@@ -51,7 +53,7 @@ impl Verdict {
 
     /// A claim over several points: supported when every point is; contradicted when Holm's
     /// procedure over the points' p-values of contradiction rejects one at [`ALPHA`].
-    fn combine(points: &[PointTest]) -> Verdict {
+    pub(crate) fn combine(points: &[PointTest]) -> Verdict {
         let p_values: Vec<f64> = points.iter().map(|p| p.p_contradicted).collect();
         if points.iter().all(|p| p.supported) && !points.is_empty() {
             Verdict::Supported
@@ -66,14 +68,14 @@ impl Verdict {
 /// One point of a claim: whether its interval supports the claim, and the p-value of the
 /// claim's contradiction there (the level at which its interval would exclude the claim).
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct PointTest {
-    supported: bool,
-    p_contradicted: f64,
+pub(crate) struct PointTest {
+    pub supported: bool,
+    pub p_contradicted: f64,
 }
 
 impl PointTest {
     /// "The statistic is below `boundary`".
-    fn below(boot: &Bootstrap, boundary: f64) -> Result<Self, StatsError> {
+    pub(crate) fn below(boot: &Bootstrap, boundary: f64) -> Result<Self, StatsError> {
         let (_, high) = boot.interval(CONFIDENCE)?;
         Ok(Self {
             supported: high < boundary,
@@ -113,6 +115,8 @@ pub struct Recorded<'a> {
     /// The episodes played under disturbances (`lower` and the like under `a_under`,
     /// `adapts_better`).
     pub disturbed: Option<&'a DataFrame>,
+    /// The learned runs' test penalty along training (`faster`).
+    pub test_curve: Option<&'a DataFrame>,
 }
 
 /// Every claim's verdict.
@@ -120,6 +124,7 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
     let samples = samples(recorded.episodes)?;
     let disturbed = DisturbedSamples::new(recorded.disturbed)?;
     let trained = recorded.training.map(trained_episodes).transpose()?;
+    let curves = recorded.test_curve.map(trained_curves).transpose()?;
     let side = |under: &Option<String>| -> &[Sample] {
         match under {
             None => &samples,
@@ -166,6 +171,25 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                     },
                     None,
                 ) => adapts_better(&disturbed, (a, b), disturbance, points, seed)?,
+                (
+                    ClaimTest::Faster {
+                        a,
+                        b,
+                        reference,
+                        points,
+                        ratio,
+                    },
+                    None,
+                ) => match &curves {
+                    Some(curves) => time_to_quality::faster(
+                        curves,
+                        &samples,
+                        (a, b, reference),
+                        (points, *ratio),
+                        seed,
+                    )?,
+                    None => (Verdict::NoData, "no test_curve table".to_owned()),
+                },
                 (ClaimTest::DiagonalBest { policy, map, n }, None) => {
                     diagonal_best(&samples, policy, map, n, seed)?
                 }
@@ -260,7 +284,9 @@ fn claim_policies(test: &ClaimTest) -> Vec<&str> {
         ClaimTest::DiagonalBest { policy, .. } | ClaimTest::Behaviour { policy, .. } => {
             vec![policy]
         }
-        ClaimTest::CurveBelow { a, b, .. } | ClaimTest::AdaptsBetter { a, b, .. } => vec![a, b],
+        ClaimTest::CurveBelow { a, b, .. }
+        | ClaimTest::AdaptsBetter { a, b, .. }
+        | ClaimTest::Faster { a, b, .. } => vec![a, b],
         ClaimTest::NotTested { .. } => Vec::new(),
     }
 }

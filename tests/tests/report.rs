@@ -1,6 +1,6 @@
 //! `harness report` and `harness record` as a user runs them: a small sweep, its report
-//! (every figure decodes, every link resolves, the tables hold the store's numbers) and a
-//! rerun recording read back with rerun's own loader.
+//! (every figure decodes, every link resolves, the tables hold the store's numbers), a rerun
+//! recording read back with rerun's own loader, and test curves with time to quality.
 
 mod common;
 
@@ -575,5 +575,123 @@ fn a_report_rebuilds_byte_for_byte_from_its_table_store() {
     assert!(
         error.contains("summary.parquet") && error.contains("does not match"),
         "{error}"
+    );
+}
+
+/// Two learned policies that play their test curves, for time to quality and `faster`.
+const CURVE_SCENARIO: &str = "name: curve
+seed: 7
+maps:
+  - inline:
+      name: rooms
+      grid: |
+        ##########
+        #...#....#
+        #........#
+        #...#....#
+        ##########
+world: {fov: 5, test_steps: 30, train_steps: 10}
+policies:
+  - ma-ppo: {name: two, profile: fast, episodes: 6, evaluate_every: 2, set: {network: compact, environments: 2}}
+  - ma-ppo: {name: one, profile: fast, episodes: 6, evaluate_every: 2, set: {network: compact, environments: 1}}
+  - baseline: {name: gcs}
+  - baseline: {name: random}
+agents:
+  train: [2]
+  test: [2]
+repetitions: 2
+test_episodes: 3
+claims:
+  - id: two-faster
+    paper: two reaches GCS's test penalty in at most the CPU one takes
+    faster: {a: two, b: one, maps: [rooms], n: [2], ratio: 1.0}
+";
+
+#[test]
+fn a_curve_ends_at_the_final_tests_and_the_report_reads_time_to_quality_from_it() {
+    let dir = scratch("test-curve");
+    let scenario = dir.join("curve.yaml");
+    std::fs::write(&scenario, CURVE_SCENARIO).unwrap();
+    let (store, reports) = (dir.join("store"), dir.join("reports"));
+    let args = ["sweep", scenario.to_str().unwrap(), "--out"];
+    let to = ["--report-to", reports.to_str().unwrap(), "--jobs", "2"];
+    succeed(harness(
+        &[&args[..], &[store.to_str().unwrap()], &to].concat(),
+    ));
+
+    let curve = read_parquet(&store.join("test_curve.parquet"));
+    // Four runs, points before training and after 2, 4 and 6 episodes, 3 test episodes each.
+    assert_eq!(curve.height(), 4 * 4 * 3);
+    let penalties = |frame: &DataFrame, rows: &dyn Fn(usize) -> bool| {
+        let keys = frame.column("cell_key").unwrap().str().unwrap().clone();
+        let episodes = frame.column("episode").unwrap().u32().unwrap().clone();
+        let values = frame
+            .column("cumulative_penalty")
+            .unwrap()
+            .f64()
+            .unwrap()
+            .clone();
+        (0..frame.height())
+            .filter(|&i| rows(i))
+            .map(|i| {
+                let at = (keys.get(i).unwrap().to_owned(), episodes.get(i).unwrap());
+                (at, values.get(i).unwrap().to_bits())
+            })
+            .collect::<std::collections::BTreeMap<_, _>>()
+    };
+    let trained = curve
+        .column("training_episode")
+        .unwrap()
+        .u64()
+        .unwrap()
+        .clone();
+    let last = penalties(&curve, &|i| trained.get(i) == Some(6));
+    let episodes = read_parquet(&store.join("episodes.parquet"));
+    let policies = episodes.column("policy").unwrap().str().unwrap().clone();
+    let learned = |i: usize| matches!(policies.get(i), Some("one" | "two"));
+    let tested = penalties(&episodes, &learned);
+    assert_eq!(last.len(), 4 * 3);
+    assert_eq!(
+        last, tested,
+        "the last point is the final tests, bit for bit"
+    );
+    // CPU never falls along a run (its rows are in training order).
+    let keys = curve.column("cell_key").unwrap().str().unwrap().clone();
+    let cpu = curve.column("cpu_seconds").unwrap().f64().unwrap().clone();
+    for i in 1..curve.height() {
+        if keys.get(i) == keys.get(i - 1) {
+            assert!(cpu.get(i).unwrap() >= cpu.get(i - 1).unwrap(), "row {i}");
+        }
+    }
+
+    let readme = std::fs::read_to_string(reports.join("curve/README.md")).unwrap();
+    for text in [
+        "## Test penalty along training",
+        "### Time to quality",
+        "([Parquet](tables/time_to_quality.parquet))",
+        "median_reaches_at_cpu_minutes",
+        "figures/test-curve_rooms_train2_cpu.png",
+        "figures/test-curve_rooms_train2_episodes.png",
+    ] {
+        assert!(readme.contains(text), "{text} in the report");
+    }
+    let figure =
+        image::open(reports.join("curve/figures/test-curve_rooms_train2_cpu.png")).unwrap();
+    assert_eq!((figure.width(), figure.height()), (960, 60 + 330));
+    let quality = read_parquet(&reports.join("curve/tables/time_to_quality.parquet"));
+    assert_eq!(quality.height(), 2, "one row per learned policy");
+    let runs = quality.column("runs").unwrap().u32().unwrap().clone();
+    assert!(runs.into_no_null_iter().all(|r| r == 2));
+
+    let claims = succeed(harness(&["claims", store.to_str().unwrap()]));
+    assert!(claims.contains("two-faster"), "{claims}");
+    assert!(claims.contains("faster"), "{claims}");
+    assert!(claims.contains("rooms N=2 (to gcs's"), "{claims}");
+    // The report store rebuilds the same verdict from the committed tables alone.
+    let table_store = reports.join("curve/store");
+    let again = succeed(harness(&["claims", table_store.to_str().unwrap()]));
+    assert_eq!(
+        claims.lines().skip(1).collect::<Vec<_>>(),
+        again.lines().skip(1).collect::<Vec<_>>()
     );
 }

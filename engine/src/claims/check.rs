@@ -5,8 +5,10 @@ use std::path::Path;
 
 use serde_saphyr::Spanned;
 
-use super::format::{AdaptationSpec, BehaviourSpec, ClaimSpec, CurveSpec, DiagonalSpec, PairSpec};
-use super::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
+use super::format::{
+    AdaptationSpec, BehaviourSpec, ClaimSpec, CurveSpec, DiagonalSpec, FasterSpec, PairSpec,
+};
+use super::{Behaviour, Claim, ClaimTest, GCS, Pair, Point, RANDOM, Scale, Tolerance};
 use crate::scenario::ScenarioError;
 
 /// What a scenario offers claims to name.
@@ -61,11 +63,12 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         spec.curve_below.is_some(),
         spec.behaviour.is_some(),
         spec.adapts_better.is_some(),
+        spec.faster.is_some(),
         spec.not_tested.is_some(),
     ];
     if kinds.iter().filter(|&&k| k).count() != 1 {
         let problem = "give exactly one of lower, within, not_worse, gap_grows, diagonal_best, \
-                       curve_below, behaviour, adapts_better, not_tested";
+                       curve_below, behaviour, adapts_better, faster, not_tested";
         return Err((None, String::new(), problem.into()));
     }
     let checker = Checker { context };
@@ -95,6 +98,8 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         checker.behaviour(behaviour)?
     } else if let Some(adaptation) = &spec.adapts_better {
         checker.adaptation(adaptation)?
+    } else if let Some(faster) = &spec.faster {
+        checker.faster(faster)?
     } else if let Some(reason) = &spec.not_tested {
         if reason.value.trim().is_empty() {
             let problem = "say why the statement is not tested".to_owned();
@@ -366,6 +371,32 @@ impl Checker<'_> {
             map: spec.map.value.clone(),
             n_train: spec.n_train.value,
             episodes: (first, last),
+        })
+    }
+
+    fn faster(&self, spec: &FasterSpec) -> Result<ClaimTest, Failure> {
+        self.policy(&spec.a, ".faster.a".into(), true)?;
+        self.policy(&spec.b, ".faster.b".into(), true)?;
+        let reference = match &spec.reference {
+            Some(reference) => {
+                self.policy(reference, ".faster.reference".into(), false)?;
+                reference.value.clone()
+            }
+            None => GCS.to_owned(),
+        };
+        let maps = self.names(&spec.maps, ".faster.maps")?;
+        let n = self.counts(&spec.n, ".faster.n", 1, Lists::Both)?;
+        let ratio = spec.ratio.value;
+        if !(ratio > 0.0 && ratio.is_finite()) {
+            let problem = format!("{ratio} must be finite and > 0");
+            return Err(fail(&spec.ratio, ".faster.ratio".into(), problem));
+        }
+        Ok(ClaimTest::Faster {
+            a: spec.a.value.clone(),
+            b: spec.b.value.clone(),
+            reference,
+            points: points(&maps, &n, |n| n),
+            ratio,
         })
     }
 

@@ -29,6 +29,9 @@ pub struct ClaimSpec {
     pub behaviour: Option<BehaviourSpec>,
     /// `a`'s adaptation ratio under a loss is lower than `b`'s at every point.
     pub adapts_better: Option<AdaptationSpec>,
+    /// `a`'s training reaches `reference`'s test penalty in at most `ratio` times the CPU
+    /// `b`'s takes, at every point (time to quality, from the runs' test curves).
+    pub faster: Option<FasterSpec>,
     /// A statement of the paper the store cannot test, with the reason: it stays in the
     /// verdict table as "not tested".
     pub not_tested: Option<Spanned<String>>,
@@ -80,6 +83,24 @@ pub struct AdaptationSpec {
     pub disturbance: Spanned<String>,
     pub maps: Spanned<Vec<Spanned<String>>>,
     pub n: Spanned<Vec<Spanned<u32>>>,
+}
+
+/// Two learned policies' time to quality at (map, N): a training run's CPU-seconds until its
+/// test curve (`evaluate_every`) first reaches the mean test penalty of the baseline
+/// `reference` (`gcs` when left out) with N agents; the policies are trained with N_train = N
+/// and their curves play N_test = N.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FasterSpec {
+    pub a: Spanned<String>,
+    pub b: Spanned<String>,
+    #[serde(default)]
+    pub reference: Option<Spanned<String>>,
+    pub maps: Spanned<Vec<Spanned<String>>>,
+    pub n: Spanned<Vec<Spanned<u32>>>,
+    /// The largest ratio of the runs' median times (a over b) still called faster: 1 for
+    /// "faster", 1/3 for "in a third of the CPU".
+    pub ratio: Spanned<f64>,
 }
 
 #[derive(Clone, Debug, Deserialize)]

@@ -72,6 +72,14 @@ pub enum ClaimTest {
         lost: u32,
         points: Vec<Point>,
     },
+    /// Time to quality (see `format::FasterSpec`); points are (map, N) with N_test = N_train.
+    Faster {
+        a: String,
+        b: String,
+        reference: String,
+        points: Vec<Point>,
+        ratio: f64,
+    },
     /// The reason the store cannot test the statement.
     NotTested {
         reason: String,
@@ -80,6 +88,9 @@ pub enum ClaimTest {
 
 /// The label of the Random baseline, which `scale: random` measures tolerances by.
 pub const RANDOM: &str = "random";
+
+/// The label of the released GCS rule, the quality `faster` claims reach by default.
+pub const GCS: &str = "gcs";
 
 /// A tolerance and what it is relative to.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -135,6 +146,7 @@ impl ClaimTest {
             ClaimTest::CurveBelow { .. } => "curve_below",
             ClaimTest::Behaviour { .. } => "behaviour",
             ClaimTest::AdaptsBetter { .. } => "adapts_better",
+            ClaimTest::Faster { .. } => "faster",
             ClaimTest::NotTested { .. } => "not_tested",
         }
     }

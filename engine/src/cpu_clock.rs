@@ -1,4 +1,5 @@
-//! CPU time of the calling thread, for benchmarks.
+//! CPU time of the calling thread or the process, for benchmarks and for the training CPU a
+//! test curve records.
 //!
 //! On a machine shared with builds or other runs, wall time measures the scheduler as much as
 //! the code; the thread's own CPU time does not. On an idle machine the two agree.

@@ -78,6 +78,48 @@ fn same_bits(a: &EpisodeRow, b: &EpisodeRow) -> bool {
         && a.worst_idleness == b.worst_idleness
 }
 
+/// One sweep-level table against the same table built again from the store's verified
+/// cells: its rows, or why it differs or could not be read.
+#[derive(Debug)]
+pub struct TableAuditLine {
+    pub table: String,
+    pub outcome: Result<usize, String>,
+}
+
+/// Builds every sweep-level table again from the cells `tables.json` says they hold (every
+/// finished cell of the sweep when it is absent), each cell's files verified, and compares
+/// it with the stored table, whose own hash `Store::table` checks. None for a table store,
+/// which has no cells (its marker's hashes are checked whenever it is opened).
+pub fn audit_tables(store: &Store) -> Result<Vec<TableAuditLine>, StoreError> {
+    let Some(manifest) = store.manifest()? else {
+        return Ok(Vec::new());
+    };
+    if store.is_table_store() {
+        return Ok(Vec::new());
+    }
+    let keys = match store.table_hashes()? {
+        Some(listing) => listing.cells,
+        None => manifest.selected.clone().unwrap_or(manifest.cells.clone()),
+    };
+    let records = store.verified_records(&keys)?;
+    let rebuilt = store.tables_of(&records, &manifest.outputs)?;
+    Ok(rebuilt
+        .into_iter()
+        .map(|(name, frame)| TableAuditLine {
+            table: name.to_owned(),
+            outcome: match store.table(name) {
+                Err(why) => Err(why.to_string()),
+                Ok(stored) if stored.equals_missing(&frame) => Ok(frame.height()),
+                Ok(stored) => Err(format!(
+                    "{} rows stored, {} built from the cells, and they differ",
+                    stored.height(),
+                    frame.height()
+                )),
+            },
+        })
+        .collect())
+}
+
 /// Plays `sample` rows of the store's `episodes` table (all of them if there are fewer),
 /// chosen by `seed`, and returns one line per row in table order.
 pub fn audit(store: &Store, sample: usize, seed: u64) -> Result<Vec<AuditLine>, StoreError> {

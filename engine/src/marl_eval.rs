@@ -48,7 +48,8 @@ pub fn export(store: &Store) -> Result<Value, ExportError> {
         .manifest()?
         .ok_or_else(|| ExportError::NoSweep(store.root().display().to_string()))?;
     let keys = manifest.selected.as_ref().unwrap_or(&manifest.cells);
-    let records: Vec<CellRecord> = keys.iter().filter_map(|k| store.finished(k)).collect();
+    // A damaged cell is an error naming its file, not a cell left out.
+    let records: Vec<CellRecord> = store.verified_records(keys)?;
     if records.len() < keys.len() {
         return Err(ExportError::Unfinished {
             missing: keys.len() - records.len(),

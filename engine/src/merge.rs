@@ -13,6 +13,9 @@ pub struct MergeReport {
     pub copied: usize,
     /// Keys of cells no shard has finished.
     pub missing: Vec<String>,
+    /// Cells no shard holds intact but one holds damaged, by key, with why (among
+    /// `missing`: a sweep of the merged store computes them again).
+    pub damaged: Vec<(String, String)>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -50,9 +53,13 @@ pub fn merge(out: &Store, shards: &[Store]) -> Result<MergeReport, MergeError> {
     };
     out.prepare(&merged, &shards[0].scenario_text()?, &[])?;
     let mut copied = 0;
+    let mut damaged = Vec::new();
     for key in &merged.cells {
-        if let Some(shard) = shards.iter().find(|s| s.verified_record(key).is_ok()) {
+        let checked: Vec<_> = shards.iter().map(|s| (s, s.check_cell(key))).collect();
+        if let Some((shard, _)) = checked.iter().find(|(_, c)| matches!(c, Ok(Some(_)))) {
             copied += usize::from(out.import_cell(shard, key)?);
+        } else if let Some((_, Err(why))) = checked.iter().find(|(_, c)| c.is_err()) {
+            damaged.push((key.clone(), why.to_string()));
         }
     }
     let tabled = out.build_tables(&merged.cells, &merged.outputs)?;
@@ -67,5 +74,6 @@ pub fn merge(out: &Store, shards: &[Store]) -> Result<MergeReport, MergeError> {
         present: tabled.len(),
         copied,
         missing,
+        damaged,
     })
 }

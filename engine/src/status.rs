@@ -43,6 +43,12 @@ pub enum CellState {
     Missing {
         interrupted: Option<(PathBuf, LeaseHolder)>,
     },
+    /// Its record is there but a file is missing or differs from its recorded hash: the next
+    /// sweep computes it again, and readers refuse it until then.
+    Damaged {
+        folder: PathBuf,
+        why: String,
+    },
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -57,14 +63,16 @@ pub enum StatusError {
 
 impl SweepStatus {
     /// How many cells are done, running, missing and failed.
-    pub fn counts(&self) -> [usize; 4] {
-        let mut counts = [0; 4];
+    /// Done, running, missing, failed and damaged cells.
+    pub fn counts(&self) -> [usize; 5] {
+        let mut counts = [0; 5];
         for cell in &self.cells {
             counts[match cell.state {
                 CellState::Done { .. } => 0,
                 CellState::Running { .. } => 1,
                 CellState::Missing { .. } => 2,
                 CellState::Failed { .. } => 3,
+                CellState::Damaged { .. } => 4,
             }] += 1;
         }
         counts
@@ -137,9 +145,13 @@ fn shard_order(path: &Path) -> (u64, String) {
 
 /// Done in any store, else running in any, else failed in any, else missing.
 fn cell_state(stores: &[(PathBuf, Store)], key: &str) -> CellState {
-    if let Some((folder, _)) = stores.iter().find(|(_, s)| s.finished(key).is_some()) {
+    let checked: Vec<(&PathBuf, Result<Option<_>, StoreError>)> = stores
+        .iter()
+        .map(|(folder, store)| (folder, store.check_cell(key)))
+        .collect();
+    if let Some((folder, _)) = checked.iter().find(|(_, c)| matches!(c, Ok(Some(_)))) {
         return CellState::Done {
-            folder: folder.clone(),
+            folder: (*folder).clone(),
         };
     }
     let leases: Vec<(&PathBuf, LeaseHolder)> = stores
@@ -150,6 +162,12 @@ fn cell_state(stores: &[(PathBuf, Store)], key: &str) -> CellState {
         return CellState::Running {
             folder: (*folder).clone(),
             holder: holder.clone(),
+        };
+    }
+    if let Some((folder, Err(why))) = checked.into_iter().find(|(_, c)| c.is_err()) {
+        return CellState::Damaged {
+            folder: folder.clone(),
+            why: why.to_string(),
         };
     }
     let failed = stores

@@ -43,6 +43,9 @@ pub struct SweepReport {
     pub elsewhere: usize,
     /// Cells that failed, by key, with why.
     pub failed: Vec<(String, CellError)>,
+    /// Finished cells found damaged (a file missing or not matching its recorded hash), by
+    /// key, with why: computed again with the others.
+    pub damaged: Vec<(String, String)>,
     /// Cells in the tables.
     pub tabled: usize,
 }
@@ -79,6 +82,9 @@ pub fn run_sweep(
         Some(shard) => shard.select(&cells),
         None => cells.iter().collect(),
     };
+    let damaged: Vec<(String, String)> = (selected.iter())
+        .filter_map(|c| Some((c.key.clone(), store.check_cell(&c.key).err()?.to_string())))
+        .collect();
     let mut todo: Vec<&SweepCell> = selected
         .iter()
         .copied()
@@ -107,6 +113,7 @@ pub fn run_sweep(
         computed: todo.len() - failed.len() - elsewhere,
         elsewhere,
         failed,
+        damaged,
         tabled: tabled.len(),
     })
 }

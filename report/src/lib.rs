@@ -165,6 +165,7 @@ fn missing_cells(store: &Store) -> Result<Vec<MissingCell>, ReportError> {
                 CellState::Failed { failure, .. } => format!("failed: {}", failure.error),
                 CellState::Running { .. } => "still running".to_owned(),
                 CellState::Missing { .. } => "not run".to_owned(),
+                CellState::Damaged { why, .. } => format!("damaged: {why}"),
             };
             Some(MissingCell {
                 label: cell.label,

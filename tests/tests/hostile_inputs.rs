@@ -240,3 +240,108 @@ fn a_store_whose_cells_folder_links_elsewhere_is_refused_before_any_write() {
     );
     assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0);
 }
+
+/// Flips one bit in the middle of `path`.
+fn flip_a_bit(path: &Path) {
+    let mut bytes = std::fs::read(path).unwrap();
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 1;
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// A finished store damaged three ways (a bit flipped in a cell's file, a top-level table
+/// altered, the scenario file swapped): every reader names what is wrong, nothing reads the
+/// damaged numbers, and a sweep or a report mends what it can.
+#[test]
+fn a_damaged_cell_a_tampered_table_and_a_swapped_scenario_are_named_and_mended() {
+    let dir = scratch("damaged-store");
+    let store = dir.join("store");
+    let out = store.to_str().unwrap();
+    let tiny = repo_file("tests/tests/tiny.yaml");
+    let sweep = || {
+        harness_in(
+            &dir,
+            &["sweep", &tiny, "--out", out, "--jobs", "2", "--no-report"],
+        )
+    };
+    let text = |output: &Output| {
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        (output.status.code(), format!("{stdout}{stderr}"))
+    };
+    let (code, printed) = text(&sweep());
+    assert_eq!(code, Some(0), "{printed}");
+    let reports = dir.join("reports");
+    let report = || harness_in(&dir, &["report", out, "--to", reports.to_str().unwrap()]);
+    let status = || text(&harness_in(&dir, &["status", out])).1;
+    let audit = || {
+        text(&harness_in(
+            &dir,
+            &["audit", out, "--sample", "2", "--training-sample", "0"],
+        ))
+    };
+    let export = || text(&harness_in(&dir, &["export", "marl-eval", out]));
+
+    // A bit flipped in a cell's episodes: damaged, refused by readers, computed again.
+    let cells = store.join("cells");
+    let mut keys: Vec<String> = std::fs::read_dir(&cells)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    keys.sort();
+    let damaged = cells.join(&keys[0]).join("episodes.parquet");
+    flip_a_bit(&damaged);
+    let expected = format!("{}: does not match its recorded hash", damaged.display());
+    let now = status();
+    assert!(
+        now.contains("1 damaged") && now.contains(&expected),
+        "{now}"
+    );
+    for (code, printed) in [text(&report()), export()] {
+        assert_eq!(code, Some(1), "{printed}");
+        assert!(printed.contains(&expected), "{printed}");
+    }
+    let (code, printed) = text(&sweep());
+    assert_eq!(code, Some(0), "{printed}");
+    assert!(
+        printed.contains(&format!("cell {} was damaged", keys[0])),
+        "{printed}"
+    );
+    assert!(printed.contains("1 computed"), "{printed}");
+    let mended = status();
+    assert!(
+        mended.contains(": 8 cells, 8 done, 0 running, 0 missing, 0 failed\n"),
+        "{mended}"
+    );
+
+    // A top-level table altered: the audit names it, a report builds the tables again.
+    flip_a_bit(&store.join("episodes.parquet"));
+    let (code, printed) = audit();
+    assert_eq!(code, Some(1), "{printed}");
+    assert!(printed.contains("DIFFERENT  table episodes"), "{printed}");
+    assert!(
+        printed.contains("does not match its blake3 in tables.json"),
+        "{printed}"
+    );
+    let (code, printed) = text(&report());
+    assert_eq!(code, Some(0), "{printed}");
+    assert!(
+        printed.contains("built again from its 8 cells"),
+        "{printed}"
+    );
+    let (code, printed) = audit();
+    assert_eq!(code, Some(0), "{printed}");
+    assert!(printed.contains("same       table episodes"), "{printed}");
+
+    // Another scenario in the store's place: refused, naming the manifest's hash.
+    let scenario = store.join("scenario.yaml");
+    let swapped = std::fs::read_to_string(&scenario).unwrap() + "# not the file that ran\n";
+    std::fs::write(&scenario, swapped).unwrap();
+    let (code, printed) = text(&report());
+    assert_eq!(code, Some(1), "{printed}");
+    assert!(
+        printed.contains("is not the scenario this sweep ran"),
+        "{printed}"
+    );
+}

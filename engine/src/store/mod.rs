@@ -12,12 +12,21 @@
 //! OUT/cells/KEY/cell.json      the record, written last: the cell's done-marker
 //! OUT/cells/KEY/running.json   while the cell runs: the lease (process id, host, start)
 //! OUT/cells/KEY/failed.json    why the cell's last run failed, until one succeeds
-//! OUT/{episodes,training,cells,summary,trajectories,snapshots}.{parquet,csv}
+//! OUT/{episodes,training,cells,summary,trajectories,snapshots,...}.{parquet,csv}
+//! OUT/tables.json              the cells those tables hold, and every table file's blake3
 //! ```
 //!
 //! Per-cell files make shards independent and resume simple: a cell is finished when its
 //! record exists and every file it lists has the recorded hash. Every file is written whole
 //! (`write_atomic`), so a crash leaves a cell finished or not, never half.
+//!
+//! **Verified reads.** Whatever reads a cell checks its files against the hashes its record
+//! holds: a cell whose record is there but a file is not, or differs, is *damaged*, named
+//! with the file; `sweep` computes it again and readers refuse it. A process hashes a file
+//! once (`Verified`) and again only if its size or time changes, and every byte a reader is
+//! given is hashed as it is read. The sweep-level tables carry their hashes and the cells
+//! they were built from in `tables.json`; a reader builds them again from the verified cells
+//! when they do not match, and the scenario file is checked against the manifest's hash.
 //!
 //! A *table store* (`table_store`) holds the manifest, scenario, maps and sweep tables
 //! without `cells/`: what a report carries to be rebuilt. It reads as a store whose cells are
@@ -30,8 +39,10 @@ pub mod record;
 pub mod table_store;
 pub mod tables;
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::SystemTime;
 
 use polars::prelude::{DataFrame, PolarsError};
 
@@ -53,6 +64,8 @@ const RECORD_FILE: &str = "cell.json";
 const FAILURE_FILE: &str = "failed.json";
 const MANIFEST_FILE: &str = "sweep.json";
 const SCENARIO_FILE: &str = "scenario.yaml";
+/// The sweep-level tables' hashes (`TableHashes`).
+pub const TABLES_FILE: &str = "tables.json";
 
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
@@ -116,12 +129,19 @@ fn real_folder(folder: &Path) -> Result<(), StoreError> {
 #[derive(Clone, Debug)]
 pub struct Store {
     root: PathBuf,
+    /// The cell files this process has hashed, shared by the store's clones.
+    verified: Arc<Mutex<Verified>>,
 }
+
+/// Cell files found equal to their recorded hash, with the size and time they had then: a
+/// file is hashed again only when it changed or its record names another hash.
+type Verified = HashMap<PathBuf, (u64, Option<SystemTime>, String)>;
 
 impl Store {
     pub fn new(root: &Path) -> Self {
         Self {
             root: root.to_owned(),
+            verified: Arc::default(),
         }
     }
 
@@ -190,21 +210,47 @@ impl Store {
         Ok(())
     }
 
-    /// The record of a finished cell: it names the cell and each of its files is there with
-    /// its recorded size. `None` when the cell is absent or half-written (it is then
-    /// recomputed). Cheap, as sweeps, status and tables ask it of every cell; a file damaged
-    /// in place is found by `verified_record`, which `audit`, `merge` and the cache use.
+    /// The record of a finished cell, its files verified; `None` when the cell is absent,
+    /// half-written or damaged (a sweep computes it again).
     pub fn finished(&self, key: &str) -> Option<CellRecord> {
-        let record = self.record(key).ok()?;
-        let folder = self.cell_folder(key);
-        let intact = |name: &String| {
-            let size = std::fs::metadata(folder.join(name)).map(|m| m.len());
-            match record.sizes.get(name) {
-                Some(&recorded) => size.is_ok_and(|s| s == recorded),
-                None => size.is_ok(),
-            }
-        };
-        record.files.keys().all(intact).then_some(record)
+        self.check_cell(key).ok().flatten()
+    }
+
+    /// Cell `key` as its folder holds it: `Ok(None)` without a record (never finished, or
+    /// interrupted before its record, which is written last), its record when every file
+    /// the record lists is there with the recorded hash, and an error naming the file when
+    /// one is not (a damaged cell). A table store's cells are the rows of its cells table.
+    pub fn check_cell(&self, key: &str) -> Result<Option<CellRecord>, StoreError> {
+        if self.is_table_store() {
+            return Ok(self.record_from_cells_table(key).ok());
+        }
+        let path = self.cell_folder(key).join(RECORD_FILE);
+        if std::fs::symlink_metadata(&path).is_err() {
+            return Ok(None);
+        }
+        let record = self.record(key)?;
+        for name in record.files.keys() {
+            self.verify_file(&record, name)?;
+        }
+        Ok(Some(record))
+    }
+
+    /// Checks a cell's file against its record, hashing it unless this process found it
+    /// equal before and it has not changed since.
+    fn verify_file(&self, record: &CellRecord, name: &str) -> Result<(), StoreError> {
+        let path = self.cell_folder(&record.key).join(name);
+        let metadata = std::fs::metadata(&path).map_err(|e| StoreError::io(&path, e))?;
+        let hash = record.files.get(name).cloned().unwrap_or_default();
+        let stamp = (metadata.len(), metadata.modified().ok(), hash);
+        let known = self.verified.lock().expect("no panic holds the lock");
+        if known.get(&path) == Some(&stamp) {
+            return Ok(());
+        }
+        drop(known);
+        self.cell_file(record, name)?;
+        let mut known = self.verified.lock().expect("no panic holds the lock");
+        known.insert(path, stamp);
+        Ok(())
     }
 
     /// A finished learned cell other than `except` whose training run has `identity`
@@ -228,11 +274,10 @@ impl Store {
     /// The record of cell `key`, with a reason when it is missing or a file does not match
     /// its recorded hash.
     pub fn verified_record(&self, key: &str) -> Result<CellRecord, StoreError> {
-        let record = self.record(key)?;
-        for name in record.files.keys() {
-            self.cell_file(&record, name)?;
+        match self.check_cell(key)? {
+            Some(record) => Ok(record),
+            None => self.record(key),
         }
-        Ok(record)
     }
 
     /// Cell `key`'s record as written, unchecked against its files; a table store's from its
@@ -303,15 +348,15 @@ impl Store {
         let limit = record.sizes.get(file).copied().unwrap_or(MAX_FILE_BYTES);
         let bytes = read(&path, limit, "a cell's file (its recorded size)")?;
         if blake3::hash(&bytes).to_hex().as_str() != recorded {
-            return Err(StoreError::corrupt(
-                &path,
-                "does not match its recorded hash",
-            ));
+            let problem = "does not match its recorded hash: the cell is damaged, and \
+                           `harness sweep` computes it again";
+            return Err(StoreError::corrupt(&path, problem));
         }
         Ok(bytes)
     }
 
-    /// A per-cell table, or `None` when the cell has no such file.
+    /// A per-cell table, checked against its recorded hash, or `None` when the cell has no
+    /// such file.
     pub fn cell_table(
         &self,
         record: &CellRecord,
@@ -321,15 +366,25 @@ impl Store {
             return Ok(None);
         }
         let path = self.cell_folder(&record.key).join(file);
-        let bytes = read(&path, MAX_FILE_BYTES, "a store's file")?;
-        tables::read_parquet(bytes).map(Some)
+        let bytes = self.cell_file(record, file)?;
+        let frame = tables::read_parquet(bytes).map_err(|e| StoreError::corrupt(&path, e));
+        frame.map(Some)
     }
 
-    /// A table of the sweep (`episodes`, `cells`, ...), read from its Parquet file.
+    /// A table of the sweep (`episodes`, `cells`, ...), read from its Parquet file and, in a
+    /// sweep's store, checked against the hash `tables.json` holds for it.
     pub fn table(&self, name: &str) -> Result<DataFrame, StoreError> {
-        let path = self.root.join(format!("{name}.parquet"));
+        let file = format!("{name}.parquet");
+        let path = self.root.join(&file);
         let bytes = read(&path, MAX_FILE_BYTES, "a store's file")?;
-        tables::read_parquet(bytes)
+        if let Some(listed) = self.table_hashes()?
+            && let Some(hash) = listed.tables.get(&file)
+            && blake3::hash(&bytes).to_hex().as_str() != hash
+        {
+            let problem = format!("does not match its blake3 in {TABLES_FILE}");
+            return Err(StoreError::corrupt(&path, problem));
+        }
+        tables::read_parquet(bytes).map_err(|e| StoreError::corrupt(&path, e))
     }
 
     /// The scenario file as run.
@@ -337,10 +392,21 @@ impl Store {
         self.root.join(SCENARIO_FILE)
     }
 
+    /// The scenario file as run, checked against the hash the manifest holds for it.
     pub fn scenario_text(&self) -> Result<String, StoreError> {
         let path = self.scenario_path();
         let limit = crate::scenario::MAX_SCENARIO_BYTES;
-        Ok(world::read_bounded_text(&path, limit, "a scenario")?)
+        let text = world::read_bounded_text(&path, limit, "a scenario")?;
+        if let Some(manifest) = self.manifest()?
+            && blake3::hash(text.as_bytes()).to_hex().as_str() != manifest.scenario_hash
+        {
+            let problem = format!(
+                "is not the scenario this sweep ran (its blake3 differs from {MANIFEST_FILE}'s \
+                 scenario_hash); run the sweep again to put its own scenario back"
+            );
+            return Err(StoreError::corrupt(&path, problem));
+        }
+        Ok(text)
     }
 
     pub fn map_text(&self, hash: &str) -> Result<String, StoreError> {
@@ -396,14 +462,50 @@ impl Store {
         Ok(true)
     }
 
-    /// Builds the sweep-level tables from the finished cells among `keys`, in that order, and
-    /// returns the records included.
+    /// Builds the sweep-level tables from the finished cells among `keys`, in that order,
+    /// writes them with their hashes, and returns the records included. A damaged cell among
+    /// `keys` is an error naming it: its numbers are not read.
     pub fn build_tables(
         &self,
         keys: &[String],
         outputs: &[Output],
     ) -> Result<Vec<CellRecord>, StoreError> {
-        let records: Vec<CellRecord> = keys.iter().filter_map(|k| self.finished(k)).collect();
+        let records = self.verified_records(keys)?;
+        let mut listing = self.table_hashes()?.unwrap_or_default();
+        listing.cells = records.iter().map(|r| r.key.clone()).collect();
+        for (name, frame) in self.tables_of(&records, outputs)? {
+            listing
+                .tables
+                .extend(tables::write_table(&self.root, name, &frame)?);
+        }
+        write(&self.root.join(TABLES_FILE), &json_bytes(&listing))?;
+        Ok(records)
+    }
+
+    /// Writes a table of the sweep's own (`NAME.parquet` and `.csv`) and lists its hashes.
+    pub fn write_table(&self, name: &str, frame: &DataFrame) -> Result<(), StoreError> {
+        let mut listing = self.table_hashes()?.unwrap_or_default();
+        listing
+            .tables
+            .extend(tables::write_table(&self.root, name, frame)?);
+        write(&self.root.join(TABLES_FILE), &json_bytes(&listing))
+    }
+
+    /// The records of the finished cells among `keys`, in that order, every file verified;
+    /// a damaged cell is an error naming the file.
+    pub fn verified_records(&self, keys: &[String]) -> Result<Vec<CellRecord>, StoreError> {
+        keys.iter()
+            .filter_map(|key| self.check_cell(key).transpose())
+            .collect()
+    }
+
+    /// The sweep-level tables of `outputs` that `records`' cells make, by name; a table no
+    /// cell has a file for is left out.
+    pub fn tables_of(
+        &self,
+        records: &[CellRecord],
+        outputs: &[Output],
+    ) -> Result<Vec<(&'static str, DataFrame)>, StoreError> {
         let per_cell = |file: &str| -> Result<Option<DataFrame>, StoreError> {
             let frames = records
                 .iter()
@@ -412,6 +514,7 @@ impl Store {
             tables::stack(frames)
         };
         let episodes = per_cell(EPISODES_FILE)?;
+        let mut built = Vec::new();
         for output in outputs {
             let frame = match output {
                 Output::Episodes => episodes.clone(),
@@ -421,24 +524,23 @@ impl Store {
                 Output::Disturbed => per_cell(DISTURBED_FILE)?,
                 Output::DisturbedSteps => per_cell(DISTURBED_STEPS_FILE)?,
                 Output::TestCurve => per_cell(TEST_CURVE_FILE)?,
-                Output::Cells => Some(tables::cells_frame(&records)?),
+                Output::Cells => Some(tables::cells_frame(records)?),
                 Output::Summary => episodes
                     .as_ref()
                     .map(crate::summary::summary_frame)
                     .transpose()?,
             };
-            if let Some(frame) = frame {
-                tables::write_table(&self.root, output.name(), &frame)?;
-            }
+            built.extend(frame.map(|frame| (output.name(), frame)));
         }
-        Ok(records)
+        Ok(built)
     }
 
-    /// Builds the sweep-level tables from the finished cells when the tables there do not
-    /// hold exactly those cells (the sweep is still running, or was stopped, or an earlier
-    /// look built them from fewer), so that its report and claims can be read mid-sweep.
-    /// Returns how many of the sweep's cells the tables hold, out of how many, or `None` when
-    /// there is no sweep, its tables were current or it is a table store.
+    /// Builds the sweep-level tables from the finished cells when the tables there are not
+    /// those cells' (the sweep is still running, or was stopped, or an earlier look built
+    /// them from fewer) or do not match their hashes, so that its report and claims read the
+    /// cells as they are, mid-sweep too. Returns how many of the sweep's cells the tables
+    /// hold, out of how many, or `None` when there is no sweep, its tables were current or
+    /// it is a table store. A damaged cell is an error naming it.
     pub fn build_missing_tables(&self) -> Result<Option<(usize, usize)>, StoreError> {
         // A table store's tables are its content: there are no cells to build them from.
         if self.is_table_store() {
@@ -448,28 +550,54 @@ impl Store {
             return Ok(None);
         };
         let keys = manifest.selected.as_ref().unwrap_or(&manifest.cells);
-        let finished: BTreeSet<&str> = (keys.iter())
-            .filter(|k| self.finished(k).is_some())
-            .map(String::as_str)
-            .collect();
-        if self.tables_hold(&finished)? {
+        let finished = self.verified_records(keys)?;
+        if self.tables_current(&finished)? {
             return Ok(None);
         }
         let records = self.build_tables(keys, &manifest.outputs)?;
         Ok(Some((records.len(), keys.len())))
     }
 
-    /// Whether the episodes table is there and holds the episodes of exactly `cells`.
-    fn tables_hold(&self, cells: &BTreeSet<&str>) -> Result<bool, StoreError> {
-        let name = Output::Episodes.name();
-        if !self.root.join(format!("{name}.parquet")).exists() {
+    /// Whether `tables.json` lists exactly the cells of `records` and every table it lists
+    /// is there with its hash.
+    fn tables_current(&self, records: &[CellRecord]) -> Result<bool, StoreError> {
+        let Some(listing) = self.table_hashes()? else {
+            return Ok(false);
+        };
+        let cells: BTreeSet<&str> = records.iter().map(|r| r.key.as_str()).collect();
+        let listed: BTreeSet<&str> = listing.cells.iter().map(String::as_str).collect();
+        if cells != listed {
             return Ok(false);
         }
-        let episodes = self.table(name)?;
-        let keys = episodes.column("cell_key")?.str()?;
-        let held: BTreeSet<&str> = keys.iter().flatten().collect();
-        Ok(held == *cells)
+        for (file, hash) in &listing.tables {
+            let path = self.root.join(file);
+            let Ok(bytes) = read(&path, MAX_FILE_BYTES, "a store's file") else {
+                return Ok(false);
+            };
+            if blake3::hash(&bytes).to_hex().as_str() != hash {
+                return Ok(false);
+            }
+        }
+        Ok(true)
     }
+
+    /// `tables.json`, if the sweep built its tables since it was introduced; `None` in a
+    /// table store (its marker lists its files).
+    pub fn table_hashes(&self) -> Result<Option<TableHashes>, StoreError> {
+        let path = self.root.join(TABLES_FILE);
+        if self.is_table_store() || std::fs::symlink_metadata(&path).is_err() {
+            return Ok(None);
+        }
+        read_json(&path).map(Some)
+    }
+}
+
+/// `tables.json`: the cells the sweep-level tables were built from and every table file's
+/// blake3, so that a table changed after it was written is found, and built again.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TableHashes {
+    pub cells: Vec<String>,
+    pub tables: BTreeMap<String, String>,
 }
 
 fn write(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {

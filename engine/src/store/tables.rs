@@ -195,16 +195,23 @@ pub fn read_parquet(bytes: Vec<u8>) -> Result<DataFrame, StoreError> {
     Ok(ParquetReader::new(Cursor::new(bytes)).finish()?)
 }
 
-/// Writes `NAME.parquet` and `NAME.csv` in `folder`.
-pub fn write_table(folder: &Path, name: &str, frame: &DataFrame) -> Result<(), StoreError> {
+/// Writes `NAME.parquet` and `NAME.csv` in `folder`; returns each file's name and blake3.
+pub fn write_table(
+    folder: &Path,
+    name: &str,
+    frame: &DataFrame,
+) -> Result<Vec<(String, String)>, StoreError> {
+    let mut written = Vec::new();
     for (extension, bytes) in [
         ("parquet", parquet_bytes(frame)?),
         ("csv", csv_bytes(frame)?),
     ] {
-        let path = folder.join(format!("{name}.{extension}"));
+        let file = format!("{name}.{extension}");
+        let path = folder.join(&file);
         write_atomic(&path, &bytes).map_err(|e| StoreError::io(&path, e))?;
+        written.push((file, blake3::hash(&bytes).to_hex().to_string()));
     }
-    Ok(())
+    Ok(written)
 }
 
 /// Stacks frames of one schema; `None` when there are none.

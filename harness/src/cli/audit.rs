@@ -4,7 +4,8 @@ use std::collections::BTreeSet;
 use std::path::PathBuf;
 
 use engine::audit::{
-    AuditLine, DisturbedAuditLine, TrainingAuditLine, audit, audit_disturbed, audit_training,
+    AuditLine, DisturbedAuditLine, TrainingAuditLine, audit, audit_disturbed, audit_tables,
+    audit_training,
 };
 use engine::provenance;
 use engine::store::Store;
@@ -26,6 +27,24 @@ pub struct AuditArgs {
 
 pub fn run(args: AuditArgs) -> anyhow::Result<()> {
     let store = Store::new(&args.store);
+    // The tables first: the rows below are drawn from the episodes table.
+    let tables = audit_tables(&store)?;
+    for line in &tables {
+        match &line.outcome {
+            Ok(rows) => println!(
+                "same       table {}: {rows} rows, as its cells make it",
+                line.table
+            ),
+            Err(why) => println!("DIFFERENT  table {}: {why}", line.table),
+        }
+    }
+    let bad = tables.iter().filter(|line| line.outcome.is_err()).count();
+    anyhow::ensure!(
+        bad == 0,
+        "audit failed: {bad} of {} tables differ from the tables the store's cells make \
+         (`harness report` or `harness claims` builds them again from the cells)",
+        tables.len()
+    );
     let lines = audit(&store, args.sample, args.seed)?;
     let trained = audit_training(&store, args.training_sample, args.seed)?;
     let disturbed = audit_disturbed(&store, args.sample, args.seed)?;

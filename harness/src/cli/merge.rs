@@ -26,6 +26,9 @@ pub fn run(args: MergeArgs) -> anyhow::Result<()> {
         report.total,
         report.copied
     );
+    for (key, why) in &report.damaged {
+        eprintln!("cell {key} is damaged in every shard that holds it: {why}");
+    }
     anyhow::ensure!(
         report.present == report.total,
         "{} cells are missing from the shards (first: {})",

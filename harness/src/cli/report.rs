@@ -31,8 +31,9 @@ pub fn run(args: ReportArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A sweep still running (or stopped) has no tables yet: they are built from its finished
-/// cells, and the report names the missing ones.
+/// A sweep still running (or stopped) has no tables yet, and tables that do not match their
+/// hashes in `tables.json` are not read: they are built from the finished cells, every file
+/// verified, and the report names the missing ones.
 pub fn tables_of_unfinished_sweep(store: &Store) -> anyhow::Result<()> {
     let Some((finished, cells)) = store.build_missing_tables()? else {
         return Ok(());
@@ -42,10 +43,17 @@ pub fn tables_of_unfinished_sweep(store: &Store) -> anyhow::Result<()> {
         "{}: none of the sweep's {cells} cells has finished yet",
         store.root().display()
     );
-    eprintln!(
-        "{}: the sweep has not finished; its tables are built from the {finished} of {cells} \
-         cells that have",
-        store.root().display()
-    );
+    match finished == cells {
+        true => eprintln!(
+            "{}: its tables were built again from its {cells} cells, every file verified \
+             (they were absent, older than tables.json, or did not match its hashes)",
+            store.root().display()
+        ),
+        false => eprintln!(
+            "{}: the sweep has not finished; its tables are built from the {finished} of \
+             {cells} cells that have",
+            store.root().display()
+        ),
+    }
     Ok(())
 }

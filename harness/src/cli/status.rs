@@ -23,10 +23,14 @@ pub fn run(args: StatusArgs) -> anyhow::Result<()> {
 
 fn print(status: &SweepStatus, dir: &Path) -> std::io::Result<()> {
     let mut out = std::io::stdout().lock();
-    let [done, running, missing, failed] = status.counts();
+    let [done, running, missing, failed, damaged] = status.counts();
+    let damaged = match damaged {
+        0 => String::new(),
+        n => format!(", {n} damaged (the next sweep computes them again)"),
+    };
     writeln!(
         out,
-        "sweep {} in {}: {} cells, {done} done, {running} running, {missing} missing, {failed} failed",
+        "sweep {} in {}: {} cells, {done} done, {running} running, {missing} missing, {failed} failed{damaged}",
         status.scenario,
         dir.display(),
         status.cells.len()
@@ -47,6 +51,9 @@ fn print(status: &SweepStatus, dir: &Path) -> std::io::Result<()> {
                     failure.error
                 ),
             ),
+            CellState::Damaged { folder, why } => {
+                ("damaged", format!("in {}: {why}", folder.display()))
+            }
             CellState::Missing { interrupted: None } => ("missing", String::new()),
             CellState::Missing {
                 interrupted: Some((folder, holder)),

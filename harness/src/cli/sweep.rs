@@ -77,6 +77,9 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         report.tabled,
         out.display()
     );
+    for (key, why) in &report.damaged {
+        println!("cell {key} was damaged ({why}): computed again");
+    }
     if report.elsewhere > 0 {
         println!(
             "{} cells were left to another sweep into {} (it held them or had finished them)",

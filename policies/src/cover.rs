@@ -3,124 +3,25 @@
 //! TSPC needs viewpoints that together see every free cell, and the static-coverage baseline
 //! needs the k viewpoints that see the most. Both are NP-hard; the greedy rule (take whatever
 //! covers the most still-uncovered elements) is within a factor ln(u) + 1 of the smallest cover
-//! and within 1 − 1/e of the best k. Sets are bit rows so that counting what a candidate adds
-//! is a popcount over a few dozen words, and the greedy is lazy: a candidate's gain only shrinks
-//! as others are chosen, so a stale gain is an upper bound and most candidates are never
+//! and within 1 − 1/e of the best k. The greedy is lazy: a candidate's gain only shrinks as
+//! others are chosen, so a stale gain is an upper bound and most candidates are never
 //! re-counted.
+//!
+//! Sets are read through [`Coverage`], on demand, never held all at once: a map's visibility
+//! sets as a matrix of bits grew with the square of its free cells (8.6 GB at 512 x 512
+//! open), while on demand the greedy holds a bit per element and a gain per candidate.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use thiserror::Error;
-
 const WORD_BITS: usize = u64::BITS as usize;
 
-#[derive(Debug, Clone, PartialEq, Eq, Error)]
-pub enum CoverError {
-    #[error("candidate {candidate} has {words} words, expected {expected} for {universe} elements")]
-    RowLength {
-        candidate: usize,
-        words: usize,
-        expected: usize,
-        universe: usize,
-    },
-    #[error("candidate {candidate} contains element {element}, outside the universe of {universe}")]
-    OutsideUniverse {
-        candidate: usize,
-        element: usize,
-        universe: usize,
-    },
-}
-
-/// One bit row per candidate over the elements `0..universe`; rows are checked to hold no bits
-/// beyond the universe, so popcounts never count phantom elements.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct CoverageSets {
-    universe: usize,
-    candidates: usize,
-    words_per_row: usize,
-    words: Vec<u64>,
-}
-
-impl CoverageSets {
-    pub fn from_bit_rows<R: AsRef<[u64]>>(universe: usize, rows: &[R]) -> Result<Self, CoverError> {
-        let words_per_row = universe.div_ceil(WORD_BITS);
-        let mut words = Vec::with_capacity(rows.len() * words_per_row);
-        for (candidate, row) in rows.iter().enumerate() {
-            let row = row.as_ref();
-            if row.len() != words_per_row {
-                return Err(CoverError::RowLength {
-                    candidate,
-                    words: row.len(),
-                    expected: words_per_row,
-                    universe,
-                });
-            }
-            if let Some(element) = elements(row).find(|&element| element >= universe) {
-                return Err(CoverError::OutsideUniverse {
-                    candidate,
-                    element,
-                    universe,
-                });
-            }
-            words.extend_from_slice(row);
-        }
-        Ok(Self {
-            universe,
-            candidates: rows.len(),
-            words_per_row,
-            words,
-        })
-    }
-
-    pub fn from_index_lists<L: AsRef<[usize]>>(
-        universe: usize,
-        lists: &[L],
-    ) -> Result<Self, CoverError> {
-        let words_per_row = universe.div_ceil(WORD_BITS);
-        let mut rows = vec![vec![0u64; words_per_row]; lists.len()];
-        for (candidate, (list, row)) in lists.iter().zip(&mut rows).enumerate() {
-            for &element in list.as_ref() {
-                if element >= universe {
-                    return Err(CoverError::OutsideUniverse {
-                        candidate,
-                        element,
-                        universe,
-                    });
-                }
-                row[element / WORD_BITS] |= 1 << (element % WORD_BITS);
-            }
-        }
-        Self::from_bit_rows(universe, &rows)
-    }
-
-    pub fn universe(&self) -> usize {
-        self.universe
-    }
-
-    pub fn candidates(&self) -> usize {
-        self.candidates
-    }
-
-    pub fn row(&self, candidate: usize) -> &[u64] {
-        let start = candidate * self.words_per_row;
-        &self.words[start..start + self.words_per_row]
-    }
-
-    /// Number of elements covered by at least one of `chosen`.
-    pub fn covered_count(&self, chosen: &[usize]) -> usize {
-        let mut union = vec![0u64; self.words_per_row];
-        for &candidate in chosen {
-            for (covered, word) in union.iter_mut().zip(self.row(candidate)) {
-                *covered |= word;
-            }
-        }
-        popcount(&union)
-    }
-}
-
-fn popcount(words: &[u64]) -> usize {
-    words.iter().map(|word| word.count_ones() as usize).sum()
+/// Candidates and the elements `0..universe()` each covers.
+pub trait Coverage {
+    fn universe(&self) -> usize;
+    fn candidates(&self) -> usize;
+    /// Calls `each` once with every element `candidate` covers, all below `universe()`.
+    fn elements_of(&self, candidate: usize, each: &mut dyn FnMut(usize));
 }
 
 /// Indices of the set bits, in increasing order.
@@ -141,43 +42,47 @@ fn elements(words: &[u64]) -> impl Iterator<Item = usize> + '_ {
 /// candidate is eventually yielded, those adding nothing last in index order, so callers decide
 /// where to stop.
 struct GreedyOrder<'a> {
-    sets: &'a CoverageSets,
+    sets: &'a dyn Coverage,
+    /// A bit per element still uncovered.
     uncovered: Vec<u64>,
     /// Gains as last counted; ties pop the lowest index first.
     queue: BinaryHeap<(usize, Reverse<usize>)>,
 }
 
 impl<'a> GreedyOrder<'a> {
-    fn new(sets: &'a CoverageSets) -> Self {
-        let mut uncovered = vec![u64::MAX; sets.words_per_row];
+    fn new(sets: &'a dyn Coverage) -> Self {
+        let universe = sets.universe();
+        let mut uncovered = vec![u64::MAX; universe.div_ceil(WORD_BITS)];
         if let Some(last) = uncovered.last_mut() {
-            let used_bits = sets.universe % WORD_BITS;
+            let used_bits = universe % WORD_BITS;
             if used_bits != 0 {
                 *last = (1 << used_bits) - 1;
             }
         }
-        let queue = (0..sets.candidates)
-            .map(|candidate| (popcount(sets.row(candidate)), Reverse(candidate)))
-            .collect();
-        Self {
+        let mut order = Self {
             sets,
             uncovered,
-            queue,
-        }
+            queue: BinaryHeap::new(),
+        };
+        order.queue = (0..sets.candidates())
+            .map(|candidate| (order.gain(candidate), Reverse(candidate)))
+            .collect();
+        order
     }
 
     fn gain(&self, candidate: usize) -> usize {
-        let row = self.sets.row(candidate);
-        row.iter()
-            .zip(&self.uncovered)
-            .map(|(word, uncovered)| (word & uncovered).count_ones() as usize)
-            .sum()
+        let mut gain = 0;
+        self.sets.elements_of(candidate, &mut |element| {
+            gain += (self.uncovered[element / WORD_BITS] >> (element % WORD_BITS)) as usize & 1;
+        });
+        gain
     }
 
     fn take(&mut self, candidate: usize) {
-        for (uncovered, word) in self.uncovered.iter_mut().zip(self.sets.row(candidate)) {
-            *uncovered &= !word;
-        }
+        let uncovered = &mut self.uncovered;
+        self.sets.elements_of(candidate, &mut |element| {
+            uncovered[element / WORD_BITS] &= !(1 << (element % WORD_BITS));
+        });
     }
 }
 
@@ -212,7 +117,7 @@ pub struct SetCover {
 
 /// Greedy set cover, then dropping candidates that became redundant once later ones were
 /// chosen, so that every chosen candidate is the only one covering some element.
-pub fn greedy_set_cover(sets: &CoverageSets) -> SetCover {
+pub fn greedy_set_cover(sets: &dyn Coverage) -> SetCover {
     let mut order = GreedyOrder::new(sets);
     let mut chosen = Vec::new();
     for (candidate, gain) in order.by_ref() {
@@ -231,15 +136,16 @@ pub fn greedy_set_cover(sets: &CoverageSets) -> SetCover {
 /// Scans in selection order, so the large early choices are the first dropped when later ones
 /// made them unnecessary. One pass suffices: dropping only lowers coverage counts, so a
 /// candidate kept as the sole cover of some element stays its sole cover.
-fn drop_redundant(sets: &CoverageSets, chosen: &mut Vec<usize>) {
-    let mut coverers = vec![0u32; sets.universe];
+fn drop_redundant(sets: &dyn Coverage, chosen: &mut Vec<usize>) {
+    let mut coverers = vec![0u32; sets.universe()];
     for &candidate in chosen.iter() {
-        elements(sets.row(candidate)).for_each(|element| coverers[element] += 1);
+        sets.elements_of(candidate, &mut |element| coverers[element] += 1);
     }
     chosen.retain(|&candidate| {
-        let redundant = elements(sets.row(candidate)).all(|element| coverers[element] > 1);
+        let mut redundant = true;
+        sets.elements_of(candidate, &mut |element| redundant &= coverers[element] > 1);
         if redundant {
-            elements(sets.row(candidate)).for_each(|element| coverers[element] -= 1);
+            sets.elements_of(candidate, &mut |element| coverers[element] -= 1);
         }
         !redundant
     });
@@ -249,7 +155,7 @@ fn drop_redundant(sets: &CoverageSets, chosen: &mut Vec<usize>) {
 /// Once everything coverable is covered the remaining picks add nothing and go to the lowest
 /// unchosen indices, so the baseline always gets the `k` positions it asked for, and the result
 /// for `k` is a prefix of the result for `k + 1`.
-pub fn greedy_max_coverage(sets: &CoverageSets, k: usize) -> Vec<usize> {
+pub fn greedy_max_coverage(sets: &dyn Coverage, k: usize) -> Vec<usize> {
     GreedyOrder::new(sets)
         .take(k)
         .map(|(candidate, _)| candidate)
@@ -262,20 +168,59 @@ mod tests {
     use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64Mcg;
 
-    fn random_sets(universe: usize, candidates: usize, density: f64, seed: u64) -> CoverageSets {
+    /// Sets as lists of elements, each sorted and without repeats.
+    struct IndexSets {
+        universe: usize,
+        lists: Vec<Vec<usize>>,
+    }
+
+    impl IndexSets {
+        fn new(universe: usize, lists: &[Vec<usize>]) -> Self {
+            assert!(lists.iter().flatten().all(|&e| e < universe));
+            Self {
+                universe,
+                lists: lists.to_vec(),
+            }
+        }
+
+        /// Number of elements covered by at least one of `chosen`.
+        fn covered_count(&self, chosen: &[usize]) -> usize {
+            let mut union: Vec<usize> =
+                chosen.iter().flat_map(|&c| self.lists[c].clone()).collect();
+            union.sort_unstable();
+            union.dedup();
+            union.len()
+        }
+    }
+
+    impl Coverage for IndexSets {
+        fn universe(&self) -> usize {
+            self.universe
+        }
+
+        fn candidates(&self) -> usize {
+            self.lists.len()
+        }
+
+        fn elements_of(&self, candidate: usize, each: &mut dyn FnMut(usize)) {
+            self.lists[candidate].iter().for_each(|&e| each(e));
+        }
+    }
+
+    fn random_sets(universe: usize, candidates: usize, density: f64, seed: u64) -> IndexSets {
         let mut rng = Pcg64Mcg::seed_from_u64(seed);
         let lists: Vec<Vec<usize>> = (0..candidates)
             .map(|_| (0..universe).filter(|_| rng.random_bool(density)).collect())
             .collect();
-        CoverageSets::from_index_lists(universe, &lists).unwrap()
+        IndexSets::new(universe, &lists)
     }
 
-    fn all_candidates(sets: &CoverageSets) -> Vec<usize> {
+    fn all_candidates(sets: &IndexSets) -> Vec<usize> {
         (0..sets.candidates()).collect()
     }
 
     /// Smallest number of candidates covering everything coverable, by trying every subset.
-    fn optimal_cover_size(sets: &CoverageSets) -> usize {
+    fn optimal_cover_size(sets: &IndexSets) -> usize {
         let coverable = sets.covered_count(&all_candidates(sets));
         (0u32..1 << sets.candidates())
             .map(subset)
@@ -286,7 +231,7 @@ mod tests {
     }
 
     /// Most elements any `k` candidates cover, by trying every subset of that size.
-    fn optimal_coverage(sets: &CoverageSets, k: usize) -> usize {
+    fn optimal_coverage(sets: &IndexSets, k: usize) -> usize {
         (0u32..1 << sets.candidates())
             .filter(|mask| mask.count_ones() as usize == k)
             .map(|mask| sets.covered_count(&subset(mask)))
@@ -299,7 +244,7 @@ mod tests {
     }
 
     /// The greedy order recomputed from scratch each step, to check the lazy queue against.
-    fn eager_greedy_order(sets: &CoverageSets) -> Vec<usize> {
+    fn eager_greedy_order(sets: &IndexSets) -> Vec<usize> {
         let mut chosen: Vec<usize> = Vec::new();
         while chosen.len() < sets.candidates() {
             let covered = sets.covered_count(&chosen);
@@ -316,52 +261,8 @@ mod tests {
     }
 
     #[test]
-    fn rejects_rows_of_the_wrong_length() {
-        let error = CoverageSets::from_bit_rows(70, &[vec![0, 0], vec![0]]).unwrap_err();
-        assert_eq!(
-            error,
-            CoverError::RowLength {
-                candidate: 1,
-                words: 1,
-                expected: 2,
-                universe: 70
-            }
-        );
-    }
-
-    #[test]
-    fn rejects_bits_beyond_the_universe() {
-        let error = CoverageSets::from_bit_rows(70, &[[0, 1 << 6]]).unwrap_err();
-        assert_eq!(
-            error,
-            CoverError::OutsideUniverse {
-                candidate: 0,
-                element: 70,
-                universe: 70
-            }
-        );
-        let error = CoverageSets::from_index_lists(5, &[vec![0], vec![5]]).unwrap_err();
-        assert_eq!(
-            error,
-            CoverError::OutsideUniverse {
-                candidate: 1,
-                element: 5,
-                universe: 5
-            }
-        );
-    }
-
-    #[test]
-    fn bit_rows_and_index_lists_agree() {
-        let from_lists = CoverageSets::from_index_lists(130, &[vec![0, 64, 129], vec![]]).unwrap();
-        let from_bits = CoverageSets::from_bit_rows(130, &[[1, 1, 2], [0, 0, 0]]).unwrap();
-        assert_eq!(from_lists, from_bits);
-    }
-
-    #[test]
     fn ties_go_to_the_lowest_index() {
-        let sets =
-            CoverageSets::from_index_lists(4, &[vec![2], vec![0, 1], vec![0, 1], vec![3]]).unwrap();
+        let sets = IndexSets::new(4, &[vec![2], vec![0, 1], vec![0, 1], vec![3]]);
         assert_eq!(greedy_set_cover(&sets).chosen, vec![1, 0, 3]);
         assert_eq!(greedy_max_coverage(&sets, 4), vec![1, 0, 3, 2]);
     }
@@ -369,15 +270,13 @@ mod tests {
     #[test]
     fn drops_candidates_made_redundant_by_later_choices() {
         // Greedy takes 0 first, then 1 and 2, which together cover everything 0 did.
-        let sets =
-            CoverageSets::from_index_lists(6, &[vec![1, 2, 3, 4], vec![0, 1, 2], vec![3, 4, 5]])
-                .unwrap();
+        let sets = IndexSets::new(6, &[vec![1, 2, 3, 4], vec![0, 1, 2], vec![3, 4, 5]]);
         assert_eq!(greedy_set_cover(&sets).chosen, vec![1, 2]);
     }
 
     #[test]
     fn reports_uncoverable_elements() {
-        let sets = CoverageSets::from_index_lists(5, &[vec![0, 1], vec![3]]).unwrap();
+        let sets = IndexSets::new(5, &[vec![0, 1], vec![3]]);
         let cover = greedy_set_cover(&sets);
         assert_eq!(cover.chosen, vec![0, 1]);
         assert_eq!(cover.uncoverable, vec![2, 4]);
@@ -385,7 +284,7 @@ mod tests {
 
     #[test]
     fn empty_universe_needs_no_candidates() {
-        let sets = CoverageSets::from_index_lists(0, &[Vec::new(), Vec::new()]).unwrap();
+        let sets = IndexSets::new(0, &[Vec::new(), Vec::new()]);
         let cover = greedy_set_cover(&sets);
         assert!(cover.chosen.is_empty() && cover.uncoverable.is_empty());
     }

@@ -13,14 +13,13 @@ use std::sync::Arc;
 use world::paths::BreadthFirst;
 use world::{Action, Cell, Episode, Seed, World};
 
-use crate::cover::{CoverageSets, greedy_max_coverage};
+use crate::cover::greedy_max_coverage;
 use crate::policy::Policy;
 use crate::route::{Impatience, Route};
-use crate::viewpoints::visibility_sets;
+use crate::viewpoints::VisibilitySets;
 
 pub struct StaticCoverage {
     world: Arc<World>,
-    sets: CoverageSets,
     search: BreadthFirst,
     routes: Vec<Route>,
     impatience: Vec<Impatience>,
@@ -30,7 +29,6 @@ impl StaticCoverage {
     pub fn new(world: &Arc<World>) -> Self {
         Self {
             world: world.clone(),
-            sets: visibility_sets(world),
             search: BreadthFirst::new(world.map()),
             routes: Vec::new(),
             impatience: Vec::new(),
@@ -40,7 +38,7 @@ impl StaticCoverage {
     /// The `agents` cells that together see the most, best first.
     pub fn posts(&self, agents: usize) -> Vec<Cell> {
         let free = self.world.map().free_cells();
-        let chosen = greedy_max_coverage(&self.sets, agents);
+        let chosen = greedy_max_coverage(&VisibilitySets::new(&self.world), agents);
         chosen.iter().map(|&index| free[index]).collect()
     }
 

@@ -2,32 +2,50 @@
 
 use world::{Cell, World};
 
-use crate::cover::{CoverageSets, greedy_set_cover};
+use crate::cover::{Coverage, greedy_set_cover};
 
 /// One candidate per free cell, covering the free cells it sees; both indexed in the order of
-/// `Map::free_cells`.
-pub fn visibility_sets(world: &World) -> CoverageSets {
-    let map = world.map();
-    let mut free_index = vec![usize::MAX; map.width() * map.height()];
-    for (index, &cell) in map.free_cells().iter().enumerate() {
-        free_index[map.index(cell)] = index;
+/// `Map::free_cells`. Each set is read from the world's visibility when asked for, so the
+/// memory is a free-cell index per map cell, not the sets themselves.
+pub struct VisibilitySets<'w> {
+    world: &'w World,
+    /// Each map cell's index among the free cells (`u32::MAX` for an obstacle).
+    free_index: Vec<u32>,
+}
+
+impl<'w> VisibilitySets<'w> {
+    pub fn new(world: &'w World) -> Self {
+        let map = world.map();
+        let mut free_index = vec![u32::MAX; map.width() * map.height()];
+        for (index, &cell) in map.free_cells().iter().enumerate() {
+            free_index[map.index(cell)] = index as u32;
+        }
+        Self { world, free_index }
     }
-    let seen: Vec<Vec<usize>> = map
-        .free_cells()
-        .iter()
-        .map(|&from| {
-            let visible = world.visibility().visible_cells(from);
-            visible.map(|cell| free_index[map.index(cell)]).collect()
-        })
-        .collect();
-    CoverageSets::from_index_lists(map.free_cells().len(), &seen)
-        .expect("visible cells are free cells of the map")
+}
+
+impl Coverage for VisibilitySets<'_> {
+    fn universe(&self) -> usize {
+        self.world.map().free_cells().len()
+    }
+
+    fn candidates(&self) -> usize {
+        self.world.map().free_cells().len()
+    }
+
+    fn elements_of(&self, candidate: usize, each: &mut dyn FnMut(usize)) {
+        let map = self.world.map();
+        let from = map.free_cells()[candidate];
+        for cell in self.world.visibility().visible_cells(from) {
+            each(self.free_index[map.index(cell)] as usize);
+        }
+    }
 }
 
 /// Free cells that together see every free cell, none of them redundant. Every free cell sees
 /// itself, so nothing is left uncoverable.
 pub fn covering_viewpoints(world: &World) -> Vec<Cell> {
-    let cover = greedy_set_cover(&visibility_sets(world));
+    let cover = greedy_set_cover(&VisibilitySets::new(world));
     debug_assert!(cover.uncoverable.is_empty());
     let free = world.map().free_cells();
     cover.chosen.iter().map(|&index| free[index]).collect()

@@ -28,6 +28,10 @@ impl Visibility {
     pub fn compute(map: &Map, fov: usize) -> Self {
         let words_per_row = fov.div_ceil(64);
         let per_cell = fov * words_per_row;
+        debug_assert_eq!(
+            Self::bytes_for(map.width() * map.height(), fov),
+            (map.width() * map.height() * per_cell * 8) as u64
+        );
         let mut bits = vec![0u64; map.width() * map.height() * per_cell];
         let obstacles = ObstacleCounts::new(map);
         bits.par_chunks_mut(per_cell)
@@ -49,6 +53,12 @@ impl Visibility {
     /// Memory the windows take: L x ceil(L / 64) words per cell of the map.
     pub fn heap_bytes(&self) -> usize {
         std::mem::size_of_val(self.bits.as_slice())
+    }
+
+    /// What [`Visibility::compute`] will take for a map of `cells` cells, before it runs.
+    pub fn bytes_for(cells: usize, fov: usize) -> u64 {
+        let per_cell = fov as u64 * fov.div_ceil(64) as u64 * 8;
+        (cells as u64).saturating_mul(per_cell)
     }
 
     pub fn fov(&self) -> usize {

@@ -44,8 +44,11 @@ impl Limits {
 pub struct Size {
     pub cells: u64,
     pub cost: Cost,
-    /// The sweep's tables in memory, and the two largest cells' training runs at once.
+    /// The sweep's tables in memory, every map's world (its visibility windows), and the
+    /// two largest cells' working memory at once (a training run, or a tour's planning).
     pub memory_bytes: u64,
+    /// The part of `memory_bytes` that the maps' size makes: their worlds and plans.
+    pub map_bytes: u64,
 }
 
 /// Bytes of an `episodes` row in memory (its key, names and a dozen numbers).
@@ -55,6 +58,14 @@ const TRAJECTORY_ROW_BYTES: u64 = 64;
 /// A training run's rollout buffer, the update's gathered minibatches and the network's
 /// workspaces: about three copies of the observations.
 const ROLLOUT_COPIES: u64 = 3;
+/// A world's memory per map cell besides its visibility windows (penalties, occupancy, a
+/// search's distances).
+const WORLD_BYTES_PER_CELL: u64 = 32;
+/// Planning a tour or posts (TSPC, partitioned tours, static coverage) per map cell: a free
+/// index, the greedy's bits and gains, the searches between viewpoints. Measured: TSPC on an
+/// open 1024 x 1024 map peaked at 258 MB, 210 MB of them its visibility windows, so about
+/// 46 bytes a cell; 64 leaves room.
+const PLANNING_BYTES_PER_CELL: u64 = 64;
 
 impl Scenario {
     /// The size of the sweep of this scenario, computed without listing its cells.
@@ -72,17 +83,50 @@ impl Scenario {
             );
             size.cost = size.cost + cell.times(u64::from(self.repetitions));
             size.cells = size.cells.saturating_add(u64::from(self.repetitions));
-            if let (Some(learned), Some(n)) = (learned, n_train) {
-                runs.push(self.rollout_bytes(map_index, learned, n));
+            match (learned, n_train) {
+                (Some(learned), Some(n)) => {
+                    runs.push((self.rollout_bytes(map_index, learned, n), 0))
+                }
+                _ => runs.push((0, self.planning_bytes(map_index, policy))),
             }
         }
-        runs.sort_unstable_by(|a, b| b.cmp(a));
-        let two_largest = runs
-            .iter()
-            .take(2)
-            .fold(0u64, |sum, &b| sum.saturating_add(b));
-        size.memory_bytes = self.table_bytes(size).saturating_add(two_largest);
+        runs.sort_unstable_by_key(|&(training, planning)| std::cmp::Reverse(training + planning));
+        let (training, planning) = runs.iter().take(2).fold((0u64, 0u64), |(t, p), &(a, b)| {
+            (t.saturating_add(a), p.saturating_add(b))
+        });
+        size.map_bytes = self.world_bytes().saturating_add(planning);
+        size.memory_bytes = (self.table_bytes(size))
+            .saturating_add(training)
+            .saturating_add(size.map_bytes);
         size
+    }
+
+    /// Every map's world at once (a sweep builds each once and shares it between cells).
+    fn world_bytes(&self) -> u64 {
+        let fov = self.world.fov;
+        self.maps.iter().fold(0u64, |sum, m| {
+            let cells = m.map.width() * m.map.height();
+            let world = world::Visibility::bytes_for(cells, fov)
+                .saturating_add((cells as u64).saturating_mul(WORLD_BYTES_PER_CELL));
+            sum.saturating_add(world)
+        })
+    }
+
+    /// The planning memory of a baseline's cell on map `map_index` (none for one that does not
+    /// plan).
+    fn planning_bytes(&self, map_index: usize, policy: &super::ScenarioPolicy) -> u64 {
+        use policies::Baseline;
+        let plans = matches!(
+            policy,
+            super::ScenarioPolicy::Baseline(
+                Baseline::Tspc | Baseline::Partition | Baseline::Static
+            )
+        );
+        let map = &self.maps[map_index].map;
+        match plans {
+            true => (map.width() * map.height()) as u64 * PLANNING_BYTES_PER_CELL,
+            false => 0,
+        }
     }
 
     /// The memory of a training run of `learned` with `n` agents on map `map_index`.
@@ -182,11 +226,19 @@ pub(super) fn check_size(
     }
     if size.memory_bytes > limits.memory_bytes {
         let what = format!(
-            "the sweep would hold about {:.1} GB in memory (its tables and two training runs), \
-             above the limit of {:.1} GB",
+            "the sweep would hold about {:.1} GB in memory (its tables, its maps' worlds and \
+             two cells' training runs or plans), above the limit of {:.1} GB",
             size.memory_bytes as f64 / 1e9,
             limits.memory_bytes as f64 / 1e9
         );
+        if size.map_bytes > size.memory_bytes / 2 {
+            let problem = format!(
+                "{what}, most of it for the maps' size ({:.1} GB); check the maps, or pass \
+                 --no-limits to run it anyway",
+                size.map_bytes as f64 / 1e9
+            );
+            return Err(ScenarioError::at(file, &spec.maps, "maps", problem));
+        }
         return Err(over(
             what,
             &[train_steps, test_steps, test_episodes, repetitions],
@@ -221,6 +273,34 @@ mod tests {
             .fold(Cost::default(), |sum, cell| sum + cell.config.cost());
         assert_eq!(size.cost, listed);
         assert!(size.memory_bytes > 0);
+    }
+
+    #[test]
+    fn maps_whose_worlds_pass_the_memory_limit_fail_at_maps() {
+        let row = format!("        {}\n", ".".repeat(1024));
+        let grid = row.repeat(1024);
+        let text = format!(
+            "name: big\nseed: 1\nmaps:\n  - inline:\n      name: a\n      grid: |\n{grid}  \
+             - inline:\n      name: b\n      grid: |\n{grid}world: {{fov: 255, test_steps: 5}}\n\
+             policies:\n  - baseline: {{name: tspc}}\nagents: {{test: [2]}}\ntest_episodes: 1\n"
+        );
+        let error = Scenario::parse(&text, Path::new("big.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.starts_with("big.yaml:4: maps: the sweep would hold about 17.3 GB"),
+            "{error}"
+        );
+        assert!(error.contains("most of it for the maps' size"), "{error}");
+        let one = text
+            .split("  - inline:\n      name: b")
+            .next()
+            .unwrap()
+            .to_owned()
+            + "world: {fov: 255, test_steps: 5}\npolicies:\n  - baseline: {name: tspc}\nagents: {test: [2]}\ntest_episodes: 1\n";
+        let size = Scenario::parse(&one, Path::new("big.yaml")).unwrap().size();
+        // One map: its windows (8.6 GB) and world, and the plan of one TSPC cell.
+        assert_eq!(size.map_bytes, (1 << 20) * (255 * 4 * 8 + 32 + 64));
     }
 
     #[test]

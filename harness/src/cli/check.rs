@@ -98,7 +98,7 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         duration(total.cpu_seconds())
     );
     println!(
-        "memory: about {:.2} GB at the peak (the sweep's tables and its two largest training runs)",
+        "memory: about {:.2} GB at the peak (the sweep's tables, its maps' worlds and its two largest training runs or plans)",
         scenario.size().memory_bytes as f64 / 1e9
     );
     let jobs = args.jobs.map_or_else(

@@ -17,6 +17,7 @@ pub const CONFIDENCE: f64 = 0.95;
 
 /// One policy's penalties (10^6) on a (map, N_test), by cell: for a learned policy, by
 /// training run.
+#[derive(Clone)]
 pub struct Sample {
     pub group: GroupKey,
     /// Each stratum's cell key.

@@ -14,7 +14,7 @@ use polars::prelude::*;
 
 use super::chart::lines::{Line, LineChart, Panel, Spread};
 use super::columns::{PolicyKey, distinct, f64s, group_rows, optional_u32s, strings};
-use super::comparison::Sample;
+use super::comparison::{self, Sample};
 use super::time_to_quality;
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 use engine::test_curve::{CPU_SECONDS, TRAINING_EPISODE};
@@ -104,6 +104,34 @@ pub fn trained_curves(table: &DataFrame) -> Result<Vec<Trained>, ReportError> {
             Trained { map, policy, runs }
         })
         .collect())
+}
+
+/// The learned runs' test episodes at each run's first test-curve point at or after training
+/// episode `at` (a run with none is left out), as samples, beside the baselines' of `samples`
+/// (a baseline does not train): what a claim judged at a budget reads.
+pub fn samples_at(
+    table: &DataFrame,
+    at: u64,
+    samples: &[Sample],
+) -> Result<Vec<Sample>, ReportError> {
+    let cells = strings(table, "cell_key")?;
+    let episodes = f64s(table, TRAINING_EPISODE)?;
+    let mut first: BTreeMap<&str, u64> = BTreeMap::new();
+    for (cell, &episode) in cells.iter().zip(&episodes) {
+        let episode = episode as u64;
+        if episode >= at {
+            let point = first.entry(cell.as_str()).or_insert(episode);
+            *point = (*point).min(episode);
+        }
+    }
+    let chosen: Vec<bool> = (cells.iter().zip(&episodes))
+        .map(|(cell, &episode)| first.get(cell.as_str()) == Some(&(episode as u64)))
+        .collect();
+    let chosen = table.filter(&BooleanChunked::from_slice("chosen".into(), &chosen))?;
+    let mut at_budget = comparison::samples(&chosen)?;
+    let baselines = samples.iter().filter(|s| s.group.policy.n_train.is_none());
+    at_budget.extend(baselines.cloned());
+    Ok(at_budget)
 }
 
 /// The median of `values`, which may hold infinities (not NaN); `NaN` for none.
@@ -373,6 +401,11 @@ mod tests {
         assert_eq!(curves_frame(&trained).unwrap().height(), 3);
         assert_eq!(runs_frame(&trained).unwrap().height(), 6);
         assert_eq!(median(&[1.0, f64::INFINITY, 3.0]), 3.0);
+        // After 50 episodes: each run's point at 80, its two test episodes.
+        let at = samples_at(&table(), 50, &[]).unwrap();
+        assert_eq!(at.len(), 1);
+        assert_eq!(at[0].strata, vec![vec![20.0, 22.0], vec![40.0, 42.0]]);
+        assert!(samples_at(&table(), 81, &[]).unwrap().is_empty());
         assert_eq!(median(&[1.0, f64::INFINITY]), f64::INFINITY);
     }
 }

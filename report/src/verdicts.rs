@@ -16,7 +16,7 @@ use super::columns::{GroupKey, PolicyKey, f64s, named_seed, optional_u32s, strin
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, difference_and_improvement, samples};
 use super::disturbance::{DisturbedSamples, ratio};
 use super::markdown::number;
-use super::test_curve::trained_curves;
+use super::test_curve::{samples_at, trained_curves};
 use super::time_to_quality;
 use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
@@ -125,11 +125,24 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
     let disturbed = DisturbedSamples::new(recorded.disturbed)?;
     let trained = recorded.training.map(trained_episodes).transpose()?;
     let curves = recorded.test_curve.map(trained_curves).transpose()?;
-    let side = |under: &Option<String>| -> &[Sample] {
-        match under {
-            None => &samples,
-            Some(name) => disturbed.penalties.get(name).map_or(&[], Vec::as_slice),
+    let mut at_budget: BTreeMap<u64, Vec<Sample>> = BTreeMap::new();
+    if let Some(curve) = recorded.test_curve {
+        for at in claims
+            .iter()
+            .filter_map(|c| claim_pair(&c.test)?.at_episode)
+        {
+            at_budget.insert(at, samples_at(curve, at, &samples)?);
         }
+    }
+    let sides = |pair: &Pair| -> (&[Sample], &[Sample]) {
+        let side = |under: &Option<String>| -> &[Sample] {
+            match (pair.at_episode, under) {
+                (Some(at), _) => at_budget.get(&at).map_or(&[], Vec::as_slice),
+                (None, None) => &samples,
+                (None, Some(name)) => disturbed.penalties.get(name).map_or(&[], Vec::as_slice),
+            }
+        };
+        (side(&pair.a_under), side(&pair.b_under))
     };
     claims
         .iter()
@@ -141,26 +154,22 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
             let (verdict, ours) = match (&claim.test, short) {
                 (_, Some(text)) => (Verdict::NotTested, text),
                 (ClaimTest::NotTested { reason }, None) => (Verdict::NotTested, reason.clone()),
-                (ClaimTest::Lower { pair }, None) => {
-                    lower((side(&pair.a_under), side(&pair.b_under)), pair, seed)?
-                }
+                (ClaimTest::Lower { pair }, None) => lower(sides(pair), pair, seed)?,
                 (ClaimTest::Within { pair, tolerance }, None) => tolerated(
-                    (side(&pair.a_under), side(&pair.b_under)),
+                    sides(pair),
                     (pair, &samples),
                     *tolerance,
                     seed,
                     PointTest::within,
                 )?,
                 (ClaimTest::NotWorse { pair, tolerance }, None) => tolerated(
-                    (side(&pair.a_under), side(&pair.b_under)),
+                    sides(pair),
                     (pair, &samples),
                     *tolerance,
                     seed,
                     PointTest::below,
                 )?,
-                (ClaimTest::GapGrows { pair }, None) => {
-                    gap_grows((side(&pair.a_under), side(&pair.b_under)), pair, seed)?
-                }
+                (ClaimTest::GapGrows { pair }, None) => gap_grows(sides(pair), pair, seed)?,
                 (
                     ClaimTest::AdaptsBetter {
                         a,
@@ -225,6 +234,10 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                     *expected,
                 ),
             };
+            let ours = match claim_pair(&claim.test).and_then(|p| p.at_episode) {
+                Some(at) => format!("after {at} training episodes (test curves): {ours}"),
+                None => ours,
+            };
             Ok(ClaimResult {
                 id: claim.id.clone(),
                 kind: claim.test.kind(),
@@ -234,6 +247,17 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
             })
         })
         .collect()
+}
+
+/// The pair a claim compares, for the kinds that compare one.
+fn claim_pair(test: &ClaimTest) -> Option<&Pair> {
+    match test {
+        ClaimTest::Lower { pair }
+        | ClaimTest::Within { pair, .. }
+        | ClaimTest::NotWorse { pair, .. }
+        | ClaimTest::GapGrows { pair } => Some(pair),
+        _ => None,
+    }
 }
 
 /// Each learned policy's training episodes per run: the fewest any of its runs logged.
@@ -276,18 +300,19 @@ fn short_of_budget(
 
 /// The policies a claim names.
 fn claim_policies(test: &ClaimTest) -> Vec<&str> {
-    match test {
-        ClaimTest::Lower { pair }
-        | ClaimTest::Within { pair, .. }
-        | ClaimTest::NotWorse { pair, .. }
-        | ClaimTest::GapGrows { pair } => vec![&pair.a, &pair.b],
-        ClaimTest::DiagonalBest { policy, .. } | ClaimTest::Behaviour { policy, .. } => {
+    match (claim_pair(test), test) {
+        (Some(pair), _) => vec![&pair.a, &pair.b],
+        (None, ClaimTest::DiagonalBest { policy, .. } | ClaimTest::Behaviour { policy, .. }) => {
             vec![policy]
         }
-        ClaimTest::CurveBelow { a, b, .. }
-        | ClaimTest::AdaptsBetter { a, b, .. }
-        | ClaimTest::Faster { a, b, .. } => vec![a, b],
-        ClaimTest::NotTested { .. } => Vec::new(),
+        (
+            None,
+            ClaimTest::CurveBelow { a, b, .. }
+            | ClaimTest::AdaptsBetter { a, b, .. }
+            | ClaimTest::Faster { a, b, .. },
+        ) => vec![a, b],
+        // The pairs are claim_pair's; a statement not tested names no policy.
+        (None, _) => Vec::new(),
     }
 }
 
@@ -767,6 +792,7 @@ mod tests {
                 n_test: 4,
                 n_train: 4,
             }],
+            at_episode: None,
         }
     }
 

@@ -605,6 +605,9 @@ claims:
   - id: two-faster
     paper: two reaches GCS's test penalty in at most the CPU one takes
     faster: {a: two, b: one, maps: [rooms], n: [2], ratio: 1.0}
+  - id: two-beats-random-early
+    paper: after 2 of its 6 episodes, two beats Random
+    lower: {a: two, b: random, maps: [rooms], n: [2], at_episode: 2}
 ";
 
 #[test]
@@ -687,6 +690,10 @@ fn a_curve_ends_at_the_final_tests_and_the_report_reads_time_to_quality_from_it(
     assert!(claims.contains("two-faster"), "{claims}");
     assert!(claims.contains("faster"), "{claims}");
     assert!(claims.contains("rooms N=2 (to gcs's"), "{claims}");
+    let early = claims.lines().find(|l| l.contains("two-beats-random-early")).unwrap();
+    assert!(early.contains("after 2 training episodes (test curves)"), "{early}");
+    // Each run's point at episode 2 (3 test episodes), against Random's 2 x 3 episodes.
+    assert!(early.contains("(2 runs) vs"), "{early}");
     // The report store rebuilds the same verdict from the committed tables alone.
     let table_store = reports.join("curve/store");
     let again = succeed(harness(&["claims", table_store.to_str().unwrap()]));

@@ -171,12 +171,26 @@ impl Checker<'_> {
             Some(n_test) => self.column(spec, field, least, n_test, &maps)?,
             None => self.row(spec, field, least, &maps)?,
         };
+        if let Some(at) = &spec.at_episode {
+            // A test curve plays N_train agents, undisturbed.
+            let problem = if a_under.is_some() || b_under.is_some() {
+                Some("test curves are played undisturbed: leave out a_under and b_under")
+            } else if points.iter().any(|p| p.n_test != p.n_train) {
+                Some("test curves play N_test = N_train: leave out n_train and n_test")
+            } else {
+                None
+            };
+            if let Some(problem) = problem {
+                return Err(fail(at, format!("{field}.at_episode"), problem.into()));
+            }
+        }
         Ok(Pair {
             a: spec.a.value.clone(),
             b: spec.b.value.clone(),
             a_under,
             b_under,
             points,
+            at_episode: spec.at_episode.as_ref().map(|at| at.value),
         })
     }
 

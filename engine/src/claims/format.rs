@@ -70,6 +70,11 @@ pub struct PairSpec {
     pub a_under: Option<Spanned<String>>,
     #[serde(default)]
     pub b_under: Option<Spanned<String>>,
+    /// Judge the learned policies after this many training episodes, from their test curves
+    /// (`evaluate_every`; at each run's first point at or after it), not after their whole
+    /// training. Baselines do not train: their test episodes serve as they are.
+    #[serde(default)]
+    pub at_episode: Option<Spanned<u64>>,
 }
 
 /// Two policies' adaptation ratios under a disturbance that loses robots, at (map, N): the

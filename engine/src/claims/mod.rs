@@ -161,6 +161,9 @@ pub struct Pair {
     pub a_under: Option<String>,
     pub b_under: Option<String>,
     pub points: Vec<Point>,
+    /// The training episode the learned sides are taken at, from their test curves; `None`:
+    /// after their whole training.
+    pub at_episode: Option<u64>,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -690,8 +690,14 @@ fn a_curve_ends_at_the_final_tests_and_the_report_reads_time_to_quality_from_it(
     assert!(claims.contains("two-faster"), "{claims}");
     assert!(claims.contains("faster"), "{claims}");
     assert!(claims.contains("rooms N=2 (to gcs's"), "{claims}");
-    let early = claims.lines().find(|l| l.contains("two-beats-random-early")).unwrap();
-    assert!(early.contains("after 2 training episodes (test curves)"), "{early}");
+    let early = claims
+        .lines()
+        .find(|l| l.contains("two-beats-random-early"))
+        .unwrap();
+    assert!(
+        early.contains("after 2 training episodes (test curves)"),
+        "{early}"
+    );
     // Each run's point at episode 2 (3 test episodes), against Random's 2 x 3 episodes.
     assert!(early.contains("(2 runs) vs"), "{early}");
     // The report store rebuilds the same verdict from the committed tables alone.

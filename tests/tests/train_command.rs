@@ -299,3 +299,51 @@ fn a_network_that_does_not_fit_the_map_is_named() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Sets the first value of the first tensor of a safetensors file to NaN, and returns the
+/// tensor's name.
+fn poison_first_tensor(path: &Path) -> String {
+    let mut bytes = std::fs::read(path).unwrap();
+    let header_len = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + header_len]).unwrap();
+    let (name, start) = header
+        .as_object()
+        .unwrap()
+        .iter()
+        .filter(|(name, _)| *name != "__metadata__")
+        .map(|(name, t)| {
+            (
+                name.clone(),
+                t["data_offsets"][0].as_u64().unwrap() as usize,
+            )
+        })
+        .min_by_key(|(_, start)| *start)
+        .unwrap();
+    let at = 8 + header_len + start;
+    bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    std::fs::write(path, bytes).unwrap();
+    name
+}
+
+/// One NaN in the weights: `run` and `--resume` refuse the checkpoint, naming the file, the
+/// tensor and the index, and write nothing (every agent took action 4 before, silently).
+#[test]
+fn a_nan_weight_is_refused_naming_its_tensor() {
+    let dir = scratch("nan-weight");
+    let out = dir.join("run");
+    succeed(train(&out, &[("--until", "4")]));
+    let name = poison_first_tensor(&out.join("checkpoint.safetensors"));
+    let before = files(&out);
+    let policy = format!("checkpoint:{}", out.display());
+    let map = small_map();
+    let args = [
+        "run", "--map", &map, "--fov", "7", "--agents", "2", "--policy", &policy, "--steps", "5",
+    ];
+    let expected = format!("checkpoint.safetensors: tensor `{name}` holds NaN at flat index 0");
+    for error in [fail(harness(&args)), fail(train(&out, &[("--resume", "")]))] {
+        assert!(error.contains(&expected), "{error}");
+        assert!(!error.contains("panicked"), "{error}");
+    }
+    assert_eq!(files(&out), before, "nothing written");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

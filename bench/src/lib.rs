@@ -5,6 +5,7 @@
 pub use engine::cpu_clock;
 pub mod network;
 pub mod policy;
+pub mod quality;
 pub mod scale;
 pub mod training;
 pub mod world_steps;

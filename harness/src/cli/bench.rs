@@ -7,6 +7,7 @@ use anyhow::Context;
 
 use bench::network::{ModelMeasurement, NetworkBench, Peak, ROLLOUT_STEPS, UPDATE_PASSES};
 use bench::policy;
+use bench::quality;
 use bench::scale::{self, ScaleSetup};
 use bench::training;
 use bench::world_steps::{PYTHON_STEPS_PER_SECOND, measure};
@@ -42,6 +43,38 @@ enum BenchTarget {
     /// MA-G-PPO training cost per agent-step on a small map and on a large one with growing
     /// teams (attention within a radius), and the memory of the visibility tables.
     Scale(ScaleArgs),
+    /// Time to quality: the training CPU until a run's test penalty first reaches GCS's, for
+    /// the `fast` profile and for a candidate (`fast` with `--candidate` overrides), seed by
+    /// seed, and the ratio of their medians.
+    Quality(QualityArgs),
+}
+
+#[derive(clap::Args)]
+struct QualityArgs {
+    #[command(flatten)]
+    world: WorldArgs,
+    #[arg(long, default_value_t = 2)]
+    agents: usize,
+    /// Training episodes at most per run (the learning rate anneals over them).
+    #[arg(long, default_value_t = 200)]
+    episodes: u64,
+    /// Training episodes between two plays of the test episodes.
+    #[arg(long, default_value_t = 20)]
+    every: u64,
+    /// Test episodes per play (seeds 0, 1, ...) and their T.
+    #[arg(long, default_value_t = 4)]
+    test_episodes: u64,
+    #[arg(long, default_value_t = 500)]
+    test_steps: usize,
+    /// Training seeds per profile.
+    #[arg(long, default_value_t = 3)]
+    seeds: u64,
+    /// Training fields of both (`key=value`, as `harness train --set`).
+    #[arg(long)]
+    set: Vec<String>,
+    /// Training fields of the candidate only, after `--set`.
+    #[arg(long)]
+    candidate: Vec<String>,
 }
 
 #[derive(clap::Args)]
@@ -97,6 +130,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         Some(BenchTarget::Network(network)) => return run_network(&network),
         Some(BenchTarget::Training(training)) => return run_training(&training),
         Some(BenchTarget::Scale(scale)) => return run_scale(&scale),
+        Some(BenchTarget::Quality(quality)) => return run_quality(&quality),
         None => {}
     }
     let world_args = args.world.as_ref().context("--map is required")?;
@@ -189,6 +223,83 @@ fn run_training(args: &TrainingArgs) -> anyhow::Result<()> {
             );
         }
     }
+    Ok(())
+}
+
+fn run_quality(args: &QualityArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.every >= 1, "--every must be positive");
+    anyhow::ensure!(args.seeds >= 1, "--seeds must be positive");
+    anyhow::ensure!(args.test_episodes >= 1, "--test-episodes must be positive");
+    let world = args.world.load()?;
+    world
+        .map()
+        .check_agents(args.agents, std::path::Path::new(&args.world.map))?;
+    let tests = quality::Tests {
+        agents: args.agents,
+        episodes: args.test_episodes,
+        steps: args.test_steps,
+    };
+    let level = quality::gcs_level(&world, tests)?;
+    let owned = [
+        format!("agents={{\"min\":{0},\"max\":{0}}}", args.agents),
+        format!("episodes={}", args.episodes),
+    ];
+    let base = training::fast_config(ArchitectureName::MaGPpo, args.agents)
+        .with_overrides(&[&owned[..], &args.set[..]].concat())
+        .context("--set")?;
+    let candidate = base
+        .with_overrides(&args.candidate)
+        .context("--candidate")?;
+    println!(
+        "time to quality, MA-G-PPO on {} with N = {}: the training CPU (process, {} threads) \
+         until the mean of {} test episodes (T = {}, sampled actions) first reaches GCS's {:.4e}, \
+         played every {} of at most {} episodes",
+        world.map().name(),
+        args.agents,
+        rayon::current_num_threads(),
+        args.test_episodes,
+        args.test_steps,
+        level,
+        args.every,
+        args.episodes
+    );
+    // Per profile: the median time to GCS (inf when the median run did not reach it) and
+    // the median of the runs' whole training CPU.
+    let mut medians = Vec::new();
+    for (name, config) in [("fast", &base), ("candidate", &candidate)] {
+        println!(
+            "{name}\n  {:>6} {:>16} {:>12} {:>14}",
+            "seed", "CPU s to GCS", "episodes", "last penalty"
+        );
+        let (mut times, mut totals) = (Vec::new(), Vec::new());
+        for seed in 0..args.seeds {
+            let settings = (tests, level, args.every);
+            let run = quality::time_to_quality(&world, config.clone(), seed, settings)?;
+            let (episodes, time) = match run.reached {
+                Some((episodes, cpu)) => (episodes.to_string(), cpu),
+                None => (format!("> {}", args.episodes), f64::INFINITY),
+            };
+            times.push(time);
+            totals.push(run.cpu_seconds);
+            println!(
+                "  {seed:>6} {time:>16.1} {episodes:>12} {:>14.4e}",
+                run.last_penalty
+            );
+        }
+        medians.push((quality::median_time(&times), quality::median_time(&totals)));
+    }
+    let ((fast, fast_total), (candidate, _)) = (medians[0], medians[1]);
+    let ratio = match (fast.is_finite(), candidate.is_finite()) {
+        (true, _) => format!("= {:.2}", candidate / fast),
+        (false, true) => format!(
+            "< {:.2} (fast did not reach GCS within its {fast_total:.1} s)",
+            candidate / fast_total
+        ),
+        (false, false) => "unknown: neither reached GCS".to_owned(),
+    };
+    println!(
+        "median CPU to GCS: fast {fast:.1} s, candidate {candidate:.1} s: candidate / fast {ratio}"
+    );
     Ok(())
 }
 

@@ -103,18 +103,6 @@ pub fn time_to_quality(
     }
 }
 
-/// The median of times to quality, a run that never reached the level counting as infinite.
-pub fn median_time(times: &[f64]) -> f64 {
-    let mut sorted = times.to_vec();
-    sorted.sort_unstable_by(f64::total_cmp);
-    let half = sorted.len() / 2;
-    match sorted.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => sorted[half],
-        _ => (sorted[half - 1] + sorted[half]) / 2.0,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use std::path::Path;
@@ -151,7 +139,5 @@ mod tests {
         assert_eq!(never.reached, None);
         assert!(never.cpu_seconds > 0.0 && never.last_penalty >= 0.0);
         assert!(gcs_level(&world, tests).unwrap() >= 0.0);
-        assert_eq!(median_time(&[3.0, f64::INFINITY, 1.0]), 3.0);
-        assert_eq!(median_time(&[3.0, f64::INFINITY]), f64::INFINITY);
     }
 }

@@ -20,6 +20,20 @@ impl PolicyKey {
     }
 }
 
+/// Every row's map and policy (with its N_train), in row order: what the tables of training
+/// runs (the training log, the test curve) group by.
+pub fn trained_keys(frame: &DataFrame) -> PolarsResult<Vec<(String, PolicyKey)>> {
+    let maps = strings(frame, "map")?;
+    let policies = strings(frame, "policy")?;
+    let n_trains = optional_u32s(frame, "n_train")?;
+    Ok(maps
+        .into_iter()
+        .zip(policies)
+        .zip(n_trains)
+        .map(|((map, policy), n_train)| (map, PolicyKey { policy, n_train }))
+        .collect())
+}
+
 /// The rows of one (map, policy, N_train, N_test), the unit of the summary.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct GroupKey {

@@ -6,7 +6,9 @@
 
 use polars::prelude::*;
 
-use super::columns::{PolicyKey, distinct, f64s, group_rows, named_seed, optional_u32s, strings};
+use super::columns::{
+    PolicyKey, distinct, f64s, group_rows, named_seed, optional_u32s, strings, trained_keys,
+};
 use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use engine::stats::{least_squares_slope, summarize};
@@ -283,21 +285,9 @@ type Setting = (String, PolicyKey);
 
 /// The training table's runs, grouped by learned setting in order.
 fn runs_by_setting(training: &DataFrame) -> PolarsResult<Vec<(Setting, Vec<Run>)>> {
-    let (maps, policies) = (strings(training, "map")?, strings(training, "policy")?);
-    let (n_trains, keys) = (
-        optional_u32s(training, "n_train")?,
-        strings(training, "cell_key")?,
-    );
+    let keys = strings(training, "cell_key")?;
     let (episodes, penalties) = (f64s(training, "episode")?, f64s(training, "penalty")?);
-    let settings: Vec<Setting> = (0..training.height())
-        .map(|r| {
-            let policy = PolicyKey {
-                policy: policies[r].clone(),
-                n_train: n_trains[r],
-            };
-            (maps[r].clone(), policy)
-        })
-        .collect();
+    let settings: Vec<Setting> = trained_keys(training)?;
     let run = |rows: &[usize]| {
         let mut points: Vec<(f64, f64)> =
             rows.iter().map(|&r| (episodes[r], penalties[r])).collect();

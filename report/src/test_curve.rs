@@ -13,10 +13,11 @@ use std::collections::BTreeMap;
 use polars::prelude::*;
 
 use super::chart::lines::{Line, LineChart, Panel, Spread};
-use super::columns::{PolicyKey, distinct, f64s, group_rows, optional_u32s, strings};
+use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
 use super::comparison::{self, Sample};
 use super::time_to_quality;
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
+use engine::stats::median_with_infinities as median;
 use engine::test_curve::{CPU_SECONDS, TRAINING_EPISODE};
 
 /// One point of a run's curve.
@@ -59,22 +60,11 @@ pub struct Across {
 
 /// The curves of the `test_curve` table by (map, policy), runs by cell.
 pub fn trained_curves(table: &DataFrame) -> Result<Vec<Trained>, ReportError> {
-    let maps = strings(table, "map")?;
-    let policies = strings(table, "policy")?;
-    let n_trains = optional_u32s(table, "n_train")?;
     let cells = strings(table, "cell_key")?;
     let episodes = f64s(table, TRAINING_EPISODE)?;
     let cpu = f64s(table, CPU_SECONDS)?;
     let penalties = f64s(table, "cumulative_penalty")?;
-    let keys: Vec<(String, PolicyKey)> = (0..table.height())
-        .map(|i| {
-            let policy = PolicyKey {
-                policy: policies[i].clone(),
-                n_train: n_trains[i],
-            };
-            (maps[i].clone(), policy)
-        })
-        .collect();
+    let keys = trained_keys(table)?;
     Ok(group_rows(&keys)
         .into_iter()
         .map(|((map, policy), rows)| {
@@ -132,18 +122,6 @@ pub fn samples_at(
     let baselines = samples.iter().filter(|s| s.group.policy.n_train.is_none());
     at_budget.extend(baselines.cloned());
     Ok(at_budget)
-}
-
-/// The median of `values`, which may hold infinities (not NaN); `NaN` for none.
-pub fn median(values: &[f64]) -> f64 {
-    let mut sorted = values.to_vec();
-    sorted.sort_unstable_by(f64::total_cmp);
-    let half = sorted.len() / 2;
-    match sorted.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => sorted[half],
-        _ => (sorted[half - 1] + sorted[half]) / 2.0,
-    }
 }
 
 /// The runs gathered at every training episode any of them played, in order.

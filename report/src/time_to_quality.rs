@@ -14,10 +14,11 @@ use polars::prelude::*;
 
 use super::comparison::{CONFIDENCE, Sample};
 use super::markdown::number;
-use super::test_curve::{RunCurve, Trained, across, median};
+use super::test_curve::{RunCurve, Trained, across};
 use super::verdicts::{PointTest, Verdict};
 use super::{ReportError, ReportWriter};
 use engine::claims::{GCS, Point};
+use engine::stats::median_with_infinities as median;
 use engine::stats::{self, Block, RESAMPLES, StatsError, Unit, bootstrap};
 
 /// The reference's name and mean test penalty (10^6) by (map, N_test).

@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use polars::prelude::*;
 
 use super::chart::lines::{Line, LineChart, Panel, Spread};
-use super::columns::{PolicyKey, distinct, f64s, group_rows, optional_u32s, strings};
+use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 
 /// The paper's rolling window, 500 episodes of 30,000, as a fraction of the run, so that an
@@ -184,24 +184,13 @@ pub(crate) fn episodes_per_run(training: &DataFrame) -> PolarsResult<Vec<(String
 /// The training table's penalties (10^6) by (map, policy) and, within, by run (cell), each
 /// run sorted by episode.
 fn runs_of(training: &DataFrame) -> Result<Vec<(Trained, RunsByCell)>, ReportError> {
-    let maps = strings(training, "map")?;
-    let policies = strings(training, "policy")?;
-    let n_trains = optional_u32s(training, "n_train")?;
     let cells = strings(training, "cell_key")?;
     let episodes: Vec<u64> = f64s(training, "episode")?
         .into_iter()
         .map(|e| e as u64)
         .collect();
     let penalties = f64s(training, "penalty")?;
-    let keys: Vec<Trained> = (0..training.height())
-        .map(|i| {
-            let policy = PolicyKey {
-                policy: policies[i].clone(),
-                n_train: n_trains[i],
-            };
-            (maps[i].clone(), policy)
-        })
-        .collect();
+    let keys: Vec<Trained> = trained_keys(training)?;
     Ok(group_rows(&keys)
         .into_iter()
         .map(|(key, rows)| {

@@ -80,6 +80,19 @@ pub fn median(values: &[f64]) -> Result<f64, StatsError> {
     })
 }
 
+/// The median of values that may be infinite (a time never reached), NaN for none: the
+/// statistic of times to quality, where `median` refuses infinities.
+pub fn median_with_infinities(values: &[f64]) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_unstable_by(f64::total_cmp);
+    let half = sorted.len() / 2;
+    match sorted.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => sorted[half],
+        _ => (sorted[half - 1] + sorted[half]) / 2.0,
+    }
+}
+
 /// The interquartile mean: the mean of the middle half, dropping the lowest and the highest
 /// quarter (`floor(n / 4)` values each, as scipy's `trim_mean(x, 0.25)` that rliable uses).
 pub fn iqm(values: &[f64]) -> Result<f64, StatsError> {
@@ -167,6 +180,13 @@ fn check(values: &[f64]) -> Result<(), StatsError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_median_of_times_counts_a_time_never_reached_as_infinite() {
+        assert_eq!(median_with_infinities(&[3.0, f64::INFINITY, 1.0]), 3.0);
+        assert_eq!(median_with_infinities(&[3.0, f64::INFINITY]), f64::INFINITY);
+        assert!(median_with_infinities(&[]).is_nan());
+    }
 
     #[test]
     fn centres_and_spread_of_known_values() {

@@ -11,6 +11,7 @@ use bench::quality;
 use bench::scale::{self, ScaleSetup};
 use bench::training;
 use bench::world_steps::{PYTHON_STEPS_PER_SECOND, measure};
+use engine::stats::median_with_infinities;
 use policies::ppo::ArchitectureName;
 use world::World;
 
@@ -286,7 +287,10 @@ fn run_quality(args: &QualityArgs) -> anyhow::Result<()> {
                 run.last_penalty
             );
         }
-        medians.push((quality::median_time(&times), quality::median_time(&totals)));
+        medians.push((
+            median_with_infinities(&times),
+            median_with_infinities(&totals),
+        ));
     }
     let ((fast, fast_total), (candidate, _)) = (medians[0], medians[1]);
     let ratio = match (fast.is_finite(), candidate.is_finite()) {

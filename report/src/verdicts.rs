@@ -170,6 +170,11 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                     PointTest::below,
                 )?,
                 (ClaimTest::GapGrows { pair }, None) => gap_grows(sides(pair), pair, seed)?,
+                (ClaimTest::EveryRunLower { pair }, None) => {
+                    per_point(sides(pair), pair, seed, |a, b, _, seed| {
+                        Ok(every_run_lower(a, b, seed)?)
+                    })?
+                }
                 (
                     ClaimTest::AdaptsBetter {
                         a,
@@ -255,7 +260,8 @@ fn claim_pair(test: &ClaimTest) -> Option<&Pair> {
         ClaimTest::Lower { pair }
         | ClaimTest::Within { pair, .. }
         | ClaimTest::NotWorse { pair, .. }
-        | ClaimTest::GapGrows { pair } => Some(pair),
+        | ClaimTest::GapGrows { pair }
+        | ClaimTest::EveryRunLower { pair } => Some(pair),
         _ => None,
     }
 }
@@ -447,6 +453,37 @@ fn compare_lower(
         p_high
     );
     Ok((PointTest::below(&difference, 0.0)?, text))
+}
+
+/// `every_run_lower`: each training run of `a` (its mean) against `b`'s mean and its 95 %
+/// interval. Supported when every run lies below the interval, contradicted when one lies
+/// above it (a run that diverged, or learned nothing against Random): a statement about each
+/// run, not about the policy's mean.
+fn every_run_lower(
+    a: &Sample,
+    b: &Sample,
+    seed: world::Seed,
+) -> Result<(PointTest, String), StatsError> {
+    let runs = a.units()?;
+    let of_b = bootstrap_of(&[b], &|u: &[Vec<f64>]| mean(&u[0]), seed)?;
+    let (low, high) = of_b.interval(CONFIDENCE)?;
+    let below = runs.iter().filter(|&&run| run < low).count();
+    let above = runs.iter().filter(|&&run| run > high).count();
+    let each: Vec<String> = runs.iter().map(|&run| number(run)).collect();
+    let text = format!(
+        "runs {} against {} [{}, {}] ({}): {below} of {} below, {above} above",
+        each.join(", "),
+        number(of_b.estimate),
+        number(low),
+        number(high),
+        draws(b),
+        runs.len()
+    );
+    let test = PointTest {
+        supported: below == runs.len(),
+        p_contradicted: if above > 0 { 0.0 } else { 1.0 },
+    };
+    Ok((test, text))
 }
 
 /// `within` and `not_worse`: (a - b) / scale at every point, with the scale the claim names
@@ -831,6 +868,25 @@ mod tests {
         assert!(text.contains("random's mean"), "{text}");
         let (by_b, text) = judge(Scale::B);
         assert_ne!(by_b, Verdict::Supported, "{text}");
+    }
+
+    #[test]
+    fn every_run_must_lie_below_and_one_above_contradicts() {
+        let seed = world::Seed::new(3);
+        let random = sample("random", None, &[&[100.0, 101.0, 99.0, 100.0, 100.5, 99.5]]);
+        let learned = sample("ppo", Some(4), &[&[10.0, 11.0], &[20.0, 21.0], &[30.0]]);
+        let (test, text) = every_run_lower(&learned, &random, seed).unwrap();
+        assert!(test.supported, "{text}");
+        assert!(text.contains("3 of 3 below, 0 above"), "{text}");
+        let diverged = sample("ppo", Some(4), &[&[10.0], &[20.0], &[300.0, 310.0]]);
+        let (test, text) = every_run_lower(&diverged, &random, seed).unwrap();
+        assert!(!test.supported && test.p_contradicted == 0.0, "{text}");
+        let near = sample("ppo", Some(4), &[&[10.0], &[100.0]]);
+        let (test, _) = every_run_lower(&near, &random, seed).unwrap();
+        assert!(
+            !test.supported && test.p_contradicted == 1.0,
+            "one run within: neither"
+        );
     }
 
     #[test]

@@ -59,6 +59,7 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         spec.within.is_some(),
         spec.not_worse.is_some(),
         spec.gap_grows.is_some(),
+        spec.every_run_lower.is_some(),
         spec.diagonal_best.is_some(),
         spec.curve_below.is_some(),
         spec.behaviour.is_some(),
@@ -67,8 +68,9 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         spec.not_tested.is_some(),
     ];
     if kinds.iter().filter(|&&k| k).count() != 1 {
-        let problem = "give exactly one of lower, within, not_worse, gap_grows, diagonal_best, \
-                       curve_below, behaviour, adapts_better, faster, not_tested";
+        let problem = "give exactly one of lower, within, not_worse, gap_grows, \
+                       every_run_lower, diagonal_best, curve_below, behaviour, adapts_better, \
+                       faster, not_tested";
         return Err((None, String::new(), problem.into()));
     }
     let checker = Checker { context };
@@ -91,6 +93,11 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         }
         ClaimTest::GapGrows {
             pair: checker.pair(pair, ".gap_grows", 2)?,
+        }
+    } else if let Some(pair) = &spec.every_run_lower {
+        checker.policy(&pair.a, ".every_run_lower.a".into(), true)?;
+        ClaimTest::EveryRunLower {
+            pair: checker.pair(pair, ".every_run_lower", 1)?,
         }
     } else if let Some(diagonal) = &spec.diagonal_best {
         checker.diagonal(diagonal)?

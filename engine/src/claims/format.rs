@@ -19,6 +19,9 @@ pub struct ClaimSpec {
     pub within: Option<PairSpec>,
     /// `a`'s mean penalty is at most `tolerance` (relative to `b`'s) above `b`'s at every point.
     pub not_worse: Option<PairSpec>,
+    /// Every training run of the learned `a` has a mean penalty below `b`'s at every point:
+    /// no run diverged or learned nothing (with `b: random`).
+    pub every_run_lower: Option<PairSpec>,
     /// `b`'s penalty minus `a`'s grows along the points in the order `n` lists them (one map).
     pub gap_grows: Option<PairSpec>,
     /// In every N_test column of `n`, the policy trained with N_train = N_test is the best.

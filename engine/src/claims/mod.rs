@@ -47,6 +47,10 @@ pub enum ClaimTest {
     GapGrows {
         pair: Pair,
     },
+    /// Every run of the learned `a` below `b` (see `format::ClaimSpec::every_run_lower`).
+    EveryRunLower {
+        pair: Pair,
+    },
     DiagonalBest {
         policy: String,
         map: String,
@@ -142,6 +146,7 @@ impl ClaimTest {
             ClaimTest::Within { .. } => "within",
             ClaimTest::NotWorse { .. } => "not_worse",
             ClaimTest::GapGrows { .. } => "gap_grows",
+            ClaimTest::EveryRunLower { .. } => "every_run_lower",
             ClaimTest::DiagonalBest { .. } => "diagonal_best",
             ClaimTest::CurveBelow { .. } => "curve_below",
             ClaimTest::Behaviour { .. } => "behaviour",

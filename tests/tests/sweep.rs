@@ -341,6 +341,37 @@ fn a_full_store_stops_the_sweep_and_a_later_run_goes_on() {
     assert_same_tables(&out, &reference_run(TINY));
 }
 
+/// A limit on the address space (`ulimit -v 100M`) once killed the sweep with "memory
+/// allocation of 1 bytes failed"; it is refused with the numbers before anything is written.
+#[test]
+fn a_small_address_space_is_refused_with_the_numbers() {
+    use std::os::unix::process::CommandExt;
+    let out = scratch("address-space").join("store");
+    let mut limited = tiny_sweep(&out);
+    // SAFETY: between fork and exec the closure calls only setrlimit, which is
+    // async-signal-safe, and allocates nothing.
+    unsafe {
+        limited.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: 100 << 20,
+                rlim_max: 100 << 20,
+            };
+            if libc::setrlimit(libc::RLIMIT_AS, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let output = limited.output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("the address space is limited to 100 MB (ulimit -v)"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "nothing written");
+}
+
 #[test]
 fn two_shards_merged_equal_one_unsharded_run() {
     let dir = scratch("shards");

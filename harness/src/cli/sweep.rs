@@ -56,6 +56,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         Some(jobs) => jobs as usize,
         None => std::thread::available_parallelism().map_or(1, usize::from),
     };
+    check_address_space(&scenario, jobs)?;
     let options = SweepOptions {
         jobs,
         shard: args.shard,
@@ -116,6 +117,42 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
          and the next sweep tries them again)",
         report.failed.len(),
         out.display()
+    );
+    Ok(())
+}
+
+/// Address space a sweep reserves besides its data: the binary and its libraries, and per
+/// thread a stack and an allocator arena (glibc reserves 64 MB of address space for each).
+const ADDRESS_SPACE_BASE: u64 = 128 << 20;
+const ADDRESS_SPACE_PER_THREAD: u64 = 66 << 20;
+
+/// Refuses, with the numbers, a sweep that a limit on the address space (`ulimit -v`) would
+/// kill with "memory allocation of 1 bytes failed" before its first cell: its threads reserve
+/// far more address space than they use.
+fn check_address_space(scenario: &Scenario, jobs: usize) -> anyhow::Result<()> {
+    let mut limit = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: `limit` is a valid, writable rlimit.
+    let status = unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut limit) };
+    if status != 0 || limit.rlim_cur == libc::RLIM_INFINITY {
+        return Ok(());
+    }
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    // Each worker, its rayon pool, the stop watcher and the main thread.
+    let threads = (jobs + jobs * (cores / jobs).max(1) + 2) as u64;
+    let wanted = (scenario.size().memory_bytes)
+        .saturating_add(ADDRESS_SPACE_BASE)
+        .saturating_add(threads * ADDRESS_SPACE_PER_THREAD);
+    let mb = |bytes: u64| bytes as f64 / (1 << 20) as f64;
+    anyhow::ensure!(
+        limit.rlim_cur >= wanted,
+        "the address space is limited to {:.0} MB (ulimit -v), and this sweep would reserve \
+         about {:.0} MB ({threads} threads' stacks and allocator arenas, and its data): raise \
+         the limit, or run fewer --jobs",
+        mb(limit.rlim_cur),
+        mb(wanted)
     );
     Ok(())
 }

@@ -123,11 +123,15 @@ impl CellConfig {
 
     /// The training run of this cell's `learned` policy.
     pub fn training_config_of(&self, learned: &Learned) -> Result<TrainingConfig, ConfigError> {
-        let n_train = self.n_train.ok_or_else(|| ConfigError::Invalid {
+        learned.training_config(&self.world, self.learned_n_train()?)
+    }
+
+    /// N_train of a learned policy's cell, which every such cell has.
+    pub fn learned_n_train(&self) -> Result<u32, ConfigError> {
+        self.n_train.ok_or_else(|| ConfigError::Invalid {
             field: "agents",
             reason: "a learned policy's cell has no N_train".to_owned(),
-        })?;
-        learned.training_config(&self.world, n_train)
+        })
     }
 }
 

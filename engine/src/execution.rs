@@ -265,10 +265,7 @@ fn curve_point(
     state: &TrainingState,
     cpu_seconds: f64,
 ) -> Result<CurvePoint, CellError> {
-    let agents = config.n_train.ok_or_else(|| ConfigError::Invalid {
-        field: "agents",
-        reason: "a learned policy's cell has no N_train".to_owned(),
-    })?;
+    let agents = config.learned_n_train()?;
     let mut policy = learned_policy(world, state.model.clone(), &state.config, learned)?;
     let rows = (0..config.test_episodes)
         .map(|episode| test_episode(world, policy.as_mut(), config, agents, episode))

@@ -82,14 +82,19 @@ pub fn run_sweep(
         Some(shard) => shard.select(&cells),
         None => cells.iter().collect(),
     };
-    let damaged: Vec<(String, String)> = (selected.iter())
-        .filter_map(|c| Some((c.key.clone(), store.check_cell(&c.key).err()?.to_string())))
-        .collect();
-    let mut todo: Vec<&SweepCell> = selected
-        .iter()
-        .copied()
-        .filter(|c| store.finished(&c.key).is_none())
-        .collect();
+    // One look at each cell: finished, damaged (computed again, and said so) or not yet run.
+    let mut damaged: Vec<(String, String)> = Vec::new();
+    let mut todo: Vec<&SweepCell> = Vec::new();
+    for &cell in &selected {
+        match store.check_cell(&cell.key) {
+            Ok(Some(_)) => {}
+            Ok(None) => todo.push(cell),
+            Err(why) => {
+                damaged.push((cell.key.clone(), why.to_string()));
+                todo.push(cell);
+            }
+        }
+    }
     let from_cache = match &options.cache {
         Some(cache) => exchange_with_cache(store, cache, &selected, &mut todo)?,
         None => 0,

@@ -20,6 +20,10 @@ use crate::viewpoints::VisibilitySets;
 
 pub struct StaticCoverage {
     world: Arc<World>,
+    /// The greedy's first picks so far, best first: the picks for k agents are a prefix of
+    /// those for more, so every episode's posts are read from here, and the greedy over the
+    /// map's visibility sets runs again only for a larger team.
+    ranked: Vec<Cell>,
     search: BreadthFirst,
     routes: Vec<Route>,
     impatience: Vec<Impatience>,
@@ -29,6 +33,7 @@ impl StaticCoverage {
     pub fn new(world: &Arc<World>) -> Self {
         Self {
             world: world.clone(),
+            ranked: Vec::new(),
             search: BreadthFirst::new(world.map()),
             routes: Vec::new(),
             impatience: Vec::new(),
@@ -36,10 +41,13 @@ impl StaticCoverage {
     }
 
     /// The `agents` cells that together see the most, best first.
-    pub fn posts(&self, agents: usize) -> Vec<Cell> {
-        let free = self.world.map().free_cells();
-        let chosen = greedy_max_coverage(&VisibilitySets::new(&self.world), agents);
-        chosen.iter().map(|&index| free[index]).collect()
+    pub fn posts(&mut self, agents: usize) -> Vec<Cell> {
+        if self.ranked.len() < agents {
+            let free = self.world.map().free_cells();
+            let chosen = greedy_max_coverage(&VisibilitySets::new(&self.world), agents);
+            self.ranked = chosen.iter().map(|&index| free[index]).collect();
+        }
+        self.ranked[..agents.min(self.ranked.len())].to_vec()
     }
 
     /// Pairs (agent, post), shortest path first; unreachable pairs are never matched.

@@ -21,7 +21,7 @@ impl PolicyKey {
 }
 
 /// Every row's map and policy (with its N_train), in row order: what the tables of training
-/// runs (the training log, the test curve) group by.
+/// runs (the training log, the test curve) group by, and the first part of a `GroupKey`.
 pub fn trained_keys(frame: &DataFrame) -> PolarsResult<Vec<(String, PolicyKey)>> {
     let maps = strings(frame, "map")?;
     let policies = strings(frame, "policy")?;
@@ -45,18 +45,13 @@ pub struct GroupKey {
 impl GroupKey {
     /// Every row's group, in row order.
     pub fn of_rows(frame: &DataFrame) -> PolarsResult<Vec<GroupKey>> {
-        let maps = strings(frame, "map")?;
-        let policies = strings(frame, "policy")?;
-        let n_trains = optional_u32s(frame, "n_train")?;
         let n_tests = u32s(frame, "n_test")?;
-        Ok(maps
+        Ok(trained_keys(frame)?
             .into_iter()
-            .zip(policies)
-            .zip(n_trains)
             .zip(n_tests)
-            .map(|(((map, policy), n_train), n_test)| GroupKey {
+            .map(|((map, policy), n_test)| GroupKey {
                 map,
-                policy: PolicyKey { policy, n_train },
+                policy,
                 n_test,
             })
             .collect())

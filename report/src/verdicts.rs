@@ -124,7 +124,14 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
     let samples = samples(recorded.episodes)?;
     let disturbed = DisturbedSamples::new(recorded.disturbed)?;
     let trained = recorded.training.map(trained_episodes).transpose()?;
-    let curves = recorded.test_curve.map(trained_curves).transpose()?;
+    // Read only for `faster` claims.
+    let timed = claims
+        .iter()
+        .any(|c| matches!(c.test, ClaimTest::Faster { .. }));
+    let curves = match timed {
+        true => recorded.test_curve.map(trained_curves).transpose()?,
+        false => None,
+    };
     let mut at_budget: BTreeMap<u64, Vec<Sample>> = BTreeMap::new();
     if let Some(curve) = recorded.test_curve {
         for at in claims

@@ -298,30 +298,36 @@ fn a_failing_cell_is_kept_as_failed_and_named_while_the_others_finish() {
     assert!(readme.contains("failed: map \"two_rooms\""), "{readme}");
 }
 
+/// Runs `command` under a limit of `bytes` on `resource` (as `ulimit` sets it).
+fn limit(command: &mut Command, resource: libc::__rlimit_resource_t, bytes: libc::rlim_t) {
+    use std::os::unix::process::CommandExt;
+    // SAFETY: between fork and exec the closure calls only setrlimit, which is
+    // async-signal-safe, and allocates nothing.
+    unsafe {
+        command.pre_exec(move || {
+            let limit = libc::rlimit {
+                rlim_cur: bytes,
+                rlim_max: bytes,
+            };
+            if libc::setrlimit(resource, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+}
+
 /// A store that takes no more (here every file is limited to 1 MB, as `ulimit -f` does, so the
 /// trained policy's checkpoint cannot be written): the sweep stops with an error naming the
 /// folder and starts no further cell; the finished cells stand, and once the limit is gone the
 /// same sweep goes on to the reference tables.
 #[test]
 fn a_full_store_stops_the_sweep_and_a_later_run_goes_on() {
-    use std::os::unix::process::CommandExt;
     let out = scratch("full").join("store");
     let mut limited = tiny_sweep(&out);
-    // SAFETY: between fork and exec the closure calls only setrlimit, which is
-    // async-signal-safe, and allocates nothing. SIGXFSZ keeps its default action (death) here:
-    // the binary must ignore it itself, so that the write fails with EFBIG as on a full disk.
-    unsafe {
-        limited.pre_exec(|| {
-            let limit = libc::rlimit {
-                rlim_cur: 1 << 20,
-                rlim_max: 1 << 20,
-            };
-            if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            Ok(())
-        });
-    }
+    // SIGXFSZ keeps its default action (death) in the child: the binary must ignore it
+    // itself, so that the write fails with EFBIG as on a full disk.
+    limit(&mut limited, libc::RLIMIT_FSIZE, 1 << 20);
     let output = limited.output().unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(!output.status.success(), "{stderr}");
@@ -345,23 +351,9 @@ fn a_full_store_stops_the_sweep_and_a_later_run_goes_on() {
 /// allocation of 1 bytes failed"; it is refused with the numbers before anything is written.
 #[test]
 fn a_small_address_space_is_refused_with_the_numbers() {
-    use std::os::unix::process::CommandExt;
     let out = scratch("address-space").join("store");
     let mut limited = tiny_sweep(&out);
-    // SAFETY: between fork and exec the closure calls only setrlimit, which is
-    // async-signal-safe, and allocates nothing.
-    unsafe {
-        limited.pre_exec(|| {
-            let limit = libc::rlimit {
-                rlim_cur: 100 << 20,
-                rlim_max: 100 << 20,
-            };
-            if libc::setrlimit(libc::RLIMIT_AS, &limit) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            Ok(())
-        });
-    }
+    limit(&mut limited, libc::RLIMIT_AS, 100 << 20);
     let output = limited.output().unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(1), "{stderr}");

@@ -116,7 +116,7 @@ mod tests {
     fn a_run_stops_at_the_level_or_at_its_end() {
         let map = Map::parse_text("room", "......\n......\n......\n", Path::new("room.txt"));
         let world = World::new(map.unwrap(), WorldParams::new(3, 1.0, 10.0).unwrap());
-        let config = TrainingConfig::profile(Profile::Fast)
+        let config = TrainingConfig::profile(Profile::FAST)
             .with_overrides(&[
                 r#"network={"custom":{"convolutions":[{"out_channels":2,"kernel":3,"stride":2,"padding":1}],"hidden":[8]}}"#,
                 "agents={\"min\":2,\"max\":2}",

@@ -36,7 +36,7 @@ pub fn fast_config(architecture: ArchitectureName, agents: usize) -> TrainingCon
     TrainingConfig {
         architecture,
         agents: AgentCount::fixed(agents),
-        ..TrainingConfig::profile(Profile::Fast)
+        ..TrainingConfig::profile(Profile::FAST)
     }
 }
 

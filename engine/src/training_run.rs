@@ -155,7 +155,7 @@ mod tests {
     }
 
     fn config() -> TrainingConfig {
-        TrainingConfig::profile(Profile::Fast)
+        TrainingConfig::profile(Profile::FastV1)
             .with_overrides(&[
                 r#"network={"custom":{"convolutions":[{"out_channels":2,"kernel":3,"stride":2,"padding":1}],"hidden":[8]}}"#,
                 "agents={\"min\":2,\"max\":2}",

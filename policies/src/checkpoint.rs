@@ -492,7 +492,7 @@ mod tests {
     use crate::ppo::Profile;
 
     fn state(architecture: &str) -> TrainingState {
-        let config = TrainingConfig::profile(Profile::Fast)
+        let config = TrainingConfig::profile(Profile::FastV1)
             .with_overrides(&[format!("architecture={architecture}")])
             .unwrap();
         super::refusals::state(config, 25)

@@ -98,7 +98,7 @@ fn train(architecture: &str) -> (Vec<f64>, String) {
         Map::load_text(&path).unwrap(),
         WorldParams::new(25, 1.0, 400.0).unwrap(),
     );
-    let config = TrainingConfig::profile(Profile::Fast)
+    let config = TrainingConfig::profile(Profile::FastV1)
         .with_overrides(&[
             format!("architecture={architecture}"),
             "agents={\"min\":2,\"max\":2}".to_owned(),

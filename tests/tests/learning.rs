@@ -23,7 +23,7 @@ fn small_two_room() -> Arc<World> {
 #[test]
 fn the_fast_profile_halves_randoms_penalty_on_a_small_two_room_map() {
     let world = small_two_room();
-    let config = TrainingConfig::profile(Profile::Fast)
+    let config = TrainingConfig::profile(Profile::FAST)
         .with_overrides(&[
             "network=compact",
             "agents={\"min\":2,\"max\":2}",

@@ -39,7 +39,7 @@ fn config(overrides: &[&str]) -> TrainingConfig {
         "neighbours={\"within_radius\":20}",
     ];
     let all: Vec<&str> = base.iter().chain(overrides).copied().collect();
-    TrainingConfig::profile(Profile::Fast)
+    TrainingConfig::profile(Profile::FAST)
         .with_overrides(&all)
         .unwrap()
 }
@@ -70,7 +70,7 @@ fn a_chosen_mini_map_block_sets_the_input_size() {
     let config = config(&["mini_map_block=2"]);
     let trainer = Trainer::new(world, config, 3).unwrap();
     assert_eq!(trainer.state().model.config().image_side, 50);
-    let zero = TrainingConfig::profile(Profile::Fast).with_overrides(&["mini_map_block=0"]);
+    let zero = TrainingConfig::profile(Profile::FAST).with_overrides(&["mini_map_block=0"]);
     let message = zero.unwrap_err().to_string();
     assert!(
         message.contains("mini_map_block: must be at least 1"),

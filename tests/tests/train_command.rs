@@ -55,7 +55,11 @@ fn trains_writes_its_files_and_resumes_to_the_same_weights() {
     let (straight, resumed) = (dir.join("straight"), dir.join("resumed"));
     succeed(train(&straight, &[]));
     succeed(train(&resumed, &[("--until", "4")]));
-    succeed(train(&resumed, &[("--resume", "")]));
+    // The run started as `fast`, today fast-v1: by its own name it is the same run.
+    succeed(train(
+        &resumed,
+        &[("--resume", ""), ("--profile", "fast-v1")],
+    ));
     for name in [
         "checkpoint.safetensors",
         "checkpoint.optimizer.safetensors",
@@ -140,6 +144,10 @@ fn a_resume_that_asks_for_another_run_is_refused_and_changes_nothing() {
         assert!(!stderr.contains("panicked"), "{stderr}");
         assert_eq!(files(&run), saved, "a refused resume changes nothing");
     };
+    refused(
+        &[("--profile", "paper")],
+        "it was saved with profile fast, this command asks for paper",
+    );
     refused(
         &[("--architecture", "ma-ppo")],
         "it was saved with architecture ma-g-ppo, this command asks for ma-ppo",

@@ -9,7 +9,7 @@ use world::{Map, MapError, WorldParams};
 
 use super::disturbances::check_disturbances;
 use super::error::ScenarioError;
-use super::format::{MapSpec, PolicySpec, ScenarioFile, WorldSpec};
+use super::format::{MapSpec, PolicySpec, ProfileName, ScenarioFile, WorldSpec};
 use super::size::{Limits, check_size};
 use super::{Scenario, ScenarioMap, ScenarioPolicy, WorldConfig};
 use crate::claims::{ClaimContext, check_claims};
@@ -150,15 +150,15 @@ fn check_world(spec: &WorldSpec, learned: bool, file: &Path) -> Result<WorldConf
 }
 
 fn check_policies(
-    policies: &Spanned<Vec<Spanned<PolicySpec>>>,
+    policies: &Spanned<Vec<Spanned<PolicySpec<ProfileName>>>>,
     file: &Path,
 ) -> Result<Vec<ScenarioPolicy>, ScenarioError> {
     let mut checked: Vec<ScenarioPolicy> = Vec::new();
     for (i, spec) in non_empty(policies, "policies", file)?.iter().enumerate() {
         let field = format!("policies[{i}]");
         let fail = |problem: String| ScenarioError::at(file, spec, &field, problem);
-        let policy =
-            ScenarioPolicy::try_from(spec.value.clone()).map_err(|e| fail(e.to_string()))?;
+        let policy = ScenarioPolicy::try_from(spec.value.clone().resolved())
+            .map_err(|e| fail(e.to_string()))?;
         let label = policy.label();
         if checked.iter().any(|p| p.label() == label) {
             return Err(fail(format!("policy {label:?} is listed twice")));
@@ -171,7 +171,7 @@ fn check_policies(
 /// Resolves every learned policy's training run for every N_train and map, so that a bad
 /// `set` or a network that does not fit a map's images fails now, not hours into a sweep.
 fn check_training(
-    specs: &Spanned<Vec<Spanned<PolicySpec>>>,
+    specs: &Spanned<Vec<Spanned<PolicySpec<ProfileName>>>>,
     policies: &[ScenarioPolicy],
     world: &WorldConfig,
     train_agents: &[u32],

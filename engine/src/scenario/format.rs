@@ -19,7 +19,7 @@ pub struct ScenarioFile {
     pub maps: Spanned<Vec<Spanned<MapSpec>>>,
     #[serde(default)]
     pub world: WorldSpec,
-    pub policies: Spanned<Vec<Spanned<PolicySpec>>>,
+    pub policies: Spanned<Vec<Spanned<PolicySpec<ProfileName>>>>,
     pub agents: AgentsSpec,
     /// Root of the scenario's seed tree.
     pub seed: u64,
@@ -122,14 +122,54 @@ pub struct LinksSpec {
 }
 
 /// One policy of the sweep: a baseline by name, or a learned architecture with its training.
-
+///
+/// `P` is how the profile is written: by the user's name in a scenario file
+/// ([`ProfileName`]), by its own serialised form in a cell's key ([`Profile`]), since `fast`
+/// in a file means today's default while `"fast"` in a key is the profile it was.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case")]
-pub enum PolicySpec {
+#[serde(
+    deny_unknown_fields,
+    rename_all = "kebab-case",
+    bound(deserialize = "P: Deserialize<'de> + Default")
+)]
+pub enum PolicySpec<P = Profile> {
     Baseline(BaselineSpec),
     #[serde(rename = "ma-g-ppo")]
-    MaGPpo(LearnedSpec),
-    MaPpo(LearnedSpec),
+    MaGPpo(LearnedSpec<P>),
+    MaPpo(LearnedSpec<P>),
+}
+
+/// A profile as a scenario file names it: `paper` (the default), `fast` or `fast-v1`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ProfileName(pub Profile);
+
+impl<'de> Deserialize<'de> for ProfileName {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(deserializer)?;
+        Profile::named(&name)
+            .map(ProfileName)
+            .map_err(serde::de::Error::custom)
+    }
+}
+
+impl PolicySpec<ProfileName> {
+    /// The policy as its cells' keys write it.
+    pub fn resolved(self) -> PolicySpec {
+        let resolve = |spec: LearnedSpec<ProfileName>| LearnedSpec {
+            profile: spec.profile.0,
+            name: spec.name,
+            channels: spec.channels,
+            episodes: spec.episodes,
+            set: spec.set,
+            test_actions: spec.test_actions,
+            evaluate_every: spec.evaluate_every,
+        };
+        match self {
+            PolicySpec::Baseline(baseline) => PolicySpec::Baseline(baseline),
+            PolicySpec::MaGPpo(spec) => PolicySpec::MaGPpo(resolve(spec)),
+            PolicySpec::MaPpo(spec) => PolicySpec::MaPpo(resolve(spec)),
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
@@ -140,15 +180,15 @@ pub struct BaselineSpec {
 
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct LearnedSpec {
+pub struct LearnedSpec<P = Profile> {
     /// The policy's name in tables, when the default (the architecture with its non-default
     /// channels and profile) does not tell two of a scenario's policies apart.
     #[serde(default)]
     pub name: Option<String>,
     /// The named set of training hyper-parameters the run starts from: `paper` (the released
-    /// code's) or `fast` (ours).
-    #[serde(default = "paper_profile")]
-    pub profile: Profile,
+    /// code's), `fast` (our default) or `fast-v1` (our first).
+    #[serde(default)]
+    pub profile: P,
     /// The images the policy sees: `[local, mini]` (the paper's full model), `[local]` or
     /// `[mini]` (RQ2).
     #[serde(default = "both_channels")]
@@ -266,10 +306,6 @@ fn paper_train_steps() -> Spanned<u32> {
 
 fn paper_test_steps() -> Spanned<u32> {
     unplaced(2000)
-}
-
-fn paper_profile() -> Profile {
-    Profile::Paper
 }
 
 fn both_channels() -> Vec<Channel> {

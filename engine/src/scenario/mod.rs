@@ -204,7 +204,7 @@ mod tests {
             ),
             (
                 "  - ma-ppo: {profile: slow, episodes: 5}\n",
-                "unknown variant `slow`",
+                "policies[1].ma-ppo.profile: unknown profile `slow` (known: paper, fast, fast-v1)",
             ),
             (
                 "  - ma-g-ppo: {episodes: 0, set: {network: compact}}\n",

@@ -103,10 +103,15 @@ impl Learned {
             Channels::Local => "[local]",
             Channels::Mini => "[mini]",
         };
-        label += match self.profile {
-            Profile::Paper => "",
-            Profile::Fast => "@fast",
-        };
+        // As the key writes the profile (fast-v1 is `@fast`): a cell's files hold its label,
+        // so a label may never change once cells were computed.
+        if self.profile != Profile::Paper {
+            let written = serde_json::to_value(self.profile).expect("a profile serialises");
+            label = format!(
+                "{label}@{}",
+                written.as_str().expect("a profile is a string")
+            );
+        }
         label
     }
 
@@ -220,10 +225,37 @@ impl From<ScenarioPolicy> for PolicySpec {
 mod tests {
     use super::*;
 
+    use super::super::format::ProfileName;
+
+    fn from_file(yaml: &str) -> Result<ScenarioPolicy, String> {
+        let spec: PolicySpec<ProfileName> =
+            serde_saphyr::from_str(yaml).map_err(|e| e.to_string())?;
+        ScenarioPolicy::try_from(spec.resolved()).map_err(|e| e.to_string())
+    }
+
     fn learned(channels: &str) -> ScenarioPolicy {
-        let yaml = format!("ma-g-ppo: {{profile: fast, episodes: 5, channels: {channels}}}");
-        let spec: PolicySpec = serde_saphyr::from_str(&yaml).unwrap();
-        ScenarioPolicy::try_from(spec).unwrap()
+        from_file(&format!(
+            "ma-g-ppo: {{profile: fast, episodes: 5, channels: {channels}}}"
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn a_profile_by_its_own_name_keeps_the_key_it_had_and_fast_names_the_default() {
+        let key_of = |profile: &str| {
+            let yaml = format!("ma-g-ppo: {{profile: {profile}, episodes: 5}}");
+            serde_json::to_string(&from_file(&yaml).unwrap()).unwrap()
+        };
+        // fast-v1's cells were keyed when it was called fast: its key still says so.
+        assert!(key_of("fast-v1").contains(r#""profile":"fast""#));
+        assert!(key_of("paper").contains(r#""profile":"paper""#));
+        let default = from_file("ma-g-ppo: {profile: fast, episodes: 5}").unwrap();
+        assert_eq!(default.learned().unwrap().profile, Profile::FAST);
+        let unknown = from_file("ma-g-ppo: {profile: fastest, episodes: 5}").unwrap_err();
+        assert!(
+            unknown.contains("unknown profile `fastest` (known: paper, fast, fast-v1)"),
+            "{unknown}"
+        );
     }
 
     #[test]

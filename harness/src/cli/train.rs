@@ -26,9 +26,10 @@ pub struct TrainArgs {
     architecture: Option<String>,
     #[arg(long, value_parser = ["both", "local", "mini"])]
     channels: Option<String>,
-    /// The preset the configuration starts from (default fast); on resume, the saved one.
-    #[arg(long, value_parser = ["fast", "paper"])]
-    profile: Option<String>,
+    /// The preset the configuration starts from: fast (the default), fast-v1 or paper; on
+    /// resume, the saved one.
+    #[arg(long, value_parser = |name: &str| Profile::named(name))]
+    profile: Option<Profile>,
     /// Train until this many episodes are done (the learning rate anneals over them).
     #[arg(long)]
     episodes: Option<u64>,
@@ -134,7 +135,7 @@ fn open(args: &TrainArgs, world: &std::sync::Arc<world::World>) -> anyhow::Resul
     if args.resume {
         let asked = run_folder::Asked {
             overrides: &overrides,
-            profile: args.profile.as_deref(),
+            profile: args.profile,
             seed: args.seed,
             world: &record,
         };
@@ -142,10 +143,7 @@ fn open(args: &TrainArgs, world: &std::sync::Arc<world::World>) -> anyhow::Resul
         return Ok(TrainingRun::resume(&args.out, world.clone(), &overrides)?);
     }
     run_folder::refuse_existing_run(&args.out, args.replace)?;
-    let profile = match args.profile.as_deref() {
-        Some("paper") => Profile::Paper,
-        _ => Profile::Fast,
-    };
+    let profile = args.profile.unwrap_or(Profile::FAST);
     let config = TrainingConfig::profile(profile).with_overrides(&overrides)?;
     let run = TrainingRun::start(&args.out, world.clone(), config, args.seed.unwrap_or(0))?;
     run_folder::begin(&args.out, &record)?;

@@ -67,7 +67,7 @@ fn time_a_paper_profile_load() {
 /// A small valid checkpoint: MA-G-PPO, the compact network on 8 x 8 images (its CNN ends in
 /// 32 channels of 2 x 2, so the actor's MLP reads 2 x 128 features into 256).
 fn small() -> CheckpointFiles {
-    let config = TrainingConfig::profile(Profile::Fast)
+    let config = TrainingConfig::profile(Profile::FastV1)
         .with_overrides(&["network=compact"])
         .unwrap();
     checkpoint::save(&state(config, 8))

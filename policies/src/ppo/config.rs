@@ -14,16 +14,59 @@ use crate::nn::{
 };
 use crate::ppo::value_norm::ValueNormalisation;
 
-/// The two presets the issue names.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
+/// The named presets of training hyper-parameters.
+///
+/// A profile's values never change once cells were trained with it (a key names the profile,
+/// not its values): better values become a new profile, and `fast` (the name a scenario or
+/// `harness train` gives) moves to it, while the old one stays reachable by its own name and
+/// keeps its cells' keys and labels. The serialised form (in cell keys, labels and
+/// checkpoints) is therefore not always the user's name: `FastV1` is written `"fast"`, the
+/// name it had when the first keys were made.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Profile {
     /// The released code's hyper-parameters exactly.
+    #[default]
+    #[serde(rename = "paper")]
     Paper,
-    /// Our default: GAE, advantage normalisation, minibatches, annealed larger learning rate,
-    /// gradient clipping, several environments in parallel.
-    Fast,
+    /// The first of ours: GAE, advantage normalisation, minibatches, annealed larger learning
+    /// rate, gradient clipping, 8 episodes in parallel before each update.
+    #[serde(rename = "fast")]
+    FastV1,
 }
+
+impl Profile {
+    /// What the name `fast` means: our current default.
+    pub const FAST: Profile = Profile::FastV1;
+
+    /// The names a user gives, with what each means.
+    pub const NAMES: [(&'static str, Profile); 3] = [
+        ("paper", Profile::Paper),
+        ("fast", Profile::FAST),
+        ("fast-v1", Profile::FastV1),
+    ];
+
+    /// The profile a user's name means (`paper`, `fast`, `fast-v1`).
+    pub fn named(name: &str) -> Result<Profile, UnknownProfile> {
+        Self::NAMES
+            .iter()
+            .find(|(known, _)| *known == name)
+            .map(|(_, profile)| *profile)
+            .ok_or_else(|| UnknownProfile(name.to_owned()))
+    }
+
+    /// The profile's own name (`fast-v1`, not `fast`, which moves).
+    pub fn name(self) -> &'static str {
+        match self {
+            Profile::Paper => "paper",
+            Profile::FastV1 => "fast-v1",
+        }
+    }
+}
+
+/// A profile name that names none.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("unknown profile `{0}` (known: paper, fast, fast-v1)")]
+pub struct UnknownProfile(pub String);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -259,7 +302,7 @@ impl TrainingConfig {
     pub fn profile(profile: Profile) -> Self {
         match profile {
             Profile::Paper => Self::paper(),
-            Profile::Fast => Self::fast(),
+            Profile::FastV1 => Self::fast_v1(),
         }
     }
 
@@ -303,9 +346,9 @@ impl TrainingConfig {
         }
     }
 
-    fn fast() -> Self {
+    fn fast_v1() -> Self {
         TrainingConfig {
-            profile: Profile::Fast,
+            profile: Profile::FastV1,
             init: InitName::Orthogonal,
             episodes: 3000,
             environments: 8,
@@ -558,14 +601,49 @@ mod tests {
         assert_eq!(compact.model_config(8).unwrap().image_side, 8);
     }
 
+    /// A cell's key names its profile, not the profile's values: a value changed under the
+    /// same name would give old keys new results. Better values are a new profile.
+    #[test]
+    fn a_profiles_values_never_change_under_its_name() {
+        let paper = r#"{"profile":"paper","architecture":"ma_g_ppo","heads":3,"neighbours":"all_others","channels":"both","mark_others_on_mini":false,"mini_map_block":null,"network":"paper","init":"pytorch","agents":{"min":4,"max":4},"episodes":30000,"steps_per_episode":1000,"environments":1,"epochs":4,"minibatches":1,"learning_rate":2e-6,"anneal_learning_rate":false,"adam_beta1":0.9,"adam_beta2":0.999,"adam_epsilon":1e-8,"gamma":0.99,"advantage":"monte_carlo","reward_scale":"raw","normalise_returns":true,"normalise_advantages":false,"clip":0.2,"entropy_coefficient":0.01,"value_coefficient":0.5,"attention_entropy_coefficient":0.01,"max_grad_norm":null}"#;
+        let fast_v1 = r#"{"profile":"fast","architecture":"ma_g_ppo","heads":3,"neighbours":"all_others","channels":"both","mark_others_on_mini":false,"mini_map_block":null,"network":"paper","init":"orthogonal","agents":{"min":4,"max":4},"episodes":3000,"steps_per_episode":1000,"environments":8,"epochs":4,"minibatches":4,"learning_rate":0.0003,"anneal_learning_rate":true,"adam_beta1":0.9,"adam_beta2":0.999,"adam_epsilon":1e-8,"gamma":0.99,"advantage":{"gae":{"lambda":0.95}},"reward_scale":"per_cell","normalise_returns":false,"normalise_advantages":true,"clip":0.2,"entropy_coefficient":0.01,"value_coefficient":0.5,"attention_entropy_coefficient":0.01,"max_grad_norm":0.5}"#;
+        for (profile, pinned) in [(Profile::Paper, paper), (Profile::FastV1, fast_v1)] {
+            let config = TrainingConfig::profile(profile);
+            assert_eq!(
+                serde_json::to_string(&config).unwrap(),
+                pinned,
+                "{profile:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn profiles_are_named_by_the_user_apart_from_their_stored_form() {
+        assert_eq!(Profile::named("fast-v1"), Ok(Profile::FastV1));
+        assert_eq!(Profile::named("fast"), Ok(Profile::FAST));
+        assert_eq!(Profile::named("paper"), Ok(Profile::Paper));
+        let unknown = Profile::named("Fast").unwrap_err().to_string();
+        assert_eq!(
+            unknown,
+            "unknown profile `Fast` (known: paper, fast, fast-v1)"
+        );
+        for (name, profile) in Profile::NAMES {
+            assert!(name == "fast" || profile.name() == name, "{name}");
+        }
+        assert_eq!(
+            serde_json::to_string(&Profile::FastV1).unwrap(),
+            r#""fast""#
+        );
+    }
+
     #[test]
     fn the_profile_options_are_off_by_default_left_out_of_the_json_and_checked() {
-        for profile in [Profile::Paper, Profile::Fast] {
+        for profile in [Profile::Paper, Profile::FastV1] {
             let text = serde_json::to_string(&TrainingConfig::profile(profile)).unwrap();
             assert!(!text.contains("value_normalisation"), "{text}");
             assert!(!text.contains("grad_clip_per_network"), "{text}");
         }
-        let fast = TrainingConfig::profile(Profile::Fast);
+        let fast = TrainingConfig::profile(Profile::FAST);
         let on = fast
             .with_overrides(&[
                 "value_normalisation={\"beta\":0.99999}",
@@ -602,7 +680,7 @@ mod tests {
 
     #[test]
     fn configurations_round_trip_through_json() {
-        let fast = TrainingConfig::profile(Profile::Fast);
+        let fast = TrainingConfig::profile(Profile::FAST);
         let text = serde_json::to_string(&fast).unwrap();
         assert_eq!(serde_json::from_str::<TrainingConfig>(&text).unwrap(), fast);
     }

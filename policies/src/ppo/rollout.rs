@@ -218,7 +218,7 @@ mod tests {
             agents: crate::ppo::AgentCount::fixed(3),
             steps_per_episode: 10,
             loss_probability: 1.0,
-            ..TrainingConfig::profile(crate::ppo::Profile::Fast)
+            ..TrainingConfig::profile(crate::ppo::Profile::FastV1)
         };
         let mut rollout = EnvironmentRollout::new(&world, &config, Seed::new(4)).unwrap();
         let (robot, at) = rollout.loss.expect("a loss with probability 1");

@@ -268,7 +268,7 @@ mod tests {
             .copied()
             .chain(overrides.iter().copied())
             .collect();
-        TrainingConfig::profile(crate::ppo::Profile::Fast)
+        TrainingConfig::profile(crate::ppo::Profile::FastV1)
             .with_overrides(&overrides)
             .unwrap()
     }

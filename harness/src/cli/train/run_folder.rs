@@ -15,7 +15,7 @@ use engine::checkpoint_dir;
 use engine::scenario::map_hash;
 use engine::training_run::LOG_FILE;
 use policies::checkpoint::{METADATA_FILE, OPTIMIZER_FILE, WEIGHTS_FILE};
-use policies::ppo::TrainingConfig;
+use policies::ppo::{Profile, TrainingConfig};
 use serde_json::{Map, Value, json};
 use world::World;
 
@@ -37,7 +37,7 @@ pub struct Asked<'a> {
     /// `key=value` overrides of the saved configuration (the named flags and `--set`).
     pub overrides: &'a [String],
     /// `--profile`, when given.
-    pub profile: Option<&'a str>,
+    pub profile: Option<Profile>,
     /// `--seed`, when given.
     pub seed: Option<u64>,
     /// The world the command loaded, as [`world_record`] gives it.
@@ -112,7 +112,9 @@ pub fn check_resume(folder: &Path, asked: &Asked) -> anyhow::Result<()> {
         saved_world.as_ref().map(|_| asked.world),
     );
     if let Some(profile) = asked.profile {
-        wanted.insert("profile".into(), profile.into());
+        // As the saved configuration writes it, which is not always the name given.
+        let written = serde_json::to_value(profile).expect("a profile serialises");
+        wanted.insert("profile".into(), written);
     }
     let clauses = differences(&saved, &wanted);
     anyhow::ensure!(clauses.is_empty(), "{}: {}", refused(), clauses.join("; "));

@@ -240,8 +240,17 @@ fn replay_disturbed(
 #[derive(Debug)]
 pub struct TrainingAuditLine {
     pub cell_key: String,
-    /// The episodes trained again, or why the run differs or could not be repeated.
-    pub outcome: Result<u64, AuditError>,
+    /// What came back the same, or why the run differs or could not be repeated.
+    pub outcome: Result<TrainedAgain, AuditError>,
+}
+
+/// A training run that came back the same.
+#[derive(Debug)]
+pub struct TrainedAgain {
+    pub episodes: u64,
+    /// What was compared: the weights and the log, or the log alone for a cell taken from
+    /// tables, which keep no weights.
+    pub compared: &'static str,
 }
 
 /// Trains `sample` of the store's learned cells again (all of them if there are fewer),
@@ -276,16 +285,22 @@ fn train_again(
     store: &Store,
     worlds: &Mutex<HashMap<String, Arc<World>>>,
     record: &CellRecord,
-) -> Result<u64, AuditError> {
+) -> Result<TrainedAgain, AuditError> {
     let config = &record.config;
     let training = config.training_config().ok_or(AuditError::NotTrained)??;
     let world = world_of(store, worlds, config)?;
     let mut trainer = Trainer::new(world, training, config.training_seed)?;
     let records = trainer.train(u64::MAX, &mut |_| ())?;
-    let stored = store.cell_file(record, WEIGHTS_FILE)?;
-    if checkpoint::save(trainer.state()).weights != stored {
-        return Err(AuditError::WeightsDiffer);
-    }
+    let compared = match &record.taken_from {
+        Some(_) => "log (its weights were not kept: taken from tables)",
+        None => {
+            let stored = store.cell_file(record, WEIGHTS_FILE)?;
+            if checkpoint::save(trainer.state()).weights != stored {
+                return Err(AuditError::WeightsDiffer);
+            }
+            "weights and log"
+        }
+    };
     let log = training_log::to_frame(&records)?;
     let stored = store
         .cell_table(record, TRAINING_FILE)?
@@ -295,7 +310,10 @@ fn train_again(
     if !log.equals_missing(&stored) {
         return Err(AuditError::LogDiffers);
     }
-    Ok(records.len() as u64)
+    Ok(TrainedAgain {
+        episodes: records.len() as u64,
+        compared,
+    })
 }
 
 /// The world of a stored map, built once per map and checked against the map's hash.

@@ -7,7 +7,7 @@ use std::time::{Instant, SystemTime};
 use polars::prelude::DataFrame;
 use policies::checkpoint::{self, CheckpointError, METADATA_FILE, WEIGHTS_FILE};
 use policies::nn::ActorCritic;
-use policies::ppo::{ConfigError, TrainingConfig, TrainingState};
+use policies::ppo::{ConfigError, TrainError, Trainer, TrainingConfig, TrainingState};
 use policies::{LearnedPolicy, PlanError, Policy};
 use world::{StartError, World};
 
@@ -163,6 +163,7 @@ pub fn run_cell(
         wall_seconds: clock.elapsed().as_secs_f64(),
         files: Default::default(),
         sizes: Default::default(),
+        taken_from: None,
     };
     files.extend(recording.files(&cell.key, config)?);
     let record = store.save_cell(record, &files)?;
@@ -289,10 +290,33 @@ pub fn stored_policy(
         ScenarioPolicy::Baseline(baseline) => return Ok(baseline.build(world)?),
         ScenarioPolicy::Learned(learned) => learned,
     };
+    if record.taken_from.is_some() {
+        return trained_again(record, world, learned);
+    }
     let metadata = String::from_utf8_lossy(&store.cell_file(record, METADATA_FILE)?).into_owned();
     let metadata = checkpoint::read_metadata(&metadata)?;
     let model = checkpoint::load_model(&metadata, &store.cell_file(record, WEIGHTS_FILE)?)?;
     learned_policy(world, model, &metadata.config, learned)
+}
+
+/// The policy of a cell taken from tables, which keep no checkpoint: its run trained again
+/// from its config and seed, which gives the weights it was tested with (the training audit
+/// checks that a run trained again gives its bits). It costs the run's training time.
+fn trained_again(
+    record: &CellRecord,
+    world: &Arc<World>,
+    learned: &Learned,
+) -> Result<Box<dyn Policy>, CellError> {
+    let training = record.config.training_config_of(learned)?;
+    let seed = record.config.training_seed;
+    let mut trainer = Trainer::new(world.clone(), training.clone(), seed).map_err(retrain)?;
+    trainer.train(u64::MAX, &mut |_| ()).map_err(retrain)?;
+    let model = trainer.state().model.clone();
+    learned_policy(world, model, &training, learned)
+}
+
+fn retrain(error: TrainError) -> CellError {
+    CellError::Training(TrainingRunError::Train(error))
 }
 
 fn learned_policy(

@@ -59,6 +59,7 @@ pub fn compute_for(
         jobs,
         shard: None,
         cache: None,
+        tables: Vec::new(),
     };
     let report = run_sweep(&scenario, text, &store, &options)?;
     if !report.failed.is_empty() {

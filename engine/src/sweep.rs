@@ -17,6 +17,7 @@ use crate::scenario::Scenario;
 use crate::shard::Shard;
 use crate::stop;
 use crate::store::lease::exit_giving_back_leases;
+use crate::store::taken::TakenTables;
 use crate::store::{Manifest, Store, StoreError};
 
 pub struct SweepOptions {
@@ -27,6 +28,9 @@ pub struct SweepOptions {
     /// every cell finished here is copied there, so that scenarios sharing cells (the same map,
     /// policy, agent counts and seeds) compute each once.
     pub cache: Option<Store>,
+    /// Table stores (committed reports' `store/`) whose cells are taken instead of computed,
+    /// without their checkpoints (`store::taken`).
+    pub tables: Vec<TakenTables>,
 }
 
 /// What a sweep did.
@@ -37,6 +41,8 @@ pub struct SweepReport {
     pub already_finished: usize,
     /// Cells copied from the cache.
     pub from_cache: usize,
+    /// Cells taken from table stores.
+    pub from_tables: usize,
     pub computed: usize,
     /// Cells another sweep into the same folder held the lease of, or finished meanwhile:
     /// not computed here.
@@ -99,6 +105,7 @@ pub fn run_sweep(
         Some(cache) => exchange_with_cache(store, cache, &selected, &mut todo)?,
         None => 0,
     };
+    let from_tables = take_from_tables(store, &options.tables, &mut todo)?;
     in_work_order(&mut todo);
     let CellsRun { failed, elsewhere } =
         run_cells(scenario, store, options.cache.as_ref(), &todo, options.jobs)?;
@@ -113,8 +120,9 @@ pub fn run_sweep(
     let tabled = store.build_tables(&selected_keys, &scenario.outputs)?;
     Ok(SweepReport {
         selected: selected.len(),
-        already_finished: selected.len() - todo.len() - from_cache,
+        already_finished: selected.len() - todo.len() - from_cache - from_tables,
         from_cache,
+        from_tables,
         computed: todo.len() - failed.len() - elsewhere,
         elsewhere,
         failed,
@@ -185,6 +193,25 @@ fn exchange_with_cache(
     }
     *todo = still_todo;
     Ok(from_cache)
+}
+
+/// Takes the cells of `todo` that one of `tables` holds from it instead of computing them;
+/// returns how many.
+fn take_from_tables(
+    store: &Store,
+    tables: &[TakenTables],
+    todo: &mut Vec<&SweepCell>,
+) -> Result<usize, StoreError> {
+    let before = todo.len();
+    let mut still_todo = Vec::with_capacity(todo.len());
+    for &cell in todo.iter() {
+        match tables.iter().find(|source| source.holds(&cell.key)) {
+            Some(source) => drop(source.take(store, &cell.key)?),
+            None => still_todo.push(cell),
+        }
+    }
+    *todo = still_todo;
+    Ok(before - todo.len())
 }
 
 /// What happened to the cells a sweep set out to compute, beside those it computed.

@@ -877,3 +877,107 @@ fn the_smoke_sweep_exports_to_marl_eval() {
     let printed = succeed(loaded);
     assert!(printed.contains("aggregate scores computed"), "{printed}");
 }
+
+/// A long sweep's machine is lost, and with it every cell since the last commit of its
+/// report's tables: the sweep goes on from those tables (`--tables`), taking the cells they
+/// hold (rows and records, no checkpoints) and computing the rest, to the same tables as one
+/// uninterrupted run; the audit trains the taken runs again to replay their episodes.
+#[test]
+fn a_sweep_goes_on_from_its_committed_tables_to_the_same_results() {
+    let dir = scratch("from-tables");
+    // What was committed: the tables of the first repetition (half the cells).
+    let text = std::fs::read_to_string(common::repo_file(TINY)).unwrap();
+    let first = dir.join("first.yaml");
+    std::fs::write(&first, text.replace("repetitions: 2", "repetitions: 1")).unwrap();
+    let (lost, reports) = (dir.join("lost"), dir.join("reports"));
+    let (first, lost_arg) = (first.to_str().unwrap(), lost.to_str().unwrap());
+    let reports_arg = reports.to_str().unwrap();
+    succeed(harness(&[
+        "sweep",
+        first,
+        "--out",
+        lost_arg,
+        "--report-to",
+        reports_arg,
+    ]));
+    let tables = reports.join("tiny/store");
+    let tables_arg = ["--tables", tables.to_str().unwrap()];
+
+    let again = dir.join("again");
+    let printed = sweep(TINY, &again, &tables_arg);
+    assert!(
+        printed.contains("8 cells, 0 already finished, 0 from the cache, 4 from tables (no checkpoints), 4 computed"),
+        "{printed}"
+    );
+    let reference = reference_run(TINY);
+    for file in ["episodes.parquet", "summary.parquet"] {
+        let (x, y) = (
+            std::fs::read(again.join(file)),
+            std::fs::read(reference.join(file)),
+        );
+        assert!(x.unwrap() == y.unwrap(), "{file} differs");
+    }
+    let columns = engine::training_log::reproducible_columns;
+    let training = |store: &Path| read_table(store, "training").select(columns()).unwrap();
+    assert!(training(&again).equals_missing(&training(&reference)));
+    let taken: Vec<PathBuf> = std::fs::read_dir(again.join("cells"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|cell| {
+            let record = std::fs::read_to_string(cell.join("cell.json")).unwrap();
+            record.contains("\"taken_from\"")
+        })
+        .collect();
+    assert_eq!(taken.len(), 4);
+    assert!(
+        taken
+            .iter()
+            .all(|cell| !cell.join("checkpoint.safetensors").exists())
+    );
+
+    let audit = succeed(harness(&[
+        "audit",
+        again.to_str().unwrap(),
+        "--sample",
+        "32",
+        "--training-sample",
+        "4",
+    ]));
+    assert!(audit.contains("audit passed: 32 rows"), "{audit}");
+    assert!(
+        audit.contains("log (its weights were not kept: taken from tables)"),
+        "{audit}"
+    );
+
+    // Tables that are not a table store's, or that changed since their marker, give nothing.
+    let refused = |tables: &Path, expected: &str| {
+        let out = dir.join("refused");
+        let file = common::repo_file(TINY);
+        let args = [
+            "sweep",
+            &file,
+            "--out",
+            out.to_str().unwrap(),
+            "--no-report",
+        ];
+        let output = harness(&[&args[..], &["--tables", tables.to_str().unwrap()]].concat());
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            !output.status.success() && stderr.contains(expected),
+            "{stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        assert_eq!(finished_cells(&out), 0);
+    };
+    refused(&lost, "is not a table store (it has no table-store.json)");
+    let episodes = tables.join("episodes.parquet");
+    let mut bytes = std::fs::read(&episodes).unwrap();
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 1;
+    std::fs::write(&episodes, bytes).unwrap();
+    refused(
+        &tables,
+        "episodes.parquet: does not match its blake3 in table-store.json",
+    );
+}

@@ -8,12 +8,19 @@ fn missing(name: &str) -> PolarsError {
 }
 
 pub fn strings(frame: &DataFrame, name: &str) -> PolarsResult<Vec<String>> {
-    frame
+    optional_strings(frame, name)?
+        .into_iter()
+        .map(|v| v.ok_or_else(|| missing(name)))
+        .collect()
+}
+
+pub fn optional_strings(frame: &DataFrame, name: &str) -> PolarsResult<Vec<Option<String>>> {
+    Ok(frame
         .column(name)?
         .str()?
         .iter()
-        .map(|v| v.map(str::to_owned).ok_or_else(|| missing(name)))
-        .collect()
+        .map(|v| v.map(str::to_owned))
+        .collect())
 }
 
 pub fn optional_u32s(frame: &DataFrame, name: &str) -> PolarsResult<Vec<Option<u32>>> {

@@ -38,6 +38,7 @@ pub mod lease;
 pub mod record;
 pub mod table_store;
 pub mod tables;
+pub mod taken;
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
@@ -95,6 +96,16 @@ pub enum StoreError {
     TableOnly { folder: PathBuf, wanted: String },
     #[error("{folder} is a symbolic link; a store's folders must be real folders inside it")]
     LinkedFolder { folder: PathBuf },
+    #[error(
+        "cell {key} has no {file}: it was taken from the tables of {tables}, which keep no \
+         checkpoints (remove {folder} and run the sweep without --tables to compute it again)"
+    )]
+    NotKept {
+        key: String,
+        file: String,
+        tables: String,
+        folder: PathBuf,
+    },
 }
 
 impl StoreError {
@@ -344,7 +355,15 @@ impl Store {
         let recorded = record
             .files
             .get(file)
-            .ok_or_else(|| StoreError::corrupt(&path, "is not among the cell's files"))?;
+            .ok_or_else(|| match &record.taken_from {
+                Some(source) => StoreError::NotKept {
+                    key: record.key.clone(),
+                    file: file.to_owned(),
+                    tables: source.clone(),
+                    folder: self.cell_folder(&record.key),
+                },
+                None => StoreError::corrupt(&path, "is not among the cell's files"),
+            })?;
         let limit = record.sizes.get(file).copied().unwrap_or(MAX_FILE_BYTES);
         let bytes = read(&path, limit, "a cell's file (its recorded size)")?;
         if blake3::hash(&bytes).to_hex().as_str() != recorded {
@@ -515,20 +534,16 @@ impl Store {
         };
         let episodes = per_cell(EPISODES_FILE)?;
         let mut built = Vec::new();
-        for output in outputs {
-            let frame = match output {
-                Output::Episodes => episodes.clone(),
-                Output::Training => per_cell(TRAINING_FILE)?,
-                Output::Trajectories => per_cell(TRAJECTORIES_FILE)?,
-                Output::Snapshots => per_cell(SNAPSHOTS_FILE)?,
-                Output::Disturbed => per_cell(DISTURBED_FILE)?,
-                Output::DisturbedSteps => per_cell(DISTURBED_STEPS_FILE)?,
-                Output::TestCurve => per_cell(TEST_CURVE_FILE)?,
-                Output::Cells => Some(tables::cells_frame(records)?),
-                Output::Summary => episodes
+        for &output in outputs {
+            let frame = match (output, taken::per_cell_file(output)) {
+                (Output::Episodes, _) => episodes.clone(),
+                (Output::Cells, _) => Some(tables::cells_frame(records)?),
+                (Output::Summary, _) => episodes
                     .as_ref()
                     .map(crate::summary::summary_frame)
                     .transpose()?,
+                (_, Some(file)) => per_cell(file)?,
+                (_, None) => None,
             };
             built.extend(frame.map(|frame| (output.name(), frame)));
         }

@@ -38,6 +38,11 @@ pub struct CellRecord {
     /// finished cell compares. Empty in records written before it was kept.
     #[serde(default)]
     pub sizes: BTreeMap<String, u64>,
+    /// The table store the cell was taken from (`store::taken`) instead of computed: its
+    /// rows and provenance are the original's, but it has no checkpoint. Absent for a cell
+    /// computed here.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub taken_from: Option<String>,
 }
 
 /// The sweep's manifest, `sweep.json`: which scenario the folder holds and its full cell list,

@@ -201,6 +201,7 @@ impl Store {
             wall_seconds: f64s(&cells, "wall_seconds").map_err(corrupt)?[row],
             files: BTreeMap::new(),
             sizes: BTreeMap::new(),
+            taken_from: None,
         })
     }
 

@@ -158,8 +158,9 @@ fn show_disturbed(line: &DisturbedAuditLine) -> bool {
 fn show_training(line: &TrainingAuditLine) -> bool {
     let cell = &line.cell_key;
     match &line.outcome {
-        Ok(episodes) => {
-            println!("same       cell {cell}: {episodes} training episodes, weights and log");
+        Ok(again) => {
+            let (episodes, compared) = (again.episodes, again.compared);
+            println!("same       cell {cell}: {episodes} training episodes, {compared}");
             true
         }
         Err(why) => {

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use engine::scenario::Scenario;
 use engine::shard::Shard;
 use engine::store::Store;
+use engine::store::taken::TakenTables;
 use engine::sweep::{SweepOptions, run_sweep};
 use report::write_report;
 
@@ -25,6 +26,12 @@ pub struct SweepArgs {
     /// found there are copied instead of computed, and computed cells are added to it.
     #[arg(long)]
     cache: Option<PathBuf>,
+    /// A table store (a committed report's `store/`, as its sweep went on) whose cells are
+    /// taken instead of computed: their rows and records, checked against the hashes kept,
+    /// without checkpoints (replaying such a cell's policy needs it computed again). May be
+    /// given more than once.
+    #[arg(long)]
+    tables: Vec<PathBuf>,
     /// Do not write the report at the end (a shard never does: its store is partial).
     #[arg(long)]
     no_report: bool,
@@ -61,6 +68,11 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         jobs,
         shard: args.shard,
         cache: args.cache.as_deref().map(Store::new),
+        tables: args
+            .tables
+            .iter()
+            .map(|folder| TakenTables::open(Store::new(folder)))
+            .collect::<Result<_, _>>()?,
     };
     let report = run_sweep(&scenario, &text, &Store::new(&out), &options)?;
     engine::sweep::exit_if_asked();
@@ -68,11 +80,15 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         .shard
         .map_or(String::new(), |s| format!(" (shard {s})"));
     println!(
-        "sweep {}{shard}: {} cells, {} already finished, {} from the cache, {} computed, {} failed; tables of {} cells in {}",
+        "sweep {}{shard}: {} cells, {} already finished, {} from the cache,{} {} computed, {} failed; tables of {} cells in {}",
         scenario.name,
         report.selected,
         report.already_finished,
         report.from_cache,
+        match args.tables.is_empty() {
+            true => String::new(),
+            false => format!(" {} from tables (no checkpoints),", report.from_tables),
+        },
         report.computed,
         report.failed.len(),
         report.tabled,

@@ -447,7 +447,7 @@ fn compare_lower(
     let (low, high) = difference.interval(CONFIDENCE)?;
     let (p_low, p_high) = improvement.interval(CONFIDENCE)?;
     let text = format!(
-        "{} ({}) vs {} ({}), a - b {} [{}, {}], P(a < b) {:.2} [{:.2}, {:.2}]",
+        "{} ({}) vs {} ({}), a - b {} [{}, {}] (detectable {}), P(a < b) {:.2} [{:.2}, {:.2}]",
         number(mean(&a.units()?)?),
         draws(a),
         number(mean(&b.units()?)?),
@@ -455,11 +455,22 @@ fn compare_lower(
         number(difference.estimate),
         number(low),
         number(high),
+        number(detectable(low, high)),
         improvement.estimate,
         p_low,
         p_high
     );
     Ok((PointTest::below(&difference, 0.0)?, text))
+}
+
+/// The smallest true difference a comparison with this interval would find with 80 % power
+/// (two-sided 95 %, normal approximation): the interval's half-width times
+/// (z(0.975) + z(0.8)) / z(0.975). A difference below it going unseen is no evidence of none;
+/// more runs narrow it (about as one over the square root of their number).
+fn detectable(low: f64, high: f64) -> f64 {
+    const Z_975: f64 = 1.959_963_984_540_054;
+    const Z_80: f64 = 0.841_621_233_572_914_3;
+    (high - low) / 2.0 * (Z_975 + Z_80) / Z_975
 }
 
 /// `every_run_lower`: each training run of `a` (its mean) against `b`'s mean and its 95 %
@@ -522,7 +533,8 @@ fn tolerated(
         let boot = bootstrap_of(&samples, &statistic, seed)?;
         let (low, high) = boot.interval(CONFIDENCE)?;
         let text = format!(
-            "{} ({}) vs {} ({}), (a - b) / {} {:+.3} [{:+.3}, {:+.3}] (tolerance {})",
+            "{} ({}) vs {} ({}), (a - b) / {} {:+.3} [{:+.3}, {:+.3}] (detectable {:.3}, \
+             tolerance {})",
             number(mean(&a.units()?)?),
             draws(a),
             number(mean(&b.units()?)?),
@@ -531,6 +543,7 @@ fn tolerated(
             boot.estimate,
             low,
             high,
+            detectable(low, high),
             tolerance.value
         );
         Ok((judge(&boot, tolerance.value)?, text))
@@ -774,7 +787,10 @@ pub const RULE: &str = "Each of the scenario's claims with our numbers and a ver
      whose interval excludes the claim, inconclusive otherwise, and not tested where its \
      training runs are shorter than the budget the statement names. P(a < b) is the \
      probability that a run of a (an episode, for a baseline) has a lower penalty than one \
-     of b. Penalties in 10^6.";
+     of b. *detectable* is the smallest true difference the comparison would find four times \
+     in five at the spread its runs showed (from the interval's width): a smaller one can go \
+     unseen, so an inconclusive verdict rules out only differences above it. Penalties in \
+     10^6.";
 
 pub fn section(report: &mut ReportWriter, results: &[ClaimResult]) -> Result<(), ReportError> {
     let (behaviours, statistical): (Vec<&ClaimResult>, Vec<&ClaimResult>) =
@@ -801,6 +817,30 @@ pub fn section(report: &mut ReportWriter, results: &[ClaimResult]) -> Result<(),
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// With a known spread the interval of a difference of means is its estimate ± z(0.975)
+    /// times the standard error; a true difference of the detectable size must then be found
+    /// (the interval above 0) in 80 % of experiments.
+    #[test]
+    fn a_difference_of_the_detectable_size_is_found_four_times_in_five() {
+        use rand_core_06::{RngCore, SeedableRng};
+        let mut rng = rand_pcg_03::Pcg64Mcg::seed_from_u64(7);
+        let mut uniform = || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+        let error = (2.0_f64 / 5.0).sqrt(); // 5 runs a side, unit spread
+        let half_width = 1.959_963_984_540_054 * error;
+        let size = detectable(-half_width, half_width);
+        let experiments = 20_000;
+        let found = (0..experiments)
+            .filter(|_| {
+                let (u, v) = (uniform().max(f64::MIN_POSITIVE), uniform());
+                let normal = (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
+                size + normal * error - half_width > 0.0
+            })
+            .count();
+        let power = found as f64 / experiments as f64;
+        assert!((power - 0.80).abs() < 0.01, "{power}");
+        assert!(detectable(0.0, f64::INFINITY).is_infinite());
+    }
 
     #[test]
     fn slopes_fit_a_line_through_the_positions() {
@@ -873,8 +913,32 @@ mod tests {
         let (by_random, text) = judge(Scale::Random);
         assert_eq!(by_random, Verdict::Supported, "{text}");
         assert!(text.contains("random's mean"), "{text}");
+        assert!(text.contains("(detectable 0.0"), "{text}");
         let (by_b, text) = judge(Scale::B);
         assert_ne!(by_b, Verdict::Supported, "{text}");
+    }
+
+    #[test]
+    fn a_comparison_says_what_difference_its_runs_could_detect() {
+        let seed = world::Seed::new(5);
+        let spread = |policy, runs: &[&[f64]]| sample(policy, Some(4), runs);
+        let few = spread("a", &[&[10.0, 10.5], &[30.0, 29.0], &[20.0, 21.0]]);
+        let b = spread("b", &[&[25.0, 25.5], &[35.0, 34.0], &[15.0, 16.0]]);
+        let (_, text) = compare_lower(&few, &b, seed).unwrap();
+        let detectable_in = |text: &str| -> f64 {
+            let after = text.split("(detectable ").nth(1).unwrap();
+            after.split(')').next().unwrap().parse().unwrap()
+        };
+        let wide = detectable_in(&text);
+        let runs: Vec<&[f64]> = [&[10.0, 10.5][..], &[30.0, 29.0], &[20.0, 21.0]].repeat(4);
+        let others: Vec<&[f64]> = [&[25.0, 25.5][..], &[35.0, 34.0], &[15.0, 16.0]].repeat(4);
+        let (_, text) = compare_lower(&spread("a", &runs), &spread("b", &others), seed).unwrap();
+        let narrow = detectable_in(&text);
+        // Four times the runs, about half the detectable difference.
+        assert!(
+            narrow < 0.6 * wide && narrow > 0.3 * wide,
+            "{wide} then {narrow}"
+        );
     }
 
     #[test]

@@ -8,6 +8,7 @@ use world::Seed;
 
 use crate::code_version::code_version;
 use crate::disturbance::{Disturbance, UNDISTURBED};
+use crate::scenario::cost::{Cost, test_plays};
 use crate::scenario::{Learned, Scenario, ScenarioPolicy, WorldConfig};
 
 /// Branches of the scenario's seed tree, so training and testing never share a stream.
@@ -190,5 +191,26 @@ impl Scenario {
             }
         }
         runs
+    }
+}
+
+/// What the cell is expected to cost (`scenario::cost`), for `harness check`, progress and
+/// shard balancing.
+impl CellConfig {
+    pub fn cost(&self) -> Cost {
+        self.training_cost() + self.test_cost()
+    }
+
+    /// The cost of the cell's training run alone, its test curve included (nothing for a
+    /// baseline).
+    pub fn training_cost(&self) -> Cost {
+        let learned = self.policy.learned();
+        Cost::of_training(&self.world, learned, self.n_train, self.test_episodes)
+    }
+
+    /// The cost of the cell's test episodes alone.
+    pub fn test_cost(&self) -> Cost {
+        let plays = test_plays(self.test_episodes, self.disturbances.len());
+        Cost::of_tests(&self.world, self.policy.learned(), &self.n_test, plays)
     }
 }

@@ -22,11 +22,6 @@ use crate::training_log::TIMING_COLUMNS;
 /// The scenario whose results are fingerprinted.
 pub const SCENARIO: &str = include_str!("../fingerprint/scenario.yaml");
 
-/// The fingerprint the current code is expected to give; part of every cell's key.
-pub fn pinned() -> &'static str {
-    include_str!("../fingerprint/pinned.txt").trim()
-}
-
 #[derive(Debug, thiserror::Error)]
 pub enum FingerprintError {
     #[error(transparent)]

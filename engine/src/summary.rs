@@ -19,7 +19,6 @@ use crate::stats::{
     Block, RESAMPLES, Sample, StatsError, Unit, bootstrap, iqm, mean, median, named_seed,
     standard_deviation,
 };
-use crate::store::StoreError;
 
 const CONFIDENCE: f64 = 0.95;
 
@@ -53,6 +52,15 @@ struct GroupSummary {
     worst_idleness: MeanWithInterval,
 }
 
+/// Why an `episodes` table could not be summarised.
+#[derive(Debug, thiserror::Error)]
+pub enum SummaryError {
+    #[error("{0}")]
+    Table(#[from] PolarsError),
+    #[error("summary: {0}")]
+    Stats(#[from] StatsError),
+}
+
 struct MeanWithInterval {
     mean: f64,
     low: f64,
@@ -60,7 +68,7 @@ struct MeanWithInterval {
 }
 
 /// The summary of an `episodes` table, groups in order of first appearance.
-pub fn summary_frame(episodes: &DataFrame) -> Result<DataFrame, StoreError> {
+pub fn summary_frame(episodes: &DataFrame) -> Result<DataFrame, SummaryError> {
     let groups = groups(episodes)?;
     let stats: Vec<GroupSummary> = groups.iter().map(summarise).collect::<Result<_, _>>()?;
     let text =
@@ -173,7 +181,7 @@ fn group_seed(group: &Group) -> Seed {
     ))
 }
 
-fn groups(episodes: &DataFrame) -> Result<Vec<Group>, StoreError> {
+fn groups(episodes: &DataFrame) -> Result<Vec<Group>, SummaryError> {
     let column = |name: &str| episodes.column(name);
     let map = column("map")?.str()?;
     let policy = column("policy")?.str()?;

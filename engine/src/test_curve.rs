@@ -55,12 +55,6 @@ pub struct TestCurve {
     points: Vec<CurvePoint>,
 }
 
-/// How many times a run of `episodes` training episodes plays its test episodes: before
-/// training, after every `every` episodes and at the end (at most; rounds may merge two).
-pub fn plays(episodes: u64, every: u64) -> u64 {
-    episodes.div_ceil(every.max(1)) + 1
-}
-
 impl TestCurve {
     pub fn new(every: u64) -> Self {
         Self {
@@ -242,6 +236,8 @@ mod tests {
         curve.push(point(80));
         assert_eq!(curve.next_stop(80, 100), 100);
         assert!(curve.due(100, 100), "the end is always played");
+        // The schedule's count is what the cost estimate counts.
+        use crate::scenario::cost::plays;
         assert_eq!(plays(100, 40), 4);
         assert_eq!(plays(80, 40), 3);
     }

@@ -22,8 +22,8 @@ use super::behaviour::measure;
 use super::columns::{GroupKey, PolicyKey, strings, u32s};
 use super::motion::{Motion, sin_theta};
 use super::verdicts::at_point;
-use engine::claims::{Claim, ClaimTest, Point};
 use engine::execution::{CellError, observed_test_episode, stored_policy};
+use engine::scenario::claims::{Claim, ClaimTest, Point};
 use engine::store::{CellRecord, Store, StoreError};
 
 /// The store table of measured episodes (`NAME.parquet` and `NAME.csv` in the store's root).

@@ -15,8 +15,8 @@ use super::columns::{GroupKey, distinct, f64s, optional_u32s, strings, u32s};
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, samples, samples_of};
 use super::motion::map_shades;
 use super::{ReportError, ReportWriter, file_stem};
-use engine::claims::Point;
 use engine::disturbance::UNDISTURBED;
+use engine::scenario::claims::Point;
 use engine::stats::{StatsError, mean, standard_deviation};
 use world::Map;
 

@@ -190,9 +190,9 @@ fn missing_paragraph(missing: &[MissingCell], cells: usize) -> String {
 }
 
 /// The claims of the scenario as the sweep ran it (its copy in the store).
-pub fn store_claims(store: &Store) -> Result<Vec<engine::claims::Claim>, ReportError> {
+pub fn store_claims(store: &Store) -> Result<Vec<engine::scenario::claims::Claim>, ReportError> {
     let text = store.scenario_text()?;
-    Ok(engine::claims::claims_of_text(
+    Ok(engine::scenario::claims::claims_of_text(
         &text,
         &store.scenario_path(),
     )?)
@@ -234,7 +234,7 @@ impl StoreTables {
     /// The verdict of every claim.
     pub fn verdicts(
         &self,
-        claims: &[engine::claims::Claim],
+        claims: &[engine::scenario::claims::Claim],
     ) -> Result<Vec<verdicts::ClaimResult>, ReportError> {
         self.judge(claims, &self.behaviour_measures(claims)?)
     }
@@ -242,7 +242,7 @@ impl StoreTables {
     /// The verdict of every claim, the behaviour claims' from `behaviours`, their measures.
     pub fn judge(
         &self,
-        claims: &[engine::claims::Claim],
+        claims: &[engine::scenario::claims::Claim],
         behaviours: &[behaviour_replay::EpisodeMeasure],
     ) -> Result<Vec<verdicts::ClaimResult>, ReportError> {
         let recorded = verdicts::Recorded {
@@ -259,7 +259,7 @@ impl StoreTables {
     /// `behaviour_replay`).
     pub fn behaviour_measures(
         &self,
-        claims: &[engine::claims::Claim],
+        claims: &[engine::scenario::claims::Claim],
     ) -> Result<Vec<behaviour_replay::EpisodeMeasure>, ReportError> {
         let motions = self.motions.as_ref().map(|(_, m)| m.as_slice());
         let (store, episodes) = (&self.store, &self.episodes);

@@ -12,7 +12,7 @@ use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{GroupKey, f64s, group_rows, strings, u32s};
 use super::verdicts::at_point;
 use super::{ReportError, ReportWriter, file_stem};
-use engine::claims::{Claim, ClaimTest};
+use engine::scenario::claims::{Claim, ClaimTest};
 use engine::store::Store;
 
 /// The maps of a store by name, from its `cells` table and map files.
@@ -281,7 +281,7 @@ fn signals(motion: &Motion) -> LineChart {
 
 #[cfg(test)]
 mod tests {
-    use engine::claims::{Behaviour, Point};
+    use engine::scenario::claims::{Behaviour, Point};
 
     use super::*;
     use crate::columns::PolicyKey;

@@ -17,7 +17,7 @@ use super::markdown::number;
 use super::test_curve::{RunCurve, Trained, across};
 use super::verdicts::{PointTest, Verdict};
 use super::{ReportError, ReportWriter};
-use engine::claims::{GCS, Point};
+use engine::scenario::claims::{GCS, Point};
 use engine::stats::median_with_infinities as median;
 use engine::stats::{self, Block, RESAMPLES, StatsError, Unit, bootstrap};
 

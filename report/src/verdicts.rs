@@ -20,7 +20,9 @@ use super::test_curve::{samples_at, trained_curves};
 use super::time_to_quality;
 use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use engine::claims::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
+use engine::scenario::claims::{
+    Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance,
+};
 use engine::stats::{Bootstrap, StatsError, holm, least_squares_slope, mean, mean_difference};
 
 /// The family-wise level of a claim's contradiction, and each point's own level.

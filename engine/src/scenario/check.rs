@@ -12,7 +12,7 @@ use super::error::ScenarioError;
 use super::format::{MapSpec, PolicySpec, ProfileName, ScenarioFile, WorldSpec};
 use super::size::{Limits, check_size};
 use super::{Scenario, ScenarioMap, ScenarioPolicy, WorldConfig};
-use crate::claims::{ClaimContext, check_claims};
+use crate::scenario::claims::{ClaimContext, check_claims};
 
 pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenario, ScenarioError> {
     let name = check_name(&spec.name, file)?;

@@ -36,7 +36,7 @@ pub struct ScenarioFile {
     pub disturbances: Spanned<Vec<Spanned<DisturbanceSpec>>>,
     /// The paper's statements this experiment tests (`claims::format::ClaimSpec`).
     #[serde(default)]
-    pub claims: Vec<Spanned<crate::claims::format::ClaimSpec>>,
+    pub claims: Vec<Spanned<crate::scenario::claims::format::ClaimSpec>>,
 }
 
 /// A map by file (relative to the scenario file; `FILE#NAME` picks a polygon map) or inline.

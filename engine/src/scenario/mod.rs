@@ -2,6 +2,8 @@
 //! into the grid of cells a sweep runs.
 
 mod check;
+pub mod claims;
+pub mod cost;
 mod disturbances;
 pub mod error;
 pub mod format;
@@ -50,7 +52,7 @@ pub struct Scenario {
     /// What the test episodes are also played under, besides undisturbed.
     pub disturbances: Vec<crate::disturbance::Disturbance>,
     /// Checked against the scenario's maps, policies and agent counts.
-    pub claims: Vec<crate::claims::Claim>,
+    pub claims: Vec<crate::scenario::claims::Claim>,
 }
 
 /// A map of the scenario with where it came from and the hash of its contents.
@@ -160,7 +162,7 @@ mod tests {
         assert!(cells[0].config.training_config().is_none());
         let keys: std::collections::HashSet<_> = cells.iter().map(|c| &c.key).collect();
         assert_eq!(keys.len(), cells.len());
-        let cost: crate::cost::Cost = cells
+        let cost: crate::scenario::cost::Cost = cells
             .iter()
             .fold(Default::default(), |a, c| a + c.config.cost());
         assert_eq!(cost.training_episodes, 4 * 5);
@@ -168,7 +170,7 @@ mod tests {
         assert_eq!(cost.env_steps, 4 * 5 * 10 + 6 * 2 * 4 * 20);
         // Per agent and step: training weighs most (MA-PPO's rate), then learned and baseline
         // test steps.
-        use crate::cost::work::{BASELINE_STEP, INDEPENDENT_TRAINING_STEP, LEARNED_STEP};
+        use crate::scenario::cost::work::{BASELINE_STEP, INDEPENDENT_TRAINING_STEP, LEARNED_STEP};
         let test_agent_steps = (1 + 2) * 4 * 20;
         let training = 2 * (5 * 10) * (2 + 3) * INDEPENDENT_TRAINING_STEP;
         let tests = 2 * test_agent_steps * BASELINE_STEP + 4 * test_agent_steps * LEARNED_STEP;
@@ -363,7 +365,7 @@ mod tests {
                     tolerance: 0.05, scale: random}\n  \
                     - id: rooms\n    not_tested: rooms are not measured\n";
         let s = parse(&with(good)).unwrap();
-        use crate::claims::{ClaimTest, Scale};
+        use crate::scenario::claims::{ClaimTest, Scale};
         let ClaimTest::GapGrows { pair } = &s.claims[0].test else {
             panic!("{:?}", s.claims[0]);
         };
@@ -431,7 +433,7 @@ mod tests {
                     lower: {a: ma-ppo@fast, b: random, maps: [a], n: [2]}\n  \
                     - id: transfer\n    lower: {a: ma-ppo@fast, b: random, maps: [a], n: [1], n_train: 3}\n";
         let s = parse(&with(good)).unwrap();
-        let crate::claims::ClaimTest::Lower { pair } = &s.claims[1].test else {
+        let crate::scenario::claims::ClaimTest::Lower { pair } = &s.claims[1].test else {
             panic!("{:?}", s.claims[1]);
         };
         assert_eq!((pair.points[0].n_test, pair.points[0].n_train), (1, 3));

@@ -10,7 +10,7 @@ use serde_saphyr::Spanned;
 use super::error::ScenarioError;
 use super::format::ScenarioFile;
 use super::{Learned, Output, Scenario};
-use crate::cost::Cost;
+use crate::scenario::cost::Cost;
 
 /// What a scenario may ask for. The defaults are what a 2-core, 24 GB machine survives, and
 /// the paper's budgets on a cluster stay well below them.
@@ -79,7 +79,7 @@ impl Scenario {
                 learned,
                 n_train,
                 &self.test_agents,
-                crate::cost::test_plays(self.test_episodes, self.disturbances.len()),
+                crate::scenario::cost::test_plays(self.test_episodes, self.disturbances.len()),
             );
             size.cost = size.cost + cell.times(u64::from(self.repetitions));
             size.cells = size.cells.saturating_add(u64::from(self.repetitions));

@@ -80,8 +80,8 @@ pub enum StoreError {
     Input(#[from] world::InputError),
     #[error("{0}")]
     Polars(#[from] PolarsError),
-    #[error("summary: {0}")]
-    Stats(#[from] crate::stats::StatsError),
+    #[error(transparent)]
+    Summary(#[from] crate::summary::SummaryError),
     #[error("{path}: {problem}")]
     Corrupt { path: PathBuf, problem: String },
     #[error("{folder} holds the sweep {found:?}, not {expected:?}; choose another output folder")]

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use engine::cost::Cost;
+use engine::scenario::cost::Cost;
 use engine::scenario::{Limits, Scenario};
 use engine::store::Store;
 

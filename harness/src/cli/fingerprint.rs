@@ -2,7 +2,8 @@
 
 use std::path::PathBuf;
 
-use engine::results_fingerprint::{compute, pinned};
+use engine::code_version::pinned_fingerprint as pinned;
+use engine::results_fingerprint::compute;
 
 #[derive(clap::Args)]
 pub struct FingerprintArgs {

@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use super::check::duration;
-use engine::cost::work_seconds;
 use engine::scenario::Scenario;
+use engine::scenario::cost::work_seconds;
 use engine::shard::{slices, weight};
 use engine::slurm::{ArrayJob, SbatchOptions, submit};
 use engine::store::Store;

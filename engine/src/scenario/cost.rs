@@ -4,8 +4,7 @@
 
 use policies::ppo::ArchitectureName;
 
-use crate::cell::CellConfig;
-use crate::scenario::{Learned, WorldConfig};
+use super::{Learned, WorldConfig};
 
 /// What a cell or a sweep costs, in episodes and environment steps, and as estimated work.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -56,23 +55,11 @@ pub(crate) mod work {
     }
 }
 
-impl CellConfig {
-    pub fn cost(&self) -> Cost {
-        self.training_cost() + self.test_cost()
-    }
-
-    /// The cost of the cell's training run alone, its test curve included (nothing for a
-    /// baseline).
-    pub fn training_cost(&self) -> Cost {
-        let learned = self.policy.learned();
-        Cost::of_training(&self.world, learned, self.n_train, self.test_episodes)
-    }
-
-    /// The cost of the cell's test episodes alone.
-    pub fn test_cost(&self) -> Cost {
-        let plays = test_plays(self.test_episodes, self.disturbances.len());
-        Cost::of_tests(&self.world, self.policy.learned(), &self.n_test, plays)
-    }
+/// How many times a run of `episodes` training episodes plays its test episodes for its test
+/// curve (`test_curve`): before training, after every `every` episodes and at the end (at
+/// most; rounds may merge two).
+pub fn plays(episodes: u64, every: u64) -> u64 {
+    episodes.div_ceil(every.max(1)) + 1
 }
 
 /// Test episodes played per N_test: each undisturbed, then once under every disturbance.
@@ -98,7 +85,7 @@ impl Cost {
 
     /// Training `learned` with `n_train` agents, and the plays of its test curve (the test
     /// episodes at N_train, before training and after every `evaluate_every` episodes).
-    fn of_training(
+    pub(crate) fn of_training(
         world: &WorldConfig,
         learned: Option<&Learned>,
         n_train: Option<u32>,
@@ -118,7 +105,7 @@ impl Cost {
         let Some((every, n_train)) = learned.and_then(|l| l.evaluate_every).zip(n_train) else {
             return training;
         };
-        let plays = crate::test_curve::plays(training_episodes, u64::from(every));
+        let plays = plays(training_episodes, u64::from(every));
         let plays = u32::try_from(plays.saturating_mul(u64::from(test_episodes)));
         let curve = Self::of_tests(world, learned, &[n_train], plays.unwrap_or(u32::MAX));
         // The curve's episodes are not the cell's test episodes (its tables count those).
@@ -129,7 +116,7 @@ impl Cost {
             }
     }
 
-    fn of_tests(
+    pub(crate) fn of_tests(
         world: &WorldConfig,
         learned: Option<&Learned>,
         n_test: &[u32],

@@ -1,0 +1,307 @@
+//! The modules of each crate form layers: no import cycle between two modules of one folder
+//! (a module and its own submodules, which name each other as `super`, are one node). A cycle
+//! makes every module on it depend on all the others: a cell's key on the sweep orchestrator,
+//! the report on the running engine. The check reads the sources alone (std only), so anyone
+//! can run it: `cargo test -p vpm-tests --test layers`.
+//!
+//! The links of the cycles not yet taken apart are listed in `KNOWN`: a new link on a cycle
+//! fails, and so does a listed one that is no longer on one, so that the list only shrinks.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+const CRATES: [&str; 7] = [
+    "world", "policies", "engine", "report", "record", "bench", "harness",
+];
+
+/// A crate's modules by path (`store::tables`), each with the source of its file, test
+/// modules left out.
+fn modules(src: &Path) -> BTreeMap<Vec<String>, String> {
+    let mut found = BTreeMap::new();
+    let mut pending = vec![src.to_owned()];
+    while let Some(folder) = pending.pop() {
+        for entry in std::fs::read_dir(&folder).unwrap().flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                pending.push(path);
+                continue;
+            }
+            if path.extension().is_none_or(|e| e != "rs") {
+                continue;
+            }
+            let relative = path.strip_prefix(src).unwrap().with_extension("");
+            let mut segments: Vec<String> = relative
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                .collect();
+            if matches!(
+                segments.last().map(String::as_str),
+                Some("mod" | "lib" | "main")
+            ) {
+                segments.pop();
+            }
+            let text = std::fs::read_to_string(&path).unwrap();
+            let code = match text.find("#[cfg(test)]\nmod tests") {
+                Some(at) => text[..at].to_owned(),
+                None => text,
+            };
+            found.insert(segments, code);
+        }
+    }
+    found
+}
+
+/// The module paths `code` names from the crate's root: `crate::a::b`, and `super::` and
+/// `self::` paths relative to `module`, with grouped imports (`crate::a::{b, c::d}`) spread.
+fn named_paths(module: &[String], code: &str) -> Vec<Vec<String>> {
+    let mut paths = Vec::new();
+    let bytes = code.as_bytes();
+    let starts = ["crate::", "super::", "self::"];
+    let mut i = 0;
+    while i < code.len() {
+        let here = &bytes[i..];
+        let Some(start) = starts.iter().find(|s| here.starts_with(s.as_bytes())) else {
+            i += 1;
+            continue;
+        };
+        let before_ok = i == 0 || !(bytes[i - 1].is_ascii_alphanumeric() || bytes[i - 1] == b'_');
+        if !before_ok {
+            i += 1;
+            continue;
+        }
+        let mut base: Vec<String> = match *start {
+            "crate::" => Vec::new(),
+            "self::" => module.to_vec(),
+            _ => module[..module.len().saturating_sub(1)].to_vec(),
+        };
+        let mut j = i + start.len();
+        while code[j..].starts_with("super::") {
+            base.pop();
+            j += "super::".len();
+        }
+        let (tree, end) = use_tree(&code[j..]);
+        for tail in tree {
+            let mut path = base.clone();
+            path.extend(tail);
+            paths.push(path);
+        }
+        i = j + end.max(1);
+    }
+    paths
+}
+
+/// The paths of a use tree at the start of `text` (`a::b`, `a::{b, c::d}`), and where it ends.
+fn use_tree(text: &str) -> (Vec<Vec<String>>, usize) {
+    let mut prefix = Vec::new();
+    let mut i = 0;
+    let bytes = text.as_bytes();
+    loop {
+        let start = i;
+        while i < text.len() && (bytes[i].is_ascii_alphanumeric() || bytes[i] == b'_') {
+            i += 1;
+        }
+        if i > start {
+            prefix.push(text[start..i].to_owned());
+        }
+        let group = match (i == start, &text[i..]) {
+            (true, rest) if rest.starts_with('{') => Some(1),
+            (_, rest) if rest.starts_with("::{") => Some(3),
+            _ => None,
+        };
+        if let Some(skip) = group {
+            i += skip;
+            let mut paths = Vec::new();
+            loop {
+                while i < text.len() && (bytes[i] == b' ' || bytes[i] == b'\n' || bytes[i] == b',')
+                {
+                    i += 1;
+                }
+                if i >= text.len() || bytes[i] == b'}' {
+                    return (paths, i + 1);
+                }
+                let (inner, end) = use_tree(&text[i..]);
+                for tail in inner {
+                    let mut path = prefix.clone();
+                    path.extend(tail);
+                    paths.push(path);
+                }
+                i += end.max(1);
+            }
+        }
+        if text[i..].starts_with("::") {
+            i += 2;
+            continue;
+        }
+        return (vec![prefix], i);
+    }
+}
+
+/// The module a path names: its longest prefix that is a module of the crate.
+fn resolve<'a>(path: &[String], known: &'a BTreeSet<Vec<String>>) -> Option<&'a Vec<String>> {
+    (1..=path.len()).rev().find_map(|n| known.get(&path[..n]))
+}
+
+/// Strongly connected components of more than one node (Tarjan's, iteratively simple enough
+/// for a few dozen nodes: a node's component is the nodes it reaches that reach it back).
+fn cycles(edges: &BTreeMap<String, BTreeSet<String>>) -> Vec<BTreeSet<String>> {
+    let reach = |from: &String| {
+        let mut seen = BTreeSet::new();
+        let mut pending = vec![from.clone()];
+        while let Some(node) = pending.pop() {
+            for next in edges.get(&node).into_iter().flatten() {
+                if seen.insert(next.clone()) {
+                    pending.push(next.clone());
+                }
+            }
+        }
+        seen
+    };
+    let reached: BTreeMap<&String, BTreeSet<String>> =
+        edges.keys().map(|node| (node, reach(node))).collect();
+    let mut found: Vec<BTreeSet<String>> = Vec::new();
+    for (node, from_node) in &reached {
+        let component: BTreeSet<String> = from_node
+            .iter()
+            .filter(|other| reached.get(other).is_some_and(|r| r.contains(*node)))
+            .cloned()
+            .collect();
+        if component.len() > 1 && !found.contains(&component) {
+            found.push(component);
+        }
+    }
+    found
+}
+
+/// The links on cycles that remain, as `crate[::folder]: from -> to`.
+const KNOWN: [&str; 30] = [
+    "world: error -> map",
+    "world: error -> params",
+    "world: map -> error",
+    "world: map -> polygon",
+    "world: params -> error",
+    "world: polygon -> error",
+    "world: polygon -> map",
+    "policies: learned -> ppo",
+    "policies: ppo -> learned",
+    "policies::nn: buffer -> real",
+    "policies::nn: matmul -> buffer",
+    "policies::nn: matmul -> real",
+    "policies::nn: real -> matmul",
+    "report: behaviour -> motion",
+    "report: behaviour_claims -> behaviour_replay",
+    "report: behaviour_claims -> verdicts",
+    "report: behaviour_replay -> behaviour",
+    "report: behaviour_replay -> motion",
+    "report: behaviour_replay -> verdicts",
+    "report: disturbance -> motion",
+    "report: disturbance -> verdicts",
+    "report: motion -> verdicts",
+    "report: test_curve -> time_to_quality",
+    "report: time_to_quality -> test_curve",
+    "report: time_to_quality -> verdicts",
+    "report: verdicts -> behaviour_claims",
+    "report: verdicts -> behaviour_replay",
+    "report: verdicts -> disturbance",
+    "report: verdicts -> test_curve",
+    "report: verdicts -> time_to_quality",
+];
+
+/// Each folder's links on cycles: the edges between its child modules (each with its
+/// submodules) that lie on one.
+fn folder_cycles(crate_name: &str) -> Vec<String> {
+    let src = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(crate_name)
+        .join("src");
+    let modules = modules(&src);
+    let known: BTreeSet<Vec<String>> = modules.keys().cloned().collect();
+    let folders: BTreeSet<Vec<String>> = known
+        .iter()
+        .filter(|m| {
+            known
+                .iter()
+                .any(|o| o.len() == m.len() + 1 && o.starts_with(m))
+        })
+        .cloned()
+        .collect();
+    let mut problems = Vec::new();
+    for folder in &folders {
+        let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        for (module, code) in &modules {
+            if module.len() <= folder.len() || !module.starts_with(folder) {
+                continue;
+            }
+            let from = module[folder.len()].clone();
+            for path in named_paths(module, code) {
+                let Some(target) = resolve(&path, &known) else {
+                    continue;
+                };
+                if target.len() > folder.len() && target.starts_with(folder) {
+                    let to = target[folder.len()].clone();
+                    if to != from {
+                        edges.entry(from.clone()).or_default().insert(to);
+                    }
+                }
+            }
+            edges.entry(from).or_default();
+        }
+        for cycle in cycles(&edges) {
+            let place = match folder.is_empty() {
+                true => crate_name.to_owned(),
+                false => format!("{crate_name}::{}", folder.join("::")),
+            };
+            for from in &cycle {
+                for to in edges[from].iter().filter(|to| cycle.contains(*to)) {
+                    problems.push(format!("{place}: {from} -> {to}"));
+                }
+            }
+        }
+    }
+    problems
+}
+
+#[test]
+fn no_crate_has_an_import_cycle_between_modules_beyond_the_known_ones() {
+    let found: BTreeSet<String> = CRATES.iter().flat_map(|c| folder_cycles(c)).collect();
+    let known: BTreeSet<String> = KNOWN.iter().map(|s| s.to_string()).collect();
+    let new: Vec<&String> = found.difference(&known).collect();
+    let gone: Vec<&String> = known.difference(&found).collect();
+    assert!(
+        new.is_empty(),
+        "modules that import each other in a cycle (take the cycle apart: move what both \
+         need below them):\n{new:#?}"
+    );
+    assert!(
+        gone.is_empty(),
+        "links no longer on a cycle: remove them from KNOWN\n{gone:#?}"
+    );
+}
+
+/// The checker itself finds a cycle, resolves grouped, `super` and `self` paths, and leaves
+/// test modules out.
+#[test]
+fn the_checker_reads_paths_as_rust_resolves_them() {
+    let module = vec!["store".to_owned(), "tables".to_owned()];
+    let code = "use crate::{cell::CellConfig, scenario::{Output, cost::Cost}};\n\
+                use super::columns::strings;\nfn f() { self::helper(); }\n";
+    let paths = named_paths(&module, code);
+    let text: Vec<String> = paths.iter().map(|p| p.join("::")).collect();
+    assert_eq!(
+        text,
+        [
+            "cell::CellConfig",
+            "scenario::Output",
+            "scenario::cost::Cost",
+            "store::columns::strings",
+            "store::tables::helper",
+        ]
+    );
+    let edges: BTreeMap<String, BTreeSet<String>> = [("a", "b"), ("b", "c"), ("c", "a")]
+        .iter()
+        .map(|(f, t)| (f.to_string(), BTreeSet::from([t.to_string()])))
+        .chain([("d".to_owned(), BTreeSet::from(["a".to_owned()]))])
+        .collect();
+    let found = cycles(&edges);
+    assert_eq!(found.len(), 1);
+    assert_eq!(found[0], BTreeSet::from(["a", "b", "c"].map(String::from)));
+}

@@ -2,62 +2,15 @@
 //! the actor, an action per agent. The weights are shared by all agents, so a policy trained
 //! with N agents runs with any number.
 
-use rand::RngExt;
 use rand_pcg::Pcg64Mcg;
 use world::seed::purpose;
-use world::{Action, Cell, Episode, ObservationConfig, Observer, Seed, World};
+use world::{Action, Episode, Observer, Seed, World};
 
+use crate::acting::{ActionChoice, push_agents};
 use crate::nn::real::Real;
-use crate::nn::{
-    ActorCritic, AgentGraph, Architecture, CategoricalBatch, ModelWorkspace, Neighbours,
-};
+use crate::nn::{ActorCritic, AgentGraph, Architecture, ModelWorkspace, Neighbours};
 use crate::policy::{AttentionEdges, Policy};
 use crate::ppo::config::{ArchitectureName, ConfigError, TrainingConfig};
-
-/// How an action is read from the policy's distribution.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ActionChoice {
-    /// Drawn from the distribution (training, and the paper's tests).
-    Sampled,
-    /// The most probable action.
-    Greedy,
-}
-
-impl ActionChoice {
-    /// The action of batch row `row`; draws from `stream` only when sampling.
-    pub fn pick(self, policy: &CategoricalBatch<f32>, row: usize, stream: &mut Pcg64Mcg) -> usize {
-        match self {
-            ActionChoice::Sampled => policy.sample(row, stream.random::<f64>()),
-            ActionChoice::Greedy => {
-                let log_probs = policy.log_probs();
-                let row = log_probs.row(row);
-                // The first of equal maxima, so ties break the same way everywhere.
-                (0..row.len()).fold(0, |best, a| if row[a] > row[best] { a } else { best })
-            }
-        }
-    }
-}
-
-/// The observation settings a configuration trains with.
-pub fn observation_config(config: &TrainingConfig) -> ObservationConfig {
-    ObservationConfig {
-        channels: config.channels,
-        mark_others_on_mini: config.mark_others_on_mini,
-        mini_map_block: config.mini_map_block,
-    }
-}
-
-/// Appends one group (the agents of one environment at one step) to an attention graph.
-pub fn push_agents(
-    graph: &mut AgentGraph,
-    rule: Neighbours,
-    positions: &[Cell],
-    scratch: &mut Vec<[f64; 2]>,
-) {
-    scratch.clear();
-    scratch.extend(positions.iter().map(|c| [c.x as f64, c.y as f64]));
-    graph.push_group(rule, scratch);
-}
 
 /// A trained actor driving every agent of an episode.
 #[derive(Debug)]
@@ -97,7 +50,7 @@ impl LearnedPolicy {
         config: &TrainingConfig,
         choice: ActionChoice,
     ) -> Result<Self, ConfigError> {
-        let observer = Observer::new(world, observation_config(config));
+        let observer = Observer::new(world, config.observation_config());
         let expected = model.config().image_side;
         if observer.side() != expected {
             return Err(ConfigError::Invalid {
@@ -225,7 +178,7 @@ mod tests {
         let config = TrainingConfig::profile(Profile::Paper)
             .with_overrides(&["network=compact"])
             .unwrap();
-        let side = Observer::new(&world, observation_config(&config)).side();
+        let side = Observer::new(&world, config.observation_config()).side();
         let model_config = config.model_config(side).unwrap();
         let model = ActorCritic::new(&model_config, &mut Seed::new(1).rng()).unwrap();
         let mut policy = LearnedPolicy::new(&world, model, &config, ActionChoice::Greedy).unwrap();

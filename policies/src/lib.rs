@@ -1,4 +1,5 @@
 //! Policies.
+pub mod acting;
 pub mod baseline;
 pub mod checkpoint;
 pub mod closed_walk;
@@ -18,8 +19,9 @@ pub mod tour;
 pub mod tspc;
 pub mod viewpoints;
 
+pub use acting::ActionChoice;
 pub use baseline::Baseline;
 pub use error::PlanError;
-pub use learned::{ActionChoice, Inspection, LearnedPolicy};
+pub use learned::{Inspection, LearnedPolicy};
 pub use policy::{AttentionEdges, Policy};
 pub use random::RandomPolicy;

@@ -173,16 +173,7 @@ fn cycles(edges: &BTreeMap<String, BTreeSet<String>>) -> Vec<BTreeSet<String>> {
 }
 
 /// The links on cycles that remain, as `crate[::folder]: from -> to`.
-const KNOWN: [&str; 30] = [
-    "world: error -> map",
-    "world: error -> params",
-    "world: map -> error",
-    "world: map -> polygon",
-    "world: params -> error",
-    "world: polygon -> error",
-    "world: polygon -> map",
-    "policies: learned -> ppo",
-    "policies: ppo -> learned",
+const KNOWN: [&str; 21] = [
     "policies::nn: buffer -> real",
     "policies::nn: matmul -> buffer",
     "policies::nn: matmul -> real",

@@ -5,7 +5,6 @@ use std::sync::Arc;
 
 use rand::RngExt;
 
-use crate::error::StartError;
 use crate::links::Links;
 use crate::map::{Cell, Map};
 use crate::params::WorldParams;
@@ -294,6 +293,24 @@ fn check_starts(map: &Map, starts: &[Cell], agents: usize) -> Result<(), StartEr
         }
     }
     Ok(())
+}
+
+/// Start positions that cannot be used on this map.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StartError {
+    #[error("{agents} agents do not fit on the map's {free} free cells")]
+    TooManyAgents { agents: usize, free: usize },
+    #[error("{given} start positions given for {agents} agents")]
+    Count { given: usize, agents: usize },
+    #[error("start position {index} ({x}, {y}) is not a free cell of the map")]
+    NotFree { index: usize, x: i64, y: i64 },
+    #[error("start positions {first} and {second} are the same cell ({x}, {y})")]
+    Shared {
+        first: usize,
+        second: usize,
+        x: u16,
+        y: u16,
+    },
 }
 
 #[cfg(test)]

@@ -6,7 +6,6 @@
 //! and is shared between threads; `Episode` holds one run's state and steps without allocating.
 
 pub mod episode;
-pub mod error;
 pub mod input;
 pub mod links;
 pub mod map;
@@ -14,18 +13,16 @@ pub mod observation;
 pub mod params;
 pub mod paths;
 pub mod penalty;
-pub mod polygon;
 pub mod reference;
 pub mod seed;
 pub mod visibility;
 
-pub use episode::{Action, Episode, World};
-pub use error::{MapError, MapErrorKind, ParamError, StartError};
+pub use episode::{Action, Episode, StartError, World};
 pub use input::{InputError, InputProblem, read_bounded, read_bounded_text};
 pub use links::Links;
-pub use map::{Cell, Map};
+pub use map::{Cell, Map, MapError, MapErrorKind};
 pub use observation::{Channels, ImageGeometry, ObservationConfig, Observer};
-pub use params::WorldParams;
+pub use params::{ParamError, WorldParams};
 pub use penalty::PenaltyGrid;
 pub use seed::Seed;
 pub use visibility::Visibility;

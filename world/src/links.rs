@@ -6,8 +6,8 @@
 
 use rand::RngExt;
 
-use crate::error::ParamError;
 use crate::map::Cell;
+use crate::params::ParamError;
 use crate::seed::{Seed, purpose};
 
 /// A checked link rule with the episode's stream.

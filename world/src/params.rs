@@ -1,7 +1,5 @@
 //! World parameters, checked once where they enter; core code trusts them.
 
-use crate::error::ParamError;
-
 /// The widest field of view: a window row then fits a few machine words and the per-map
 /// visibility table stays small.
 pub const MAX_FOV: usize = 255;
@@ -60,6 +58,21 @@ impl WorldParams {
     pub fn rmax(&self) -> f32 {
         self.rmax
     }
+}
+
+/// World parameters that make no sense, named by field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ParamError {
+    #[error("fov (L) must be odd and between 1 and {max}, got {0}", max = MAX_FOV)]
+    Fov(usize),
+    #[error("decay (D) must be finite and >= 0, got {0}")]
+    Decay(f32),
+    #[error("rmax must be finite and > 0, got {0}")]
+    Rmax(f32),
+    #[error("a link radius must be finite and >= 0, got {0}")]
+    LinkRadius(f64),
+    #[error("a link's drop probability must be between 0 and 1, got {0}")]
+    LinkDrop(f64),
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@
 //! and unknown keys are rejected by name.
 
 use serde::{Deserialize, Serialize};
-use world::Channels;
+use world::{Channels, ObservationConfig};
 
 use crate::nn::model::{PAPER_HEADS, PAPER_HIDDEN};
 use crate::nn::{
@@ -361,6 +361,15 @@ impl TrainingConfig {
             normalise_advantages: true,
             max_grad_norm: Some(0.5),
             ..Self::paper()
+        }
+    }
+
+    /// The observation settings this configuration trains with.
+    pub fn observation_config(&self) -> ObservationConfig {
+        ObservationConfig {
+            channels: self.channels,
+            mark_others_on_mini: self.mark_others_on_mini,
+            mini_map_block: self.mini_map_block,
         }
     }
 

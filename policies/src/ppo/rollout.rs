@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use world::seed::purpose;
 use world::{Action, Episode, Observer, Seed, StartError, World};
 
-use crate::learned::{ActionChoice, observation_config, push_agents};
+use crate::acting::{ActionChoice, push_agents};
 use crate::nn::{ActorCritic, AgentGraph, ModelWorkspace, Neighbours};
 use crate::ppo::config::{RewardScale, TrainingConfig};
 
@@ -55,7 +55,7 @@ impl EnvironmentRollout {
             .random_range(min..=max);
         let mut episode = Episode::new(world.clone(), agents)?;
         episode.reset(seed);
-        let observer = Observer::new(world, observation_config(config));
+        let observer = Observer::new(world, config.observation_config());
         let policy = seed.child(purpose::POLICY);
         let streams = (0..agents as u64).map(|a| policy.child(a).rng()).collect();
         let steps = config.steps_per_episode;

@@ -91,7 +91,7 @@ impl Trainer {
     /// A fresh run: weights drawn from the seed's `INIT` stream.
     pub fn new(world: Arc<World>, config: TrainingConfig, seed: u64) -> Result<Self, TrainError> {
         config.check()?;
-        let side = world::Observer::new(&world, crate::learned::observation_config(&config)).side();
+        let side = world::Observer::new(&world, config.observation_config()).side();
         let model_config = config.model_config(side)?;
         let mut rng = Seed::new(seed).child(stream::INIT).rng();
         let model = ActorCritic::new(&model_config, &mut rng)?;

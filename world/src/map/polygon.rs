@@ -9,8 +9,7 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::error::{MapError, MapErrorKind};
-use crate::map::{MAX_SIDE, Map};
+use super::{MAX_SIDE, Map, MapError, MapErrorKind};
 
 /// The largest polygon map file read. Its vertices lie within a map of at most
 /// [`MAX_SIDE`] cells a side, so the format has no natural bound on their number; 4 MiB holds

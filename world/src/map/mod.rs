@@ -5,7 +5,10 @@
 
 use std::path::Path;
 
-use crate::error::{MapError, MapErrorKind};
+mod error;
+pub mod polygon;
+
+pub use error::{MapError, MapErrorKind};
 
 /// The largest side a map may have: keeps cell indices in `u32` and per-map tables in memory.
 pub const MAX_SIDE: usize = 1024;
@@ -157,7 +160,7 @@ impl Map {
     pub fn load(spec: &str) -> Result<Self, MapError> {
         let (path, name) = split_map_name(spec);
         if is_polygon_file(path) {
-            crate::polygon::load_polygon_map(path, name)
+            polygon::load_polygon_map(path, name)
         } else {
             Self::load_text(path)
         }

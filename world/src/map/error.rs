@@ -1,4 +1,4 @@
-//! Errors for bad user input: every one names the file and, where it can, the line.
+//! A map file that cannot be used: every error names the file and, where it can, the line.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -51,7 +51,7 @@ pub enum MapErrorKind {
     NoFreeCell,
     #[error("the map has {free} free cells, too few for {agents} agents on distinct cells")]
     TooFewFreeCells { free: usize, agents: usize },
-    #[error("the map is {width} x {height}; a side may be at most {max}", max = crate::map::MAX_SIDE)]
+    #[error("the map is {width} x {height}; a side may be at most {max}", max = super::MAX_SIDE)]
     TooLarge { width: usize, height: usize },
     #[error("{0}")]
     Yaml(String),
@@ -64,38 +64,5 @@ pub enum MapErrorKind {
         map: String,
         polygon: usize,
         problem: String,
-    },
-}
-
-/// World parameters that make no sense, named by field.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum ParamError {
-    #[error("fov (L) must be odd and between 1 and {max}, got {0}", max = crate::params::MAX_FOV)]
-    Fov(usize),
-    #[error("decay (D) must be finite and >= 0, got {0}")]
-    Decay(f32),
-    #[error("rmax must be finite and > 0, got {0}")]
-    Rmax(f32),
-    #[error("a link radius must be finite and >= 0, got {0}")]
-    LinkRadius(f64),
-    #[error("a link's drop probability must be between 0 and 1, got {0}")]
-    LinkDrop(f64),
-}
-
-/// Start positions that cannot be used on this map.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum StartError {
-    #[error("{agents} agents do not fit on the map's {free} free cells")]
-    TooManyAgents { agents: usize, free: usize },
-    #[error("{given} start positions given for {agents} agents")]
-    Count { given: usize, agents: usize },
-    #[error("start position {index} ({x}, {y}) is not a free cell of the map")]
-    NotFree { index: usize, x: i64, y: i64 },
-    #[error("start positions {first} and {second} are the same cell ({x}, {y})")]
-    Shared {
-        first: usize,
-        second: usize,
-        x: u16,
-        y: u16,
     },
 }

@@ -782,7 +782,7 @@ pub fn results_frame(results: &[&ClaimResult]) -> PolarsResult<DataFrame> {
 pub const RULE: &str = "Each of the scenario's claims with our numbers and a verdict. Intervals \
      are 95 % bootstrap intervals whose unit is a learned policy's training run (runs drawn \
      with replacement, then test episodes within each drawn run) and a baseline's test \
-     episode, with a small-sample correction (see the project's README, How we decide); the \
+     episode, with a small-sample correction (see the project's docs/claims.md, How we decide); the \
      same runs under two conditions are drawn as pairs. A point is supported when its \
      interval excludes the claim's opposite; a claim is supported when every point is, \
      contradicted when Holm's correction over its points (family-wise 5 %) finds a point \

@@ -406,7 +406,7 @@ mod tests {
     #[test]
     fn covers_the_true_mean_at_five_runs() {
         // The spread between runs and within them alike (10 test episodes a run, as the
-        // scenarios keep): 93 to 97 % at 5 runs is the target. The README quotes these.
+        // scenarios keep): 93 to 97 % at 5 runs is the target. docs/claims.md quotes these.
         let five = coverage(5, 10, 1.0, 1.0, 1000);
         assert!((0.93..=0.97).contains(&five), "5 runs: {five}");
         // Runs that differ much more than their episodes (the common case in training): the
@@ -420,7 +420,7 @@ mod tests {
         // errs wide, never narrow.
         let five_episode_heavy = coverage(5, 10, 1.0, 3.0, 1000);
         assert!(five_episode_heavy >= 0.95, "5 runs: {five_episode_heavy}");
-        // Three runs: lower, as the README says.
+        // Three runs: lower, as docs/claims.md says.
         let three = coverage(3, 10, 1.0, 1.0, 1000);
         assert!((0.80..0.97).contains(&three), "3 runs: {three}");
         let three_run_heavy = coverage(3, 10, 1.0, 0.3, 1000);

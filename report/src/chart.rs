@@ -210,7 +210,10 @@ pub fn centre_label(labels: &[String], x: f64) -> String {
 
 /// Axis range with a margin, never empty.
 pub fn padded_range(values: impl Iterator<Item = f64>, from_zero: bool) -> std::ops::Range<f64> {
-    let (mut low, mut high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+    // An unbounded interval (one training run gives (-inf, inf)) cannot set a scale: it is
+    // drawn to the plot's edge.
+    let finite = values.filter(|v| v.is_finite());
+    let (mut low, mut high) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
         (l.min(v), h.max(v))
     });
     if from_zero {
@@ -231,6 +234,15 @@ pub fn padded_range(values: impl Iterator<Item = f64>, from_zero: bool) -> std::
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_unbounded_interval_does_not_set_the_scale() {
+        let values = [0.0, 31.8, f64::NEG_INFINITY, f64::INFINITY, 166.3];
+        let range = padded_range(values.into_iter(), true);
+        assert_eq!(range.start, 0.0);
+        assert!((range.end - 166.3 * 1.05).abs() < 1e-9, "{range:?}");
+        assert_eq!(padded_range([f64::INFINITY].into_iter(), false), 0.0..1.0);
+    }
 
     #[test]
     fn colours_run_from_blue_to_red() {

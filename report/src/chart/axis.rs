@@ -80,12 +80,12 @@ impl ValueAxis {
         if self.log { self.range.start } else { 0.0 }
     }
 
-    /// `value` as drawn: on a log axis, cut at the floor.
+    /// `value` as drawn: on a log axis, cut at the floor; an unbounded value (one run's
+    /// interval) at the axis' edge.
     pub fn clamp(&self, value: f64) -> f64 {
-        if self.log {
-            value.max(self.range.start)
-        } else {
-            value
+        match (self.log, value.is_finite()) {
+            (false, true) => value,
+            _ => value.clamp(self.range.start, self.range.end),
         }
     }
 
@@ -146,6 +146,7 @@ mod tests {
         assert!(!axis.log);
         assert_eq!(axis.range.start, 0.0);
         assert_eq!((axis.base(), axis.clamp(-1.0)), (0.0, -1.0));
+        assert_eq!(axis.clamp(f64::INFINITY), axis.range.end);
         assert_eq!(axis.describe("penalty"), "penalty");
     }
 }

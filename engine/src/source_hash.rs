@@ -13,22 +13,36 @@ use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 
 /// Sources, relative to the workspace root, whose change can change a cell's numbers: the two
-/// numeric crates, and the engine modules that run a cell and write its result files.
-pub const NUMERIC_SOURCES: [&str; 14] = [
+/// numeric crates, and the engine modules that running a cell reaches through its imports
+/// (`tests/tests/layers.rs` checks that none is left out: the scenario resolves a policy's
+/// training configuration, the store writes the result files, the statistics the summary).
+pub const NUMERIC_SOURCES: [&str; 26] = [
     "world/src",
     "world/Cargo.toml",
     "policies/src",
     "policies/Cargo.toml",
+    "engine/src/adaptation.rs",
+    "engine/src/atomic_file.rs",
     "engine/src/cell.rs",
-    "engine/src/execution.rs",
-    "engine/src/runner.rs",
-    "engine/src/idleness.rs",
-    "engine/src/training_run.rs",
-    "engine/src/training_log.rs",
     "engine/src/checkpoint_dir.rs",
-    "engine/src/trajectory.rs",
-    "engine/src/store/tables.rs",
+    "engine/src/code_version.rs",
+    "engine/src/cpu_clock.rs",
+    "engine/src/disturbance.rs",
+    "engine/src/execution.rs",
+    "engine/src/grouping.rs",
+    "engine/src/idleness.rs",
+    "engine/src/provenance.rs",
+    "engine/src/runner.rs",
+    "engine/src/scenario",
     "engine/src/source_hash.rs",
+    "engine/src/stats",
+    "engine/src/store",
+    "engine/src/summary.rs",
+    "engine/src/test_curve.rs",
+    "engine/src/training_log.rs",
+    "engine/src/training_run.rs",
+    "engine/src/trajectory.rs",
+    "engine/fingerprint/pinned.txt",
 ];
 
 /// The lock file, of which only the crates the numeric crates depend on count.

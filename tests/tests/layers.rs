@@ -14,9 +14,9 @@ const CRATES: [&str; 7] = [
     "world", "policies", "engine", "report", "record", "bench", "harness",
 ];
 
-/// A crate's modules by path (`store::tables`), each with the source of its file, test
-/// modules left out.
-fn modules(src: &Path) -> BTreeMap<Vec<String>, String> {
+/// A crate's modules by path (`store::tables`), each with its file (relative to `src`) and
+/// its source, test modules left out.
+fn modules(src: &Path) -> BTreeMap<Vec<String>, (PathBuf, String)> {
     let mut found = BTreeMap::new();
     let mut pending = vec![src.to_owned()];
     while let Some(folder) = pending.pop() {
@@ -45,7 +45,7 @@ fn modules(src: &Path) -> BTreeMap<Vec<String>, String> {
                 Some(at) => text[..at].to_owned(),
                 None => text,
             };
-            found.insert(segments, code);
+            found.insert(segments, (path.strip_prefix(src).unwrap().to_owned(), code));
         }
     }
     found
@@ -86,6 +86,25 @@ fn named_paths(module: &[String], code: &str) -> Vec<Vec<String>> {
             paths.push(path);
         }
         i = j + end.max(1);
+    }
+    // `use child::...` names a child module relative to this one (2018 paths).
+    for line in code.lines() {
+        let line = line.trim_start();
+        let line = line
+            .strip_prefix("pub(crate) ")
+            .or_else(|| line.strip_prefix("pub "))
+            .unwrap_or(line);
+        let Some(tree) = line.strip_prefix("use ") else {
+            continue;
+        };
+        if starts.iter().any(|start| tree.starts_with(start)) {
+            continue;
+        }
+        for tail in use_tree(tree).0 {
+            let mut path = module.to_vec();
+            path.extend(tail);
+            paths.push(path);
+        }
     }
     paths
 }
@@ -197,14 +216,17 @@ const KNOWN: [&str; 21] = [
     "report: verdicts -> time_to_quality",
 ];
 
+fn crate_src(crate_name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(crate_name)
+        .join("src")
+}
+
 /// Each folder's links on cycles: the edges between its child modules (each with its
 /// submodules) that lie on one.
 fn folder_cycles(crate_name: &str) -> Vec<String> {
-    let src = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join(crate_name)
-        .join("src");
-    let modules = modules(&src);
+    let modules = modules(&crate_src(crate_name));
     let known: BTreeSet<Vec<String>> = modules.keys().cloned().collect();
     let folders: BTreeSet<Vec<String>> = known
         .iter()
@@ -218,7 +240,7 @@ fn folder_cycles(crate_name: &str) -> Vec<String> {
     let mut problems = Vec::new();
     for folder in &folders {
         let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
-        for (module, code) in &modules {
+        for (module, (_, code)) in &modules {
             if module.len() <= folder.len() || !module.starts_with(folder) {
                 continue;
             }
@@ -295,4 +317,43 @@ fn the_checker_reads_paths_as_rust_resolves_them() {
     let found = cycles(&edges);
     assert_eq!(found.len(), 1);
     assert_eq!(found[0], BTreeSet::from(["a", "b", "c"].map(String::from)));
+}
+
+/// The provenance hash of a cell (`engine::source_hash`) covers every engine module that
+/// running a cell reaches through its imports, from `execution` on: a module left out could
+/// change a cell's numbers without changing the hash its record keeps.
+#[test]
+fn the_numeric_sources_cover_every_module_a_cell_run_reaches() {
+    let modules = modules(&crate_src("engine"));
+    let known: BTreeSet<Vec<String>> = modules.keys().cloned().collect();
+    let mut reached = BTreeSet::from([vec!["execution".to_owned()]]);
+    let mut pending: Vec<Vec<String>> = reached.iter().cloned().collect();
+    while let Some(module) = pending.pop() {
+        for path in named_paths(&module, &modules[&module].1) {
+            // The module named and every folder above it (whose mod.rs is compiled with it).
+            let Some(target) = resolve(&path, &known) else {
+                continue;
+            };
+            for n in 1..=target.len() {
+                let step = target[..n].to_vec();
+                if known.contains(&step) && reached.insert(step.clone()) {
+                    pending.push(step);
+                }
+            }
+        }
+    }
+    let listed = engine::source_hash::NUMERIC_SOURCES;
+    let uncovered: Vec<String> = reached
+        .iter()
+        .map(|module| format!("engine/src/{}", modules[module].0.display()))
+        .filter(|file| {
+            !listed
+                .iter()
+                .any(|source| file == source || file.starts_with(&format!("{source}/")))
+        })
+        .collect();
+    assert!(
+        uncovered.is_empty(),
+        "running a cell reaches these, which NUMERIC_SOURCES leaves out:\n{uncovered:#?}"
+    );
 }

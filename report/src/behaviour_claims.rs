@@ -7,7 +7,7 @@
 use polars::prelude::*;
 
 use super::behaviour_replay::EpisodeMeasure;
-use super::verdicts::{Verdict, at_point};
+use super::judgement::{Verdict, at_point};
 use super::{ReportError, ReportWriter};
 use engine::scenario::claims::{Behaviour, Claim, ClaimTest, Point};
 

@@ -20,8 +20,8 @@ use world::World;
 
 use super::behaviour::measure;
 use super::columns::{GroupKey, PolicyKey, strings, u32s};
+use super::judgement::at_point;
 use super::motion::{Motion, sin_theta};
-use super::verdicts::at_point;
 use engine::execution::{CellError, observed_test_episode, stored_policy};
 use engine::scenario::claims::{Claim, ClaimTest, Point};
 use engine::store::{CellRecord, Store, StoreError};

@@ -60,7 +60,7 @@ impl DisturbedSamples {
         policy: &str,
         point: &Point,
     ) -> Option<&'a Sample> {
-        super::verdicts::find(table.get(disturbance)?, policy, point)
+        super::judgement::find(table.get(disturbance)?, policy, point)
     }
 
     /// `policy`'s last-quarter samples at `point` under `disturbance`, and those of its

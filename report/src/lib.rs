@@ -14,6 +14,7 @@ mod comparison;
 mod disturbance;
 pub mod header;
 mod illustration;
+pub mod judgement;
 pub mod markdown;
 pub mod motion;
 mod penalty;
@@ -132,7 +133,9 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
         training::section(&mut report, training)?;
     }
     if let Some(curve) = &test_curve {
-        test_curve::section(&mut report, curve, &comparison::samples(&episodes)?)?;
+        let levels = time_to_quality::levels(&comparison::samples(&episodes)?);
+        let trained = test_curve::section(&mut report, curve, &levels)?;
+        time_to_quality::section(&mut report, &trained, &levels)?;
     }
     if let Some((maps, motions)) = &motions {
         motion::section(&mut report, motions, maps, &claims)?;

@@ -10,7 +10,7 @@ use world::Map;
 use super::chart::grid::{GridFigure, GridPanel, Shade};
 use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{GroupKey, f64s, group_rows, strings, u32s};
-use super::verdicts::at_point;
+use super::judgement::at_point;
 use super::{ReportError, ReportWriter, file_stem};
 use engine::scenario::claims::{Claim, ClaimTest};
 use engine::store::Store;

@@ -15,10 +15,12 @@ use polars::prelude::*;
 use super::chart::lines::{Line, LineChart, Panel, Spread};
 use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
 use super::comparison::{self, Sample};
-use super::time_to_quality;
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 use engine::stats::median_with_infinities as median;
 use engine::test_curve::{CPU_SECONDS, TRAINING_EPISODE};
+
+/// A reference's test penalty by (map, N_train): its name and level.
+pub type Levels = BTreeMap<(String, u32), (String, f64)>;
 
 /// One point of a run's curve.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -144,11 +146,13 @@ pub fn across(runs: &[RunCurve]) -> Vec<Across> {
         .collect()
 }
 
+/// The section's figures and tables; returns the runs' curves for the time to quality, which
+/// `levels` (the reference's test penalty by map and N_train) marks on each figure.
 pub fn section(
     report: &mut ReportWriter,
     table: &DataFrame,
-    samples: &[Sample],
-) -> Result<(), ReportError> {
+    levels: &Levels,
+) -> Result<Vec<Trained>, ReportError> {
     report.heading(
         2,
         "Test penalty along training: how fast did each policy learn?",
@@ -172,7 +176,6 @@ pub fn section(
         &runs_frame(&trained)?,
         "Each run's points",
     )?;
-    let levels = time_to_quality::levels(samples);
     for (map, n_train) in distinct(trained.iter().map(|t| (t.map.clone(), t.policy.n_train))) {
         let shown: Vec<&Trained> = (trained.iter())
             .filter(|t| t.map == map && t.policy.n_train == n_train)
@@ -185,7 +188,7 @@ pub fn section(
             figure(report, &stem, &setting, &shown, (x, reference))?;
         }
     }
-    time_to_quality::section(report, &trained, &levels)
+    Ok(trained)
 }
 
 /// What a test curve is drawn against.

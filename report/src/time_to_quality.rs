@@ -8,21 +8,16 @@
 //! the faster side as never arriving and one of the slower side as arriving at its last
 //! point, so that support errs against the claim; contradiction takes the opposite bounds.
 
-use std::collections::BTreeMap;
-
 use polars::prelude::*;
 
 use super::comparison::{CONFIDENCE, Sample};
+use super::judgement::{PointTest, Verdict};
 use super::markdown::number;
-use super::test_curve::{RunCurve, Trained, across};
-use super::verdicts::{PointTest, Verdict};
+use super::test_curve::{Levels, RunCurve, Trained, across};
 use super::{ReportError, ReportWriter};
 use engine::scenario::claims::{GCS, Point};
 use engine::stats::median_with_infinities as median;
 use engine::stats::{self, Block, RESAMPLES, StatsError, Unit, bootstrap};
-
-/// The reference's name and mean test penalty (10^6) by (map, N_test).
-pub type Levels = BTreeMap<(String, u32), (String, f64)>;
 
 /// When a run first reached a level.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -15,6 +15,7 @@ use super::behaviour_replay::EpisodeMeasure;
 use super::columns::{GroupKey, PolicyKey, f64s, named_seed, optional_u32s, strings};
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, difference_and_improvement, samples};
 use super::disturbance::{DisturbedSamples, ratio};
+use super::judgement::{PointTest, Verdict, find};
 use super::markdown::number;
 use super::test_curve::{samples_at, trained_curves};
 use super::time_to_quality;
@@ -23,79 +24,7 @@ use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use engine::scenario::claims::{
     Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance,
 };
-use engine::stats::{Bootstrap, StatsError, holm, least_squares_slope, mean, mean_difference};
-
-/// The family-wise level of a claim's contradiction, and each point's own level.
-const ALPHA: f64 = 1.0 - CONFIDENCE;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Verdict {
-    /// Every point's interval excludes the claim's opposite.
-    Supported,
-    /// Holm's correction over the points finds one whose interval excludes the claim.
-    Contradicted,
-    Inconclusive,
-    /// The store has no results for some policy at some point of the claim.
-    NoData,
-    /// The statement names a training budget the runs fall short of, or cannot be tested
-    /// from the store at all.
-    NotTested,
-}
-
-impl Verdict {
-    pub fn name(self) -> &'static str {
-        match self {
-            Verdict::Supported => "supported",
-            Verdict::Contradicted => "contradicted",
-            Verdict::Inconclusive => "inconclusive",
-            Verdict::NoData => "no data",
-            Verdict::NotTested => "not tested",
-        }
-    }
-
-    /// A claim over several points: supported when every point is; contradicted when Holm's
-    /// procedure over the points' p-values of contradiction rejects one at [`ALPHA`].
-    pub(crate) fn combine(points: &[PointTest]) -> Verdict {
-        let p_values: Vec<f64> = points.iter().map(|p| p.p_contradicted).collect();
-        if points.iter().all(|p| p.supported) && !points.is_empty() {
-            Verdict::Supported
-        } else if holm(&p_values, ALPHA).contains(&true) {
-            Verdict::Contradicted
-        } else {
-            Verdict::Inconclusive
-        }
-    }
-}
-
-/// One point of a claim: whether its interval supports the claim, and the p-value of the
-/// claim's contradiction there (the level at which its interval would exclude the claim).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct PointTest {
-    pub supported: bool,
-    pub p_contradicted: f64,
-}
-
-impl PointTest {
-    /// "The statistic is below `boundary`".
-    pub(crate) fn below(boot: &Bootstrap, boundary: f64) -> Result<Self, StatsError> {
-        let (_, high) = boot.interval(CONFIDENCE)?;
-        Ok(Self {
-            supported: high < boundary,
-            p_contradicted: boot.p_value(boundary, true),
-        })
-    }
-
-    /// "The statistic lies within [-tolerance, tolerance]".
-    fn within(boot: &Bootstrap, tolerance: f64) -> Result<Self, StatsError> {
-        let (low, high) = boot.interval(CONFIDENCE)?;
-        Ok(Self {
-            supported: -tolerance <= low && high <= tolerance,
-            p_contradicted: boot
-                .p_value(tolerance, true)
-                .min(boot.p_value(-tolerance, false)),
-        })
-    }
-}
+use engine::stats::{Bootstrap, StatsError, least_squares_slope, mean, mean_difference};
 
 /// One claim's verdict and the numbers behind it.
 #[derive(Clone, Debug)]
@@ -351,19 +280,6 @@ fn behaviour(
         behaviour_claims::verdict(&runs),
         behaviour_claims::describe(&runs, expected),
     )
-}
-
-/// Whether results of `group` are those of `policy` at `point`: a learned policy's at the
-/// point's N_train, a baseline's (which has none) at any.
-pub(crate) fn at_point(group: &GroupKey, policy: &str, point: &Point) -> bool {
-    group.map == point.map
-        && group.n_test == point.n_test
-        && group.policy.policy == policy
-        && group.policy.n_train.is_none_or(|n| n == point.n_train)
-}
-
-pub(crate) fn find<'a>(samples: &'a [Sample], policy: &str, point: &Point) -> Option<&'a Sample> {
-    samples.iter().find(|s| at_point(&s.group, policy, point))
 }
 
 fn point_label(point: &Point) -> String {

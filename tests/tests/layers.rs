@@ -192,28 +192,11 @@ fn cycles(edges: &BTreeMap<String, BTreeSet<String>>) -> Vec<BTreeSet<String>> {
 }
 
 /// The links on cycles that remain, as `crate[::folder]: from -> to`.
-const KNOWN: [&str; 21] = [
+const KNOWN: [&str; 4] = [
     "policies::nn: buffer -> real",
     "policies::nn: matmul -> buffer",
     "policies::nn: matmul -> real",
     "policies::nn: real -> matmul",
-    "report: behaviour -> motion",
-    "report: behaviour_claims -> behaviour_replay",
-    "report: behaviour_claims -> verdicts",
-    "report: behaviour_replay -> behaviour",
-    "report: behaviour_replay -> motion",
-    "report: behaviour_replay -> verdicts",
-    "report: disturbance -> motion",
-    "report: disturbance -> verdicts",
-    "report: motion -> verdicts",
-    "report: test_curve -> time_to_quality",
-    "report: time_to_quality -> test_curve",
-    "report: time_to_quality -> verdicts",
-    "report: verdicts -> behaviour_claims",
-    "report: verdicts -> behaviour_replay",
-    "report: verdicts -> disturbance",
-    "report: verdicts -> test_curve",
-    "report: verdicts -> time_to_quality",
 ];
 
 fn crate_src(crate_name: &str) -> PathBuf {

@@ -3,9 +3,6 @@
 //! makes every module on it depend on all the others: a cell's key on the sweep orchestrator,
 //! the report on the running engine. The check reads the sources alone (std only), so anyone
 //! can run it: `cargo test -p vpm-tests --test layers`.
-//!
-//! The links of the cycles not yet taken apart are listed in `KNOWN`: a new link on a cycle
-//! fails, and so does a listed one that is no longer on one, so that the list only shrinks.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -191,14 +188,6 @@ fn cycles(edges: &BTreeMap<String, BTreeSet<String>>) -> Vec<BTreeSet<String>> {
     found
 }
 
-/// The links on cycles that remain, as `crate[::folder]: from -> to`.
-const KNOWN: [&str; 4] = [
-    "policies::nn: buffer -> real",
-    "policies::nn: matmul -> buffer",
-    "policies::nn: matmul -> real",
-    "policies::nn: real -> matmul",
-];
-
 fn crate_src(crate_name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("..")
@@ -257,19 +246,12 @@ fn folder_cycles(crate_name: &str) -> Vec<String> {
 }
 
 #[test]
-fn no_crate_has_an_import_cycle_between_modules_beyond_the_known_ones() {
-    let found: BTreeSet<String> = CRATES.iter().flat_map(|c| folder_cycles(c)).collect();
-    let known: BTreeSet<String> = KNOWN.iter().map(|s| s.to_string()).collect();
-    let new: Vec<&String> = found.difference(&known).collect();
-    let gone: Vec<&String> = known.difference(&found).collect();
+fn no_crate_has_an_import_cycle_between_modules() {
+    let found: Vec<String> = CRATES.iter().flat_map(|c| folder_cycles(c)).collect();
     assert!(
-        new.is_empty(),
-        "modules that import each other in a cycle (take the cycle apart: move what both \
-         need below them):\n{new:#?}"
-    );
-    assert!(
-        gone.is_empty(),
-        "links no longer on a cycle: remove them from KNOWN\n{gone:#?}"
+        found.is_empty(),
+        "modules that import each other in a cycle (take it apart: move what both need below \
+         them):\n{found:#?}"
     );
 }
 

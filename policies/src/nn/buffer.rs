@@ -3,15 +3,13 @@
 
 use ndarray::{ArrayView2, ArrayViewMut2};
 
-use super::real::Real;
-
 /// A vector that only grows; views of any smaller size are taken from its front.
 #[derive(Debug, Clone, Default)]
 pub struct ReusableBuffer<T> {
     data: Vec<T>,
 }
 
-impl<T: Real> ReusableBuffer<T> {
+impl<T: Copy + num_traits::Zero> ReusableBuffer<T> {
     /// The first `len` elements, growing the buffer (with zeros) when it is shorter.
     pub fn slice_mut(&mut self, len: usize) -> &mut [T] {
         if self.data.len() < len {
@@ -46,7 +44,7 @@ pub struct AlternatingBuffers<T> {
     buffers: [ReusableBuffer<T>; 2],
 }
 
-impl<T: Real> AlternatingBuffers<T> {
+impl<T> AlternatingBuffers<T> {
     /// Where the gradient of layer `layer`'s output goes.
     pub fn output_grad_mut(&mut self, layer: usize) -> &mut ReusableBuffer<T> {
         &mut self.buffers[layer % 2]

@@ -6,9 +6,10 @@ use rand::Rng;
 
 use super::error::NnError;
 use super::init::Init;
+use super::matmul::LANES;
 use super::matmul::{matmul, matmul_add};
 use super::params::{ParamSlot, ParamStore};
-use super::real::{LANES, Real};
+use super::real::Real;
 
 /// A fully connected layer; the weight is stored `[outputs, inputs]` as in PyTorch.
 #[derive(Debug, Clone)]

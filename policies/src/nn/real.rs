@@ -7,7 +7,7 @@ use std::ops::{AddAssign, DivAssign, MulAssign, SubAssign};
 
 use ndarray::LinalgScalar;
 
-use super::matmul::{PackingBuffers, TileKernel};
+use super::matmul::Scalar;
 
 /// A float the layers compute in.
 pub trait Real:
@@ -22,8 +22,7 @@ pub trait Real:
     + Debug
     + Send
     + Sync
-    + TileKernel
-    + PackingBuffers
+    + Scalar
     + 'static
 {
     /// Rounds a constant or an `f64` draw to this type, so that the same seed gives the same
@@ -38,62 +37,12 @@ pub trait Real:
         Self::from_f64(count as f64)
     }
 
-    /// Partial sums of a dot product, one per lane.
-    type Lanes: LaneSums<Self>;
-
     /// `e^self` from the `libm` crate: the C library's `exp` differs between its versions
     /// and between its variants for different CPUs.
     fn exp_portable(self) -> Self;
 
     /// The natural logarithm from the `libm` crate, for the same reason.
     fn ln_portable(self) -> Self;
-}
-
-/// Lanes of [`LaneSums`]: one AVX2 register of `f32`.
-pub const LANES: usize = 8;
-
-/// `LANES` running sums of products, the product rounded before the sum as in scalar code, so
-/// a vector unit gives the same bits as none.
-pub trait LaneSums<T>: Copy {
-    fn zero() -> Self;
-    fn add_products(self, x: &[T; LANES], y: &[T; LANES]) -> Self;
-    fn to_array(self) -> [T; LANES];
-}
-
-/// The compiler does not turn the scalar loop into vector instructions by itself.
-impl LaneSums<f32> for wide::f32x8 {
-    #[inline(always)]
-    fn zero() -> Self {
-        wide::f32x8::ZERO
-    }
-
-    #[inline(always)]
-    fn add_products(self, x: &[f32; LANES], y: &[f32; LANES]) -> Self {
-        self + wide::f32x8::from(*x) * wide::f32x8::from(*y)
-    }
-
-    #[inline(always)]
-    fn to_array(self) -> [f32; LANES] {
-        wide::f32x8::to_array(self)
-    }
-}
-
-/// `f64` runs in gradient checks only, where speed does not matter.
-impl LaneSums<f64> for [f64; LANES] {
-    fn zero() -> Self {
-        [0.0; LANES]
-    }
-
-    fn add_products(mut self, x: &[f64; LANES], y: &[f64; LANES]) -> Self {
-        for l in 0..LANES {
-            self[l] += x[l] * y[l];
-        }
-        self
-    }
-
-    fn to_array(self) -> [f64; LANES] {
-        self
-    }
 }
 
 impl Real for f32 {
@@ -104,8 +53,6 @@ impl Real for f32 {
     fn as_f64(self) -> f64 {
         f64::from(self)
     }
-
-    type Lanes = wide::f32x8;
 
     fn exp_portable(self) -> Self {
         libm::expf(self)
@@ -124,8 +71,6 @@ impl Real for f64 {
     fn as_f64(self) -> f64 {
         self
     }
-
-    type Lanes = [f64; LANES];
 
     fn exp_portable(self) -> Self {
         libm::exp(self)

@@ -14,6 +14,7 @@
 //! another machine.
 
 mod kernel;
+mod lanes;
 mod packed;
 
 use ndarray::{ArrayView2, ArrayViewMut2, Axis};
@@ -23,7 +24,34 @@ pub use kernel::{INSTRUCTIONS, TileKernel};
 pub use packed::PackingBuffers;
 
 use super::buffer::ReusableBuffer;
-use super::real::{LANES, LaneSums, Real};
+pub use lanes::{LANES, LaneSums};
+
+/// What the products need of a float: its arithmetic, the lanes of a dot product, a tile
+/// kernel and packing buffers. The layers' float (`real::Real`) extends it.
+pub trait Scalar:
+    num_traits::Float
+    + ndarray::LinalgScalar
+    + std::ops::AddAssign
+    + std::fmt::Debug
+    + Default
+    + Send
+    + Sync
+    + TileKernel
+    + PackingBuffers
+    + 'static
+{
+    /// Partial sums of a dot product, one per lane.
+    type Lanes: LaneSums<Self>;
+}
+
+impl Scalar for f32 {
+    /// One AVX2 register.
+    type Lanes = wide::f32x8;
+}
+
+impl Scalar for f64 {
+    type Lanes = [f64; LANES];
+}
 
 /// Products with fewer multiply-adds than this run on the calling thread: below it, handing
 /// work to the pool costs more than it saves (the rollout's batches of a few agents, whose
@@ -31,16 +59,16 @@ use super::real::{LANES, LaneSums, Real};
 const PARALLEL_MULTIPLY_ADDS: usize = 1 << 21;
 
 /// `c = a b`.
-pub fn matmul<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>) {
+pub fn matmul<T: Scalar>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>) {
     product(a, b, c, false);
 }
 
 /// `c += a b`.
-pub fn matmul_add<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>) {
+pub fn matmul_add<T: Scalar>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>) {
     product(a, b, c, true);
 }
 
-fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>, add: bool) {
+fn product<T: Scalar>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>, add: bool) {
     let ((m, k), (k_b, n)) = (a.dim(), b.dim());
     assert_eq!(k, k_b, "inner dimensions differ");
     assert_eq!(c.dim(), (m, n), "output shape differs");
@@ -57,7 +85,7 @@ fn product<T: Real>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>, add
 /// thread multiplies a run of consecutive bands.
 /// The bits are those of `matmul_add` on the whole `a`: every band takes the whole product's
 /// path, and both paths compute each row of the output independently of the others.
-pub fn matmul_add_banded<T: Real, const N: usize>(
+pub fn matmul_add_banded<T: Scalar, const N: usize>(
     scratch: &mut ReusableBuffer<T>,
     k: usize,
     band_rows: usize,
@@ -93,7 +121,7 @@ impl<F> Bands<'_, F> {
 
     /// The bands of `products`' rows, whose first is row `first_row` of `a`, on `threads`
     /// threads, each in its own band of `scratch`, each given whole bands.
-    fn multiply<T: Real, const N: usize>(
+    fn multiply<T: Scalar, const N: usize>(
         &self,
         threads: usize,
         first_row: usize,
@@ -131,7 +159,7 @@ impl<F> Bands<'_, F> {
 type Products<'a, T, const N: usize> = [(ArrayView2<'a, T>, ArrayViewMut2<'a, T>); N];
 
 /// Every product's output split at `row`: the rows above it, and the rest.
-fn split_rows<'a, T: Real, const N: usize>(
+fn split_rows<'a, T: Scalar, const N: usize>(
     products: Products<'a, T, N>,
     row: usize,
 ) -> (Products<'a, T, N>, Products<'a, T, N>) {
@@ -155,7 +183,7 @@ fn split_rows<'a, T: Real, const N: usize>(
 /// product would not run packed, `p` is written whole and multiplied as one band. Bands are
 /// whole units of `unit_rows` rows (a sample's patches), at most `band_rows` but one unit, and
 /// are written by all threads at once, each given whole units.
-pub fn matmul_transposed_banded<T: Real, const N: usize>(
+pub fn matmul_transposed_banded<T: Scalar, const N: usize>(
     scratch: &mut ReusableBuffer<T>,
     mut products: Products<'_, T, N>,
     (band_rows, unit_rows): (usize, usize),
@@ -205,7 +233,7 @@ pub fn matmul_transposed_banded<T: Real, const N: usize>(
 /// as many threads. Inlined: a rollout step makes dozens of small products, and the call cost
 /// 5% of its time.
 #[inline]
-pub fn row_band_product<T: Real>(
+pub fn row_band_product<T: Scalar>(
     a: ArrayView2<T>,
     b: ArrayView2<T>,
     c: ArrayViewMut2<T>,
@@ -218,7 +246,7 @@ pub fn row_band_product<T: Real>(
 
 /// [`row_band_product`] on at most `threads` threads.
 #[inline]
-fn band_product<T: Real>(
+fn band_product<T: Scalar>(
     a: ArrayView2<T>,
     b: ArrayView2<T>,
     c: ArrayViewMut2<T>,
@@ -244,7 +272,7 @@ fn threads_for(multiply_adds: usize) -> usize {
 }
 
 /// Whether a product of `m` rows of contiguous `a` rows by `b` runs on the packed kernels.
-fn takes_packed_path<T: Real>(m: usize, k: usize, b: ArrayView2<T>) -> bool {
+fn takes_packed_path<T: Scalar>(m: usize, k: usize, b: ArrayView2<T>) -> bool {
     packed_by_shape(m, k, b.ncols(), rows_are_contiguous(b.t()))
 }
 
@@ -260,13 +288,13 @@ fn packed_by_shape(m: usize, k: usize, n: usize, b_columns_contiguous: bool) -> 
 const FEW_ROWS: usize = 16;
 
 /// Whether every row of `x` is one contiguous slice.
-fn rows_are_contiguous<T: Real>(x: ArrayView2<T>) -> bool {
+fn rows_are_contiguous<T: Scalar>(x: ArrayView2<T>) -> bool {
     x.ncols() <= 1 || x.strides()[1] == 1
 }
 
 /// `c[i][j] (+)= a[i] . b[.][j]`: each column of `b` is read once for a block of rows of `a`,
 /// and every dot product sums in the same order whatever the thread count.
-fn few_rows_product<T: Real>(
+fn few_rows_product<T: Scalar>(
     a: ArrayView2<T>,
     b: ArrayView2<T>,
     mut c: ArrayViewMut2<T>,
@@ -301,7 +329,7 @@ const ROW_BLOCK: usize = 4;
 
 /// The dot products of `R` rows with one column: `LANES` partial sums per row, summed as a
 /// balanced tree, then the tail.
-fn block_dots<T: Real, const R: usize>(rows: &[&[T]; R], column: &[T]) -> [T; R] {
+fn block_dots<T: Scalar, const R: usize>(rows: &[&[T]; R], column: &[T]) -> [T; R] {
     let (column_chunks, column_tail) = column.as_chunks::<LANES>();
     let row_chunks = rows.map(|row| row[..column.len()].as_chunks::<LANES>().0);
     let mut sums = [T::Lanes::zero(); R];
@@ -323,12 +351,12 @@ fn block_dots<T: Real, const R: usize>(rows: &[&[T]; R], column: &[T]) -> [T; R]
 }
 
 /// A row checked by [`rows_are_contiguous`] as a slice.
-fn contiguous<T: Real>(row: ndarray::ArrayView1<'_, T>) -> &[T] {
+fn contiguous<T: Scalar>(row: ndarray::ArrayView1<'_, T>) -> &[T] {
     row.to_slice().expect("rows checked contiguous")
 }
 
 /// The lanes summed as a balanced tree, as a vector reduction would.
-fn pairwise_sum<T: Real>(lanes: &[T; LANES]) -> T {
+fn pairwise_sum<T: Scalar>(lanes: &[T; LANES]) -> T {
     let mut width = LANES;
     let mut partial = *lanes;
     while width > 1 {

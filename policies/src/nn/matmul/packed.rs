@@ -12,8 +12,8 @@ use std::cell::RefCell;
 use ndarray::{ArrayView2, ArrayViewMut2};
 use rayon::prelude::*;
 
+use super::Scalar;
 use super::kernel::{MR, NR, Panel, TILE, Tile};
-use crate::nn::real::Real;
 
 /// The depth of a packed block: a `KC x NR` panel of `b` (16 KiB) stays in L1.
 const KC: usize = 256;
@@ -75,7 +75,7 @@ struct Rectangle {
 }
 
 /// `c = a b`, or `c += a b` when `add`, on `threads` threads.
-pub fn product<T: Real>(
+pub fn product<T: Scalar>(
     a: ArrayView2<T>,
     b: ArrayView2<T>,
     mut c: ArrayViewMut2<T>,
@@ -153,7 +153,7 @@ fn split(m: usize, n: usize, threads: usize) -> Vec<Rectangle> {
 /// # Safety
 /// `a` is `m x depth`, `b` is `depth x n` and `out` is `m x n` for some `m` and `n` that
 /// contain `part`, and no other thread touches `part` of `out` meanwhile.
-unsafe fn rectangle<T: Real>(
+unsafe fn rectangle<T: Scalar>(
     a: Operand<T>,
     b: Operand<T>,
     out: Output<T>,
@@ -195,7 +195,7 @@ struct BlockOfB<T> {
     kc: usize,
 }
 
-impl<T: Real> BlockOfB<T> {
+impl<T: Scalar> BlockOfB<T> {
     /// # Safety
     /// Rows `pc..pc + kc` and columns `jc..jc + nc` are inside `b`.
     unsafe fn new(
@@ -261,7 +261,7 @@ impl<T: Real> BlockOfB<T> {
 /// `block` is inside the output and owned by this thread; its rows, and columns
 /// `pc..pc + kc`, are inside `a`; `b_block` is columns `block.columns` of `b`.
 #[allow(clippy::too_many_arguments)]
-unsafe fn block_tiles<T: Real>(
+unsafe fn block_tiles<T: Scalar>(
     a: Operand<T>,
     pc: usize,
     kc: usize,
@@ -352,7 +352,7 @@ unsafe fn block_tiles<T: Real>(
 /// # Safety
 /// The `rows x cols` elements from `target` are inside the output, and owned by this thread
 /// when `store`.
-unsafe fn copy_tile<T: Real>(
+unsafe fn copy_tile<T: Scalar>(
     target: Operand<T>,
     rows: usize,
     cols: usize,
@@ -387,7 +387,7 @@ unsafe fn copy_tile<T: Real>(
 ///
 /// # Safety
 /// `source` has `depth` steps of `len` readable values.
-unsafe fn pack<T: Real, const W: usize>(
+unsafe fn pack<T: Scalar, const W: usize>(
     panels: &mut Vec<T>,
     depth: usize,
     len: usize,

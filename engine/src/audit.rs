@@ -174,10 +174,9 @@ pub fn audit_disturbed(
     sample: usize,
     seed: u64,
 ) -> Result<Vec<DisturbedAuditLine>, StoreError> {
-    if !store.root().join("disturbed.parquet").exists() {
+    let Some(table) = store.optional_table("disturbed")? else {
         return Ok(Vec::new());
-    }
-    let table = store.table("disturbed")?;
+    };
     let (keys, names) = (
         strings(&table, "cell_key")?,
         strings(&table, "disturbance")?,

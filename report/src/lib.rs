@@ -94,7 +94,7 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
         &manifest.scenario_hash[..16.min(manifest.scenario_hash.len())],
     ));
     let loaded = StoreTables::load(store)?;
-    let cells = optional_table(store, "cells")?;
+    let cells = store.optional_table("cells")?;
     let header = header::HeaderTables {
         cells: cells.as_ref(),
         episodes: &loaded.episodes,
@@ -125,8 +125,7 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
     penalty::section(&mut report, &summary, &episodes, &comparisons)?;
     comparison::section(&mut report, &comparisons)?;
     transfer::section(&mut report, &summary)?;
-    if let (Some(disturbed), Some(steps)) = (&disturbed, optional_table(store, "disturbed_steps")?)
-    {
+    if let (Some(disturbed), Some(steps)) = (&disturbed, store.optional_table("disturbed_steps")?) {
         disturbance::section(&mut report, disturbed, &steps, &motion::maps(store)?)?;
     }
     if let Some(training) = &training {
@@ -142,8 +141,8 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
         behaviour::section(&mut report, motions)?;
     }
     if let (Some(snapshots), Some(trajectories)) = (
-        optional_table(store, "snapshots")?,
-        optional_table(store, "trajectories")?,
+        store.optional_table("snapshots")?,
+        store.optional_table("trajectories")?,
     ) {
         illustration::section(&mut report, &snapshots, &trajectories, store)?;
     }
@@ -220,16 +219,16 @@ impl StoreTables {
     /// marker first).
     pub fn load(store: &Store) -> Result<Self, ReportError> {
         store.table_store()?;
-        let motions = match optional_table(store, "trajectories")? {
+        let motions = match store.optional_table("trajectories")? {
             Some(trajectories) => Some(motion::load(&trajectories, store)?),
             None => None,
         };
         Ok(Self {
             episodes: store.table("episodes")?,
-            training: optional_table(store, "training")?,
+            training: store.optional_table("training")?,
             motions,
-            disturbed: optional_table(store, "disturbed")?,
-            test_curve: optional_table(store, "test_curve")?,
+            disturbed: store.optional_table("disturbed")?,
+            test_curve: store.optional_table("test_curve")?,
             store: store.clone(),
         })
     }
@@ -270,14 +269,6 @@ impl StoreTables {
             behaviour_replay::measures(store, claims, episodes, motions.unwrap_or_default())?;
         Ok(measures)
     }
-}
-
-/// A sweep table, or `None` when the sweep did not build it.
-fn optional_table(store: &Store, name: &str) -> Result<Option<DataFrame>, ReportError> {
-    if !store.root().join(format!("{name}.parquet")).exists() {
-        return Ok(None);
-    }
-    Ok(Some(store.table(name)?))
 }
 
 /// The report folder being written: the README's text, and its tables and figures.

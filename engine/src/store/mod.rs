@@ -61,6 +61,21 @@ pub const SNAPSHOTS_FILE: &str = "snapshots.parquet";
 pub const DISTURBED_FILE: &str = "disturbed.parquet";
 pub const DISTURBED_STEPS_FILE: &str = "disturbed_steps.parquet";
 pub const TEST_CURVE_FILE: &str = "test_curve.parquet";
+
+/// The per-cell file a sweep-level table stacks; `None` for the tables made otherwise (the
+/// cells table from records, the summary from the episodes).
+pub fn per_cell_file(output: Output) -> Option<&'static str> {
+    match output {
+        Output::Episodes => Some(EPISODES_FILE),
+        Output::Training => Some(TRAINING_FILE),
+        Output::Trajectories => Some(TRAJECTORIES_FILE),
+        Output::Snapshots => Some(SNAPSHOTS_FILE),
+        Output::Disturbed => Some(DISTURBED_FILE),
+        Output::DisturbedSteps => Some(DISTURBED_STEPS_FILE),
+        Output::TestCurve => Some(TEST_CURVE_FILE),
+        Output::Cells | Output::Summary => None,
+    }
+}
 const RECORD_FILE: &str = "cell.json";
 const FAILURE_FILE: &str = "failed.json";
 const MANIFEST_FILE: &str = "sweep.json";
@@ -406,6 +421,14 @@ impl Store {
         tables::read_parquet(bytes).map_err(|e| StoreError::corrupt(&path, e))
     }
 
+    /// A sweep-level table, or `None` when the sweep did not build it.
+    pub fn optional_table(&self, name: &str) -> Result<Option<DataFrame>, StoreError> {
+        if !self.root.join(format!("{name}.parquet")).exists() {
+            return Ok(None);
+        }
+        self.table(name).map(Some)
+    }
+
     /// The scenario file as run.
     pub fn scenario_path(&self) -> PathBuf {
         self.root.join(SCENARIO_FILE)
@@ -535,7 +558,7 @@ impl Store {
         let episodes = per_cell(EPISODES_FILE)?;
         let mut built = Vec::new();
         for &output in outputs {
-            let frame = match (output, taken::per_cell_file(output)) {
+            let frame = match (output, per_cell_file(output)) {
                 (Output::Episodes, _) => episodes.clone(),
                 (Output::Cells, _) => Some(tables::cells_frame(records)?),
                 (Output::Summary, _) => episodes

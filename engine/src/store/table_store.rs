@@ -21,6 +21,7 @@
 use std::collections::BTreeMap;
 use std::path::{Component, Path};
 
+use polars::prelude::DataFrame;
 use serde::{Deserialize, Serialize};
 
 use super::columns::{f64s, strings};
@@ -173,36 +174,7 @@ impl Store {
     /// no files.
     pub(super) fn record_from_cells_table(&self, key: &str) -> Result<CellRecord, StoreError> {
         let path = self.root.join(format!("{}.parquet", Output::Cells.name()));
-        let cells = self.table(Output::Cells.name())?;
-        let corrupt = |e: polars::prelude::PolarsError| StoreError::corrupt(&path, e);
-        let keys = strings(&cells, "cell_key").map_err(corrupt)?;
-        let row = keys
-            .iter()
-            .position(|k| k == key)
-            .ok_or_else(|| StoreError::corrupt(&path, format!("holds no cell {key}")))?;
-        let text = |name: &str| -> Result<String, StoreError> {
-            Ok(strings(&cells, name).map_err(corrupt)?.swap_remove(row))
-        };
-        let config = serde_json::from_str(&text("config")?)
-            .map_err(|e| StoreError::corrupt(&path, format!("cell {key}'s config: {e}")))?;
-        Ok(CellRecord {
-            key: key.to_owned(),
-            scenario: text("scenario")?,
-            map_source: text("map_source")?,
-            config,
-            code_version: text("code_version")?,
-            git_commit: text("git_commit")?,
-            sources: String::new(),
-            host: text("host")?,
-            cpu: text("cpu")?,
-            kernels: text("kernels")?,
-            started: text("started")?,
-            finished: text("finished")?,
-            wall_seconds: f64s(&cells, "wall_seconds").map_err(corrupt)?[row],
-            files: BTreeMap::new(),
-            sizes: BTreeMap::new(),
-            taken_from: None,
-        })
+        record_of_row(&self.table(Output::Cells.name())?, &path, key)
     }
 
     /// The error of asking a table store for what only a sweep's store has.
@@ -212,6 +184,44 @@ impl Store {
             wanted: wanted.to_owned(),
         }
     }
+}
+
+/// The record of cell `key` from `cells`, a cells table read from `path`: its row, with no
+/// files.
+pub(super) fn record_of_row(
+    cells: &DataFrame,
+    path: &Path,
+    key: &str,
+) -> Result<CellRecord, StoreError> {
+    let corrupt = |e: polars::prelude::PolarsError| StoreError::corrupt(path, e);
+    let keys = strings(cells, "cell_key").map_err(corrupt)?;
+    let row = keys
+        .iter()
+        .position(|k| k == key)
+        .ok_or_else(|| StoreError::corrupt(path, format!("holds no cell {key}")))?;
+    let text = |name: &str| -> Result<String, StoreError> {
+        Ok(strings(cells, name).map_err(corrupt)?.swap_remove(row))
+    };
+    let config = serde_json::from_str(&text("config")?)
+        .map_err(|e| StoreError::corrupt(path, format!("cell {key}'s config: {e}")))?;
+    Ok(CellRecord {
+        key: key.to_owned(),
+        scenario: text("scenario")?,
+        map_source: text("map_source")?,
+        config,
+        code_version: text("code_version")?,
+        git_commit: text("git_commit")?,
+        sources: String::new(),
+        host: text("host")?,
+        cpu: text("cpu")?,
+        kernels: text("kernels")?,
+        started: text("started")?,
+        finished: text("finished")?,
+        wall_seconds: f64s(cells, "wall_seconds").map_err(corrupt)?[row],
+        files: BTreeMap::new(),
+        sizes: BTreeMap::new(),
+        taken_from: None,
+    })
 }
 
 /// Whether two paths name one folder (`b` may not exist yet).

@@ -7,32 +7,19 @@
 //! training files are checked against the hashes the cells table kept of them. What the
 //! tables do not keep is the checkpoint: the record says where the cell came from
 //! (`CellRecord::taken_from`), no other cell reuses its training run, and what replays its
-//! policy (audit, recordings, behaviour claims) says that it needs the cell computed again.
+//! policy (audit, recordings, behaviour claims) trains its run again first
+//! (`execution::stored_policy`).
+
+use std::collections::HashMap;
+use std::path::PathBuf;
 
 use polars::prelude::{ChunkCompareEq, DataFrame};
 
 use super::columns::{optional_strings, strings};
+use super::table_store::record_of_row;
 use super::tables::parquet_bytes;
-use super::{
-    CellRecord, DISTURBED_FILE, DISTURBED_STEPS_FILE, EPISODES_FILE, SNAPSHOTS_FILE, Store,
-    StoreError, TEST_CURVE_FILE, TRAINING_FILE, TRAJECTORIES_FILE,
-};
+use super::{CellRecord, EPISODES_FILE, Store, StoreError, TRAINING_FILE, per_cell_file};
 use crate::scenario::Output;
-
-/// The per-cell file a sweep-level table stacks; `None` for the tables made otherwise (the
-/// cells table from records, the summary from the episodes).
-pub fn per_cell_file(output: Output) -> Option<&'static str> {
-    match output {
-        Output::Episodes => Some(EPISODES_FILE),
-        Output::Training => Some(TRAINING_FILE),
-        Output::Trajectories => Some(TRAJECTORIES_FILE),
-        Output::Snapshots => Some(SNAPSHOTS_FILE),
-        Output::Disturbed => Some(DISTURBED_FILE),
-        Output::DisturbedSteps => Some(DISTURBED_STEPS_FILE),
-        Output::TestCurve => Some(TEST_CURVE_FILE),
-        Output::Cells | Output::Summary => None,
-    }
-}
 
 /// The files whose hashes the cells table keeps, by its column.
 const HASHED: [(&str, &str); 2] = [
@@ -41,11 +28,16 @@ const HASHED: [(&str, &str); 2] = [
 ];
 
 /// A table store opened to take cells from: its files checked against its marker once, its
-/// per-cell tables read once.
+/// tables read once.
 pub struct TakenTables {
     source: Store,
+    /// The cells table, where each cell's record and file hashes are kept.
     cells: DataFrame,
-    keys: Vec<String>,
+    cells_path: PathBuf,
+    /// Each cell's row of the cells table, by key.
+    rows: HashMap<String, usize>,
+    /// Each file of `HASHED`: its hash by row of the cells table.
+    kept: Vec<Vec<Option<String>>>,
     per_cell: Vec<(&'static str, DataFrame)>,
 }
 
@@ -58,38 +50,47 @@ impl TakenTables {
             return Err(StoreError::corrupt(source.root(), problem));
         }
         let cells = source.table(Output::Cells.name())?;
-        let keys = strings(&cells, "cell_key")
-            .map_err(|e| StoreError::corrupt(&source.root().join("cells.parquet"), e))?;
+        let cells_path = source
+            .root()
+            .join(format!("{}.parquet", Output::Cells.name()));
+        let corrupt = |e| StoreError::corrupt(&cells_path, e);
+        let keys = strings(&cells, "cell_key").map_err(corrupt)?;
+        let rows = keys
+            .into_iter()
+            .enumerate()
+            .map(|(row, key)| (key, row))
+            .collect();
+        let kept = HASHED
+            .iter()
+            .map(|(_, column)| optional_strings(&cells, column).map_err(corrupt))
+            .collect::<Result<_, _>>()?;
         let mut per_cell = Vec::new();
         for output in Output::ALL {
-            let Some(file) = per_cell_file(output) else {
-                continue;
-            };
-            if source
-                .root()
-                .join(format!("{}.parquet", output.name()))
-                .is_file()
+            if let Some(file) = per_cell_file(output)
+                && let Some(table) = source.optional_table(output.name())?
             {
-                per_cell.push((file, source.table(output.name())?));
+                per_cell.push((file, table));
             }
         }
         Ok(Self {
             source,
             cells,
-            keys,
+            cells_path,
+            rows,
+            kept,
             per_cell,
         })
     }
 
     pub fn holds(&self, key: &str) -> bool {
-        self.keys.iter().any(|k| k == key)
+        self.rows.contains_key(key)
     }
 
     /// Writes cell `key` into `store` from these tables: its rows of every per-cell table,
     /// its record (provenance as the cells table kept it, `taken_from` this store), and its
     /// map. The cell must be one these tables hold.
     pub fn take(&self, store: &Store, key: &str) -> Result<CellRecord, StoreError> {
-        let mut record = self.source.record_from_cells_table(key)?;
+        let mut record = record_of_row(&self.cells, &self.cells_path, key)?;
         let mut files = Vec::new();
         for (file, table) in &self.per_cell {
             let rows = table.filter(&table.column("cell_key")?.str()?.equal(key))?;
@@ -110,16 +111,12 @@ impl TakenTables {
     /// The episodes and training files rebuilt from the rows against the hashes of the
     /// files the cell was computed with.
     fn check_hashes(&self, key: &str, files: &[(&str, Vec<u8>)]) -> Result<(), StoreError> {
-        let path = self.source.root().join("cells.parquet");
-        let corrupt = |e| StoreError::corrupt(&path, e);
-        let row = self
-            .keys
-            .iter()
-            .position(|k| k == key)
-            .ok_or_else(|| StoreError::corrupt(&path, format!("holds no cell {key}")))?;
-        for (file, column) in HASHED {
-            let kept = optional_strings(&self.cells, column).map_err(corrupt)?;
-            let rebuilt = files.iter().find(|(name, _)| *name == file);
+        let row = *self
+            .rows
+            .get(key)
+            .ok_or_else(|| StoreError::corrupt(&self.cells_path, format!("holds no cell {key}")))?;
+        for ((file, column), kept) in HASHED.iter().zip(&self.kept) {
+            let rebuilt = files.iter().find(|(name, _)| name == file);
             let rebuilt = rebuilt.map(|(_, bytes)| blake3::hash(bytes).to_hex().to_string());
             if kept[row] != rebuilt {
                 let problem = format!(
@@ -128,7 +125,7 @@ impl TakenTables {
                      tables",
                     kept[row], rebuilt
                 );
-                return Err(StoreError::corrupt(&path, problem));
+                return Err(StoreError::corrupt(&self.cells_path, problem));
             }
         }
         Ok(())

@@ -157,8 +157,8 @@ fn resolve<'a>(path: &[String], known: &'a BTreeSet<Vec<String>>) -> Option<&'a 
     (1..=path.len()).rev().find_map(|n| known.get(&path[..n]))
 }
 
-/// Strongly connected components of more than one node (Tarjan's, iteratively simple enough
-/// for a few dozen nodes: a node's component is the nodes it reaches that reach it back).
+/// Strongly connected components of more than one node, by reachability (simple enough for
+/// a few dozen nodes: a node's component is the nodes it reaches that reach it back).
 fn cycles(edges: &BTreeMap<String, BTreeSet<String>>) -> Vec<BTreeSet<String>> {
     let reach = |from: &String| {
         let mut seen = BTreeSet::new();

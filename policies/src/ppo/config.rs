@@ -65,7 +65,7 @@ impl Profile {
 
 /// A profile name that names none.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("unknown profile `{0}` (known: paper, fast, fast-v1)")]
+#[error("unknown profile `{0}` (known: {known})", known = Profile::NAMES.map(|(name, _)| name).join(", "))]
 pub struct UnknownProfile(pub String);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -7,8 +7,8 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-const CRATES: [&str; 7] = [
-    "world", "policies", "engine", "report", "record", "bench", "harness",
+const CRATES: [&str; 8] = [
+    "world", "policies", "engine", "report", "record", "bench", "harness", "python",
 ];
 
 /// A crate's modules by path (`store::tables`), each with its file (relative to `src`) and

@@ -1,0 +1,85 @@
+//! One episode with its observations: what an environment and each member of a vector of
+//! environments step.
+
+use std::sync::Arc;
+
+use world::{Action, Cell, Episode, Observer, Seed, StartError};
+
+use crate::world_spec::World;
+
+/// An episode of at most `steps` steps (T) and the observer that writes its agents' images.
+#[derive(Clone)]
+pub struct Running {
+    pub episode: Episode,
+    pub observer: Observer,
+    pub steps: usize,
+    actions: Vec<Action>,
+}
+
+impl Running {
+    pub fn new(world: &World, agents: usize, steps: usize) -> Result<Self, String> {
+        if agents == 0 {
+            return Err("n_agents must be at least 1".into());
+        }
+        if steps == 0 {
+            return Err("steps (T) must be at least 1".into());
+        }
+        let episode = Episode::new(Arc::clone(&world.world), agents).map_err(|e| e.to_string())?;
+        Ok(Self {
+            observer: Observer::new(&world.world, world.observation),
+            episode,
+            steps,
+            actions: vec![Action::Stay; agents],
+        })
+    }
+
+    /// Starts from `starts`, or from cells drawn from `seed` as `harness run --seed` draws them.
+    pub fn reset(&mut self, seed: Seed, starts: Option<&[Cell]>) -> Result<(), StartError> {
+        match starts {
+            Some(starts) => self.episode.reset_at(starts).map(drop),
+            None => {
+                self.episode.reset(seed);
+                Ok(())
+            }
+        }
+    }
+
+    /// One step of the actions' indices (0 stay, 1 +y, 2 -x, 3 -y, 4 +x); the step's reward.
+    pub fn step(&mut self, actions: &[i64]) -> Result<f64, String> {
+        if self.episode.time() >= self.steps {
+            return Err(format!(
+                "the episode is over (T = {} steps): reset it first",
+                self.steps
+            ));
+        }
+        if actions.len() != self.actions.len() {
+            return Err(format!(
+                "{} actions for {} agents",
+                actions.len(),
+                self.actions.len()
+            ));
+        }
+        for (agent, (&index, action)) in actions.iter().zip(&mut self.actions).enumerate() {
+            *action = usize::try_from(index)
+                .ok()
+                .and_then(Action::from_index)
+                .ok_or_else(|| format!("agent {agent}'s action {index} is not one of 0 to 4"))?;
+        }
+        Ok(self.episode.step(&self.actions))
+    }
+
+    /// Writes every agent's observation into `out` (agents x channels x side x side).
+    pub fn observe(&mut self, out: &mut [f32]) {
+        self.observer.write(&self.episode, out);
+    }
+
+    /// Floats in all the agents' observations.
+    pub fn observation_len(&self) -> usize {
+        self.episode.agents() * self.observer.per_agent()
+    }
+
+    /// Whether the episode has run its T steps.
+    pub fn truncated(&self) -> bool {
+        self.episode.time() >= self.steps
+    }
+}

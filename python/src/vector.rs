@@ -1,0 +1,121 @@
+//! `VectorEnv`: n environments stepped in Rust threads in one call, with stacked arrays in
+//! and out, so that Python pays one call per step of all of them (EnvPool's idea).
+
+use numpy::ndarray::{Array1, Array5};
+use numpy::{IntoPyArray, PyArray1, PyArray5, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use rayon::prelude::*;
+use world::Seed;
+
+use crate::env::image_shape;
+use crate::episode::Running;
+use crate::world_spec::{World, value_error};
+
+/// What a step of all the environments returns: observations, rewards, truncated.
+type Stepped<'py> = (Bound<'py, PyArray5<f32>>, Bound<'py, PyArray1<f64>>, bool);
+
+#[pyclass(module = "vpm_world._core")]
+pub struct VectorEnv {
+    envs: Vec<Running>,
+}
+
+#[pymethods]
+impl VectorEnv {
+    /// `n` environments of `n_agents` agents in `world`, episodes of `steps` steps (T).
+    #[new]
+    #[pyo3(signature = (world, n, n_agents, steps = 2000))]
+    fn new(world: PyRef<'_, World>, n: usize, n_agents: usize, steps: usize) -> PyResult<Self> {
+        if n == 0 {
+            return Err(PyValueError::new_err("n (environments) must be at least 1"));
+        }
+        let first = Running::new(&world, n_agents, steps).map_err(PyValueError::new_err)?;
+        Ok(Self {
+            envs: vec![first; n],
+        })
+    }
+
+    /// Starts every environment: environment k draws its starts from child k of `seed`, as
+    /// the harness seeds test episode k of a cell and training environment k of an update
+    /// (`vpm_world.episode_seed`). Observations: n x agents x C x S x S.
+    fn reset<'py>(&mut self, py: Python<'py>, seed: u64) -> PyResult<Bound<'py, PyArray5<f32>>> {
+        let root = Seed::new(seed);
+        let envs = &mut self.envs;
+        py.detach(|| {
+            envs.par_iter_mut()
+                .enumerate()
+                .try_for_each(|(k, env)| env.reset(root.child(k as u64), None))
+        })
+        .map_err(value_error)?;
+        Ok(self.observations(py))
+    }
+
+    /// One step of every environment: `actions` is n x agents action indices. The
+    /// observations after it, each environment's reward (n) and whether the episodes have
+    /// run their T steps (all environments step together, so all end together).
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        actions: PyReadonlyArray2<'py, i64>,
+    ) -> PyResult<Stepped<'py>> {
+        let (n, agents) = (self.envs.len(), self.envs[0].episode.agents());
+        if actions.shape() != [n, agents] {
+            return Err(PyValueError::new_err(format!(
+                "actions must be {n} x {agents} (environments x agents), got {:?}",
+                actions.shape()
+            )));
+        }
+        let actions: Vec<i64> = actions.as_array().iter().copied().collect();
+        let envs = &mut self.envs;
+        let rewards = py.detach(|| {
+            envs.par_iter_mut()
+                .zip(actions.par_chunks(agents))
+                .map(|(env, actions)| env.step(actions))
+                .collect::<Result<Vec<f64>, String>>()
+        });
+        let rewards = rewards.map_err(PyValueError::new_err)?;
+        let truncated = self.envs[0].truncated();
+        let rewards = Array1::from_vec(rewards).into_pyarray(py);
+        Ok((self.observations(py), rewards, truncated))
+    }
+
+    #[getter]
+    fn n(&self) -> usize {
+        self.envs.len()
+    }
+
+    /// Every environment's agents' cells (x, y).
+    fn positions(&self) -> Vec<Vec<(u16, u16)>> {
+        let cells = |env: &Running| {
+            let positions = env.episode.positions();
+            positions.iter().map(|cell| (cell.x, cell.y)).collect()
+        };
+        self.envs.iter().map(cells).collect()
+    }
+}
+
+impl VectorEnv {
+    /// Every environment's observations, written in parallel into one array numpy owns.
+    fn observations<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray5<f32>> {
+        let per_env = self.envs[0].observation_len();
+        let mut values = vec![0.0; per_env * self.envs.len()];
+        let envs = &mut self.envs;
+        py.detach(|| {
+            envs.par_iter_mut()
+                .zip(values.par_chunks_mut(per_env))
+                .for_each(|(env, out)| env.observe(out));
+        });
+        let (channels, side, _) = image_shape(&self.envs[0]);
+        let shape = (
+            self.envs.len(),
+            self.envs[0].episode.agents(),
+            channels,
+            side,
+            side,
+        );
+        let array = Array5::from_shape_vec(shape, values);
+        array
+            .expect("n x agents x channels x side x side")
+            .into_pyarray(py)
+    }
+}

@@ -1,0 +1,122 @@
+//! `World`: a map and the world's parameters, checked once, shared by every environment built
+//! on it (visibility is precomputed here, the costly part of making an environment).
+
+use std::sync::Arc;
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use world::observation::AGENT_CODE;
+use world::penalty::OBSTACLE_CODE;
+use world::{Channels, ObservationConfig, WorldParams};
+
+use crate::maps;
+
+/// A map with L, D and Rmax, and what the agents observe of it.
+#[pyclass(module = "vpm_world._core", frozen)]
+pub struct World {
+    pub world: Arc<world::World>,
+    pub observation: ObservationConfig,
+}
+
+#[pymethods]
+impl World {
+    /// `map`: a paper map's name or a map file; the other values are the harness's
+    /// (`fov` L, `decay` D, `rmax` Rmax; `channels` local, mini or both, local first).
+    #[new]
+    #[pyo3(signature = (
+        map,
+        *,
+        fov = world::params::PAPER_FOV,
+        decay = world::params::PAPER_DECAY,
+        rmax = world::params::PAPER_RMAX,
+        channels = "both",
+        mark_others_on_mini = false,
+        mini_map_block = None,
+    ))]
+    fn new(
+        map: &str,
+        fov: usize,
+        decay: f32,
+        rmax: f32,
+        channels: &str,
+        mark_others_on_mini: bool,
+        mini_map_block: Option<usize>,
+    ) -> PyResult<Self> {
+        let params = WorldParams::new(fov, decay, rmax).map_err(value_error)?;
+        let channels = match channels {
+            "local" => Channels::Local,
+            "mini" => Channels::Mini,
+            "both" => Channels::Both,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "channels must be local, mini or both, got `{other}`"
+                )));
+            }
+        };
+        if mini_map_block == Some(0) {
+            return Err(PyValueError::new_err("mini_map_block must be at least 1"));
+        }
+        let map = maps::load(map).map_err(PyValueError::new_err)?;
+        let observation = ObservationConfig {
+            channels,
+            mark_others_on_mini,
+            mini_map_block,
+        };
+        Ok(Self {
+            world: world::World::new(map, params),
+            observation,
+        })
+    }
+
+    /// The map's name (a paper map's, or the file's).
+    #[getter]
+    fn map(&self) -> String {
+        self.world.map().name().to_owned()
+    }
+
+    #[getter]
+    fn width(&self) -> usize {
+        self.world.map().width()
+    }
+
+    #[getter]
+    fn height(&self) -> usize {
+        self.world.map().height()
+    }
+
+    /// How many free cells: the most agents the map holds.
+    #[getter]
+    fn free_cells(&self) -> usize {
+        self.world.map().free_cells().len()
+    }
+
+    #[getter]
+    fn rmax(&self) -> f32 {
+        self.world.params().rmax()
+    }
+
+    /// The shape of one agent's observation: (channels, side, side).
+    #[getter]
+    fn observation_shape(&self) -> (usize, usize, usize) {
+        let side = world::ImageGeometry::new(
+            self.world.map(),
+            self.world.params().fov(),
+            self.observation.mini_map_block,
+        )
+        .side;
+        (self.observation.channels.count(), side, side)
+    }
+
+    /// The least and greatest value an observation holds: a penalty at its floor (-1 once
+    /// divided by Rmax) and the largest code (an agent's, 200, divided by Rmax).
+    #[getter]
+    fn observation_bounds(&self) -> (f32, f32) {
+        let rmax = self.world.params().rmax();
+        (-1.0, AGENT_CODE.max(OBSTACLE_CODE) / rmax)
+    }
+}
+
+/// A checked value refused, as a Python `ValueError` with the harness's message.
+pub fn value_error(error: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(error.to_string())
+}

@@ -44,19 +44,14 @@ fn the_python_package_passes_its_tests_and_plays_the_harness_episodes() {
     assert!(printed.contains("x 10^6"), "{printed}");
 }
 
-/// Builds the wheel (release, stripped) in a target folder of its own, so that the build does
-/// not wait on the lock of the one `cargo test` holds.
+/// Builds the wheel in a target folder of its own, so that the build does not wait on the lock
+/// of the one `cargo test` holds. The dev profile (the world at full optimisation, PyO3 and the
+/// rest lightly, as in the workspace's tests): the tests need the bits, not the speed.
 fn build_wheel(python: &Path) -> PathBuf {
     let out = scratch("python-wheel");
     let maturin = python.with_file_name("maturin");
     let built = run(Command::new(maturin)
-        .args([
-            "build",
-            "--release",
-            "--strip",
-            "--quiet",
-            "--manifest-path",
-        ])
+        .args(["build", "--quiet", "--manifest-path"])
         .arg(repo_file("python/Cargo.toml"))
         .arg("--out")
         .arg(&out)

@@ -139,7 +139,7 @@ pub enum PolicySpec<P = Profile> {
     MaPpo(LearnedSpec<P>),
 }
 
-/// A profile as a scenario file names it: `paper` (the default), `fast` or `fast-v1`.
+/// A profile as a scenario file names it: `paper` (the default), `fast`, `fast-v1` or `fast-v2`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ProfileName(pub Profile);
 
@@ -186,7 +186,8 @@ pub struct LearnedSpec<P = Profile> {
     #[serde(default)]
     pub name: Option<String>,
     /// The named set of training hyper-parameters the run starts from: `paper` (the released
-    /// code's), `fast` (our default) or `fast-v1` (our first).
+    /// code's), `fast` (our default), `fast-v1` (our first) or `fast-v2` (one episode per
+    /// update, the profile study's winner).
     #[serde(default)]
     pub profile: P,
     /// The images the policy sees: `[local, mini]` (the paper's full model), `[local]` or

@@ -206,7 +206,7 @@ mod tests {
             ),
             (
                 "  - ma-ppo: {profile: slow, episodes: 5}\n",
-                "policies[1].ma-ppo.profile: unknown profile `slow` (known: paper, fast, fast-v1)",
+                "policies[1].ma-ppo.profile: unknown profile `slow` (known: paper, fast, fast-v1, fast-v2)",
             ),
             (
                 "  - ma-g-ppo: {episodes: 0, set: {network: compact}}\n",

@@ -253,7 +253,7 @@ mod tests {
         assert_eq!(default.learned().unwrap().profile, Profile::FAST);
         let unknown = from_file("ma-g-ppo: {profile: fastest, episodes: 5}").unwrap_err();
         assert!(
-            unknown.contains("unknown profile `fastest` (known: paper, fast, fast-v1)"),
+            unknown.contains("unknown profile `fastest` (known: paper, fast, fast-v1, fast-v2)"),
             "{unknown}"
         );
     }

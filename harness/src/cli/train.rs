@@ -26,7 +26,7 @@ pub struct TrainArgs {
     architecture: Option<String>,
     #[arg(long, value_parser = ["both", "local", "mini"])]
     channels: Option<String>,
-    /// The preset the configuration starts from: fast (the default), fast-v1 or paper; on
+    /// The preset the configuration starts from: fast (the default), fast-v1, fast-v2 or paper; on
     /// resume, the saved one.
     #[arg(long, value_parser = |name: &str| Profile::named(name))]
     profile: Option<Profile>,

@@ -749,15 +749,17 @@ fn every_committed_scenario_loads_and_the_rq_scenarios_share_their_common_cells(
         let a = scenario_keys(a, true);
         a.intersection(&scenario_keys(b, true)).count()
     };
-    // RQ5's learned cells are RQ4's; RQ1's open MA-G-PPO cells (4 N x 3 seeds) are in both.
+    // RQ5's learned cells are RQ4's; RQ1's open MA-G-PPO cells (4 N x 5 seeds) are in both.
     assert_eq!(
         scenario_keys("scenarios/rq5.yaml", true),
         scenario_keys("scenarios/rq4.yaml", true)
     );
-    assert_eq!(shared("scenarios/rq1.yaml", "scenarios/rq4.yaml"), 12);
-    // RQ2's both-channel cells (N = 4, 3 seeds); RQ3's open cells (N = 2, 4, seed 0).
-    assert_eq!(shared("scenarios/rq2.yaml", "scenarios/rq1.yaml"), 3);
-    assert_eq!(shared("scenarios/rq3.yaml", "scenarios/rq1.yaml"), 2);
+    assert_eq!(shared("scenarios/rq1.yaml", "scenarios/rq4.yaml"), 20);
+    // RQ2's both-channel cells (N = 4, 5 seeds); RQ3's open cells (N = 2, 4, 5 seeds).
+    assert_eq!(shared("scenarios/rq2.yaml", "scenarios/rq1.yaml"), 5);
+    assert_eq!(shared("scenarios/rq3.yaml", "scenarios/rq1.yaml"), 10);
+    // RQ6's undisturbed-trained cells on open (N = 4, 6, 5 seeds per architecture) are RQ4's.
+    assert_eq!(shared("scenarios/rq6.yaml", "scenarios/rq4.yaml"), 20);
 }
 
 /// The number before `word` in a sweep's summary line (`3 computed`).

@@ -10,7 +10,7 @@ use world::Seed;
 
 use crate::env::image_shape;
 use crate::episode::Running;
-use crate::world_spec::{World, value_error};
+use crate::world_spec::World;
 
 /// What a step of all the environments returns: observations, rewards, truncated.
 type Stepped<'py> = (Bound<'py, PyArray5<f32>>, Bound<'py, PyArray1<f64>>, bool);
@@ -40,14 +40,11 @@ impl VectorEnv {
     /// (`vpm_world.episode_seed`). Observations: n x agents x C x S x S.
     fn reset<'py>(&mut self, py: Python<'py>, seed: u64) -> PyResult<Bound<'py, PyArray5<f32>>> {
         let root = Seed::new(seed);
-        let envs = &mut self.envs;
-        py.detach(|| {
-            envs.par_iter_mut()
-                .enumerate()
-                .try_for_each(|(k, env)| env.reset(root.child(k as u64), None))
-        })
-        .map_err(value_error)?;
-        Ok(self.observations(py))
+        let (observations, _) = self.each_then_observe(py, |k, env| {
+            let started = env.reset(root.child(k as u64), None);
+            started.map(|()| 0.0).map_err(|error| error.to_string())
+        })?;
+        Ok(observations)
     }
 
     /// One step of every environment: `actions` is n x agents action indices. The
@@ -66,17 +63,12 @@ impl VectorEnv {
             )));
         }
         let actions: Vec<i64> = actions.as_array().iter().copied().collect();
-        let envs = &mut self.envs;
-        let rewards = py.detach(|| {
-            envs.par_iter_mut()
-                .zip(actions.par_chunks(agents))
-                .map(|(env, actions)| env.step(actions))
-                .collect::<Result<Vec<f64>, String>>()
-        });
-        let rewards = rewards.map_err(PyValueError::new_err)?;
+        let (observations, rewards) = self.each_then_observe(py, |k, env| {
+            env.step(&actions[k * agents..(k + 1) * agents])
+        })?;
         let truncated = self.envs[0].truncated();
         let rewards = Array1::from_vec(rewards).into_pyarray(py);
-        Ok((self.observations(py), rewards, truncated))
+        Ok((observations, rewards, truncated))
     }
 
     #[getter]
@@ -95,16 +87,28 @@ impl VectorEnv {
 }
 
 impl VectorEnv {
-    /// Every environment's observations, written in parallel into one array numpy owns.
-    fn observations<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray5<f32>> {
+    /// `each` on every environment k, then its observations, in one parallel pass with the
+    /// GIL released, into one array numpy owns; with `each`'s values (rewards) in order.
+    fn each_then_observe<'py>(
+        &mut self,
+        py: Python<'py>,
+        each: impl Fn(usize, &mut Running) -> Result<f64, String> + Sync,
+    ) -> PyResult<(Bound<'py, PyArray5<f32>>, Vec<f64>)> {
         let per_env = self.envs[0].observation_len();
         let mut values = vec![0.0; per_env * self.envs.len()];
         let envs = &mut self.envs;
-        py.detach(|| {
+        let results = py.detach(|| {
             envs.par_iter_mut()
                 .zip(values.par_chunks_mut(per_env))
-                .for_each(|(env, out)| env.observe(out));
+                .enumerate()
+                .map(|(k, (env, out))| {
+                    let value = each(k, env)?;
+                    env.observe(out);
+                    Ok(value)
+                })
+                .collect::<Result<Vec<f64>, String>>()
         });
+        let results = results.map_err(PyValueError::new_err)?;
         let (channels, side, _) = image_shape(&self.envs[0]);
         let shape = (
             self.envs.len(),
@@ -114,8 +118,7 @@ impl VectorEnv {
             side,
         );
         let array = Array5::from_shape_vec(shape, values);
-        array
-            .expect("n x agents x channels x side x side")
-            .into_pyarray(py)
+        let array = array.expect("n x agents x channels x side x side");
+        Ok((array.into_pyarray(py), results))
     }
 }

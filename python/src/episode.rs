@@ -7,6 +7,10 @@ use world::{Action, Cell, Episode, Observer, Seed, StartError};
 
 use crate::world_spec::World;
 
+/// The most floats one call's observations may hold (1 GiB): a larger request is refused
+/// with an error instead of aborting the interpreter when the allocation fails.
+pub const MAX_OBSERVATION_FLOATS: usize = 1 << 28;
+
 /// An episode of at most `steps` steps (T) and the observer that writes its agents' images.
 #[derive(Clone)]
 pub struct Running {
@@ -25,8 +29,10 @@ impl Running {
             return Err("steps (T) must be at least 1".into());
         }
         let episode = Episode::new(Arc::clone(&world.world), agents).map_err(|e| e.to_string())?;
+        let observer = Observer::new(&world.world, world.observation);
+        check_observation_size(agents, observer.per_agent())?;
         Ok(Self {
-            observer: Observer::new(&world.world, world.observation),
+            observer,
             episode,
             steps,
             actions: vec![Action::Stay; agents],
@@ -81,5 +87,16 @@ impl Running {
     /// Whether the episode has run its T steps.
     pub fn truncated(&self) -> bool {
         self.episode.time() >= self.steps
+    }
+}
+
+/// Refuses `count` observations of `each` floats that would exceed `MAX_OBSERVATION_FLOATS`.
+pub fn check_observation_size(count: usize, each: usize) -> Result<(), String> {
+    match count.checked_mul(each) {
+        Some(floats) if floats <= MAX_OBSERVATION_FLOATS => Ok(()),
+        _ => Err(format!(
+            "observations of {count} x {each} floats are more than one call may return \
+             ({MAX_OBSERVATION_FLOATS} floats, 1 GiB): use fewer agents or environments"
+        )),
     }
 }

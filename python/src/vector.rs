@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use world::Seed;
 
 use crate::env::image_shape;
-use crate::episode::Running;
+use crate::episode::{Running, check_observation_size};
 use crate::world_spec::World;
 
 /// What a step of all the environments returns: observations, rewards, truncated.
@@ -30,6 +30,7 @@ impl VectorEnv {
             return Err(PyValueError::new_err("n (environments) must be at least 1"));
         }
         let first = Running::new(&world, n_agents, steps).map_err(PyValueError::new_err)?;
+        check_observation_size(n, first.observation_len()).map_err(PyValueError::new_err)?;
         Ok(Self {
             envs: vec![first; n],
         })

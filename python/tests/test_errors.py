@@ -56,6 +56,13 @@ def test_bad_actions_starts_and_seeds_are_refused():
         env.step({})
 
 
+def test_sizes_that_would_exhaust_memory_are_refused_not_allocated():
+    with pytest.raises(ValueError, match="more than one call may return"):
+        vpm_world.VectorEnv(10**9, "open", 4)
+    with pytest.raises(ValueError, match="more than one call may return"):
+        vpm_world.VectorEnv(2**62, "open", 4)
+
+
 def test_vector_env_refuses_wrong_shapes():
     vector = vpm_world.VectorEnv(3, "open", 2, steps=5)
     vector.reset(0)

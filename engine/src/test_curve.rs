@@ -245,7 +245,7 @@ mod tests {
     fn learned_cell() -> CellConfig {
         let text = "name: unit\nseed: 3\nmaps:\n  - inline: {name: a, grid: \"....\\n....\\n\"}\n\
                     world: {fov: 3, test_steps: 10, train_steps: 4}\npolicies:\n  \
-                    - ma-ppo: {profile: fast, episodes: 100, evaluate_every: 40, \
+                    - ma-ppo: {profile: fast-v1, episodes: 100, evaluate_every: 40, \
                     set: {network: compact}}\nagents: {train: [2], test: [2]}\ntest_episodes: 2\n";
         let scenario = crate::scenario::Scenario::parse(text, Path::new("unit.yaml")).unwrap();
         scenario.cells().remove(0).config

@@ -30,7 +30,7 @@ world: {fov: 25, test_steps: 120, train_steps: 10}
 policies:
   - baseline: {name: random}
   - baseline: {name: gcs}
-  - ma-g-ppo: {profile: fast, episodes: 2}
+  - ma-g-ppo: {profile: fast-v1, episodes: 2}
 agents:
   train: [2]
   test: [2, 3]

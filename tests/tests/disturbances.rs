@@ -26,8 +26,8 @@ world: {fov: 25, train_steps: 40, test_steps: 60}
 policies:
   - baseline: {name: gcs}
   - baseline: {name: tspc}
-  - ma-g-ppo: {profile: fast, episodes: 2}
-  - ma-ppo: {profile: fast, episodes: 2}
+  - ma-g-ppo: {profile: fast-v1, episodes: 2}
+  - ma-ppo: {profile: fast-v1, episodes: 2}
 agents: {train: [2, 3], test: [2, 3]}
 repetitions: 2
 test_episodes: 3

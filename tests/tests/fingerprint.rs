@@ -45,11 +45,11 @@ policies:
   - baseline: {name: gcs}
   - baseline: {name: gcs-paper-text}
   - baseline: {name: tspc}
-  - ma-g-ppo: {profile: fast, episodes: 8}
-  - ma-ppo: {profile: fast, episodes: 8}
-  - ma-g-ppo: {name: losses, profile: fast, episodes: 8, set: {loss_probability: 0.5}}
-  - ma-g-ppo: {name: radius, profile: fast, episodes: 8, set: {neighbours: {within_radius: 6.0}}}
-  - ma-g-ppo: {name: self-loops, profile: fast, episodes: 8, set: {neighbours: all_agents}}
+  - ma-g-ppo: {profile: fast-v1, episodes: 8}
+  - ma-ppo: {profile: fast-v1, episodes: 8}
+  - ma-g-ppo: {name: losses, profile: fast-v1, episodes: 8, set: {loss_probability: 0.5}}
+  - ma-g-ppo: {name: radius, profile: fast-v1, episodes: 8, set: {neighbours: {within_radius: 6.0}}}
+  - ma-g-ppo: {name: self-loops, profile: fast-v1, episodes: 8, set: {neighbours: all_agents}}
 agents: {train: [3], test: [2, 3]}
 repetitions: 1
 test_episodes: 2

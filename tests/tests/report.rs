@@ -356,7 +356,7 @@ fn a_recording_of_a_stored_episode_reads_back() {
     let scenario = dir.join("tiny.yaml");
     // With a learned policy too (a token training run), whose recordings show attention.
     let learned =
-        "  - ma-g-ppo: {profile: fast, episodes: 2, set: {network: compact, environments: 2}}\n";
+        "  - ma-g-ppo: {profile: fast-v1, episodes: 2, set: {network: compact, environments: 2}}\n";
     let with_learned = SCENARIO.replace("agents:\n", &format!("{learned}agents:\n  train: [2]\n"));
     std::fs::write(&scenario, with_learned).unwrap();
     let store = dir.join("store");
@@ -477,7 +477,7 @@ fn a_report_rebuilds_byte_for_byte_from_its_table_store() {
     // Two training runs of a learned policy, for the header's budget and trend, and a lost
     // robot, for the disturbed tables.
     let learned =
-        "  - ma-g-ppo: {profile: fast, episodes: 8, set: {network: compact, environments: 2}}\n";
+        "  - ma-g-ppo: {profile: fast-v1, episodes: 8, set: {network: compact, environments: 2}}\n";
     let lost = "disturbances:\n  - name: lose-1\n    lose: {robots: 1, at: 30}\nclaims:\n";
     let text = SCENARIO
         .replace("agents:\n", &format!("{learned}agents:\n  train: [2]\n"))
@@ -592,8 +592,8 @@ maps:
         ##########
 world: {fov: 5, test_steps: 30, train_steps: 10}
 policies:
-  - ma-ppo: {name: two, profile: fast, episodes: 6, evaluate_every: 2, set: {network: compact, environments: 2}}
-  - ma-ppo: {name: one, profile: fast, episodes: 6, evaluate_every: 2, set: {network: compact, environments: 1}}
+  - ma-ppo: {name: two, profile: fast-v1, episodes: 6, evaluate_every: 2, set: {network: compact, environments: 2}}
+  - ma-ppo: {name: one, profile: fast-v1, episodes: 6, evaluate_every: 2, set: {network: compact, environments: 1}}
   - baseline: {name: gcs}
   - baseline: {name: random}
 agents:

@@ -27,7 +27,7 @@ world: {fov: 25, decay: 1, rmax: 400, train_steps: 40, test_steps: 60}
 policies:
   - baseline: {name: random}
   - baseline: {name: gcs}
-  - ma-g-ppo: {profile: fast, episodes: 2}
+  - ma-g-ppo: {profile: fast-v1, episodes: 2}
 agents: {train: [2], test: [2]}
 repetitions: 3
 test_episodes: 4

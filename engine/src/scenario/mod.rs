@@ -147,7 +147,7 @@ mod tests {
 
     #[test]
     fn expands_baselines_once_and_learned_policies_per_training_count() {
-        let learned = "  - ma-ppo: {profile: fast, episodes: 5, set: {network: compact}}\n";
+        let learned = "  - ma-ppo: {profile: fast-v1, episodes: 5, set: {network: compact}}\n";
         let s = parse(&scenario(learned, &inline("a"))).unwrap();
         let cells = s.cells();
         // random: 2 repetitions; ma-ppo: 2 training counts x 2 repetitions.
@@ -357,7 +357,7 @@ mod tests {
 
     #[test]
     fn claims_take_a_column_a_scale_a_budget_or_a_reason() {
-        let learned = "  - ma-ppo: {profile: fast, episodes: 5, set: {network: compact}}\n";
+        let learned = "  - ma-ppo: {profile: fast-v1, episodes: 5, set: {network: compact}}\n";
         let with = |claims: &str| format!("{}claims:\n{claims}", scenario(learned, &inline("a")));
         let good = "  - id: column\n    budget: 30000\n    \
                     gap_grows: {a: ma-ppo@fast, b: random, maps: [a], n_test: 1, n: [2, 3]}\n  \
@@ -427,7 +427,7 @@ mod tests {
 
     #[test]
     fn claims_name_the_scenarios_own_policies_maps_and_counts() {
-        let learned = "  - ma-ppo: {profile: fast, episodes: 5, set: {network: compact}}\n";
+        let learned = "  - ma-ppo: {profile: fast-v1, episodes: 5, set: {network: compact}}\n";
         let with = |claims: &str| format!("{}claims:\n{claims}", scenario(learned, &inline("a")));
         let good = "  - id: beats\n    paper: MA-PPO beats Random\n    \
                     lower: {a: ma-ppo@fast, b: random, maps: [a], n: [2]}\n  \

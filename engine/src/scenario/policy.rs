@@ -235,7 +235,7 @@ mod tests {
 
     fn learned(channels: &str) -> ScenarioPolicy {
         from_file(&format!(
-            "ma-g-ppo: {{profile: fast, episodes: 5, channels: {channels}}}"
+            "ma-g-ppo: {{profile: fast-v1, episodes: 5, channels: {channels}}}"
         ))
         .unwrap()
     }

@@ -251,7 +251,7 @@ pub(super) fn check_size(
 mod tests {
     use super::*;
 
-    const SCENARIO: &str = "name: unit\nseed: 3\nmaps:\n  - inline:\n      name: a\n      grid: |\n        ......\n        ..#...\n        ......\nworld: {fov: 3, test_steps: 20, train_steps: 10}\npolicies:\n  - baseline: {name: random}\n  - ma-ppo: {profile: fast, episodes: 5, set: {network: compact}}\nagents: {train: [2, 3], test: [1, 2]}\nrepetitions: 2\ntest_episodes: 4\n";
+    const SCENARIO: &str = "name: unit\nseed: 3\nmaps:\n  - inline:\n      name: a\n      grid: |\n        ......\n        ..#...\n        ......\nworld: {fov: 3, test_steps: 20, train_steps: 10}\npolicies:\n  - baseline: {name: random}\n  - ma-ppo: {profile: fast-v1, episodes: 5, set: {network: compact}}\nagents: {train: [2, 3], test: [1, 2]}\nrepetitions: 2\ntest_episodes: 4\n";
 
     fn error(edits: &[(&str, &str)]) -> String {
         let text = edits.iter().fold(SCENARIO.to_owned(), |text, (from, to)| {

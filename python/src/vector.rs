@@ -37,8 +37,8 @@ impl VectorEnv {
     }
 
     /// Starts every environment: environment k draws its starts from child k of `seed`, as
-    /// the harness seeds test episode k of a cell and training environment k of an update
-    /// (`vpm_world.episode_seed`). Observations: n x agents x C x S x S.
+    /// the harness seeds test episode k of a cell (`vpm_world.episode_seed`). Observations:
+    /// n x agents x C x S x S.
     fn reset<'py>(&mut self, py: Python<'py>, seed: u64) -> PyResult<Bound<'py, PyArray5<f32>>> {
         let root = Seed::new(seed);
         let (observations, _) = self.each_then_observe(py, |k, env| {

@@ -87,7 +87,7 @@ class ParallelEnv(_ParallelEnv):
             if lose["at"] == 0:
                 self._lose_now()
         self.seed = episode
-        infos = {agent: self._info(agent) for agent in self.agents}
+        infos = self._infos(self.agents)
         return self._observations(observations), infos
 
     def step(self, actions):
@@ -106,7 +106,7 @@ class ParallelEnv(_ParallelEnv):
             {a: reward for a in acting},
             {a: a in lost for a in acting},
             {a: over and a not in lost for a in acting},
-            {a: self._info(a) for a in acting},
+            self._infos(acting),
         )
         if over:
             self.agents = []
@@ -154,8 +154,10 @@ class ParallelEnv(_ParallelEnv):
     def _observations(self, observations):
         return {a: observations[self._index[a]] for a in self.agents}
 
-    def _info(self, agent):
-        return {"position": self._env.positions()[self._index[agent]]}
+    def _infos(self, agents):
+        """Each agent's cell, from one read of all the positions (not one per agent)."""
+        positions = self._env.positions()
+        return {a: {"position": positions[self._index[a]]} for a in agents}
 
 
 def parallel_env(**kwargs) -> ParallelEnv:

@@ -71,8 +71,7 @@ impl Env {
 
     /// Every agent's cell (x, y).
     fn positions(&self) -> Vec<(u16, u16)> {
-        let cells = self.running.episode.positions();
-        cells.iter().map(|cell| (cell.x, cell.y)).collect()
+        self.running.positions()
     }
 
     /// Which agents are lost.

@@ -84,6 +84,12 @@ impl Running {
         self.episode.agents() * self.observer.per_agent()
     }
 
+    /// Every agent's cell as (x, y), as Python receives it.
+    pub fn positions(&self) -> Vec<(u16, u16)> {
+        let cells = self.episode.positions();
+        cells.iter().map(|cell| (cell.x, cell.y)).collect()
+    }
+
     /// Whether the episode has run its T steps.
     pub fn truncated(&self) -> bool {
         self.episode.time() >= self.steps

@@ -79,11 +79,7 @@ impl VectorEnv {
 
     /// Every environment's agents' cells (x, y).
     fn positions(&self) -> Vec<Vec<(u16, u16)>> {
-        let cells = |env: &Running| {
-            let positions = env.episode.positions();
-            positions.iter().map(|cell| (cell.x, cell.y)).collect()
-        };
-        self.envs.iter().map(cells).collect()
+        self.envs.iter().map(Running::positions).collect()
     }
 }
 

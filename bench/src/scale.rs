@@ -18,7 +18,8 @@ pub struct ScaleSetup {
     pub steps_per_episode: usize,
     /// Communication radius of the attention, in cells.
     pub radius: f64,
-    /// Timed rounds of 8 episodes, after one uncounted round.
+    /// Timed rounds (one update each, after the profile's `environments` episodes: one in
+    /// `fast`), after one uncounted round.
     pub rounds: u64,
 }
 

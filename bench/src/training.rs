@@ -77,15 +77,16 @@ mod tests {
     fn counts_the_timed_round_only() {
         let map = Map::parse_text("room", "......\n......\n......\n", Path::new("room.txt"));
         let world = World::new(map.unwrap(), WorldParams::paper());
-        let t = measure(&world, fast_config(ArchitectureName::MaPpo, 1), 1).unwrap();
+        let config = fast_config(ArchitectureName::MaPpo, 1).with_overrides(&["environments=3"]);
+        let t = measure(&world, config.unwrap(), 2).unwrap();
         assert_eq!(
-            t.episodes, 8,
-            "one round of the fast profile's 8 environments"
+            t.episodes, 6,
+            "two timed rounds of 3 environments, after one not counted"
         );
-        assert_eq!(t.agent_steps, 8 * 1000);
+        assert_eq!(t.agent_steps, 6 * 1000);
         assert!(t.cpu_seconds > 0.0);
         let per_minute = t.episodes_per_cpu_minute();
-        assert_eq!(per_minute, 8.0 * 60.0 / t.cpu_seconds);
-        assert_eq!(t.cpu_seconds_per_agent_step(), t.cpu_seconds / 8000.0);
+        assert_eq!(per_minute, 6.0 * 60.0 / t.cpu_seconds);
+        assert_eq!(t.cpu_seconds_per_agent_step(), t.cpu_seconds / 6000.0);
     }
 }

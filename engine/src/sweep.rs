@@ -139,6 +139,31 @@ fn in_work_order(todo: &mut [&SweepCell]) {
     todo.sort_by_key(|cell| (cell.config.repetition, cell.index));
 }
 
+/// The labels of the finished cells of `store`'s last plan (its manifest) that `cells` no
+/// longer has: their keys moved with the scenario's text, the code's results fingerprint or
+/// what a profile's name means (`fast`). They stay in the folder, and a sweep computes its own
+/// plan; what it does not reuse, the user should hear about before it starts.
+pub fn cells_left_behind(
+    store: &Store,
+    scenario_name: &str,
+    cells: &[SweepCell],
+) -> Result<Vec<String>, StoreError> {
+    let manifest = match store.manifest()? {
+        Some(manifest) if manifest.scenario == scenario_name => manifest,
+        // Another scenario's folder is refused when the sweep starts.
+        _ => return Ok(Vec::new()),
+    };
+    let planned: std::collections::HashSet<&str> = cells.iter().map(|c| c.key.as_str()).collect();
+    let left = manifest
+        .cells
+        .iter()
+        .enumerate()
+        .filter(|(_, key)| !planned.contains(key.as_str()) && store.has_record(key));
+    Ok(left
+        .map(|(index, key)| manifest.labels.get(index).unwrap_or(key).clone())
+        .collect())
+}
+
 /// Makes `store` ready for `scenario`'s sweep, or `shard`'s slice of it: its manifest, the
 /// scenario file and the maps.
 pub fn prepare(

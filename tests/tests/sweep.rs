@@ -79,6 +79,32 @@ fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
     let expected = format!("{cells} cells, 0 already finished, {cells} from the cache, 0 computed");
     assert!(served.contains(&expected), "{served}");
     assert_same_tables(&other, &reference_run(TINY));
+
+    // The same scenario with its learned policy as `fast`, which moved since fast-v1: new
+    // keys for its two runs, and the sweep says so before it computes them.
+    let tiny = std::fs::read_to_string(common::repo_file(TINY)).unwrap();
+    let moved = dir.join("tiny-fast.yaml");
+    std::fs::write(&moved, tiny.replace("profile: fast-v1", "profile: fast")).unwrap();
+    let out_arg = out.to_str().unwrap();
+    let args = [
+        "sweep",
+        moved.to_str().unwrap(),
+        "--out",
+        out_arg,
+        "--no-report",
+    ];
+    let output = harness(&args);
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    let summary = succeed(output);
+    assert!(summary.contains(", 2 computed,"), "{summary}");
+    let expected = "holds 2 finished cells of an earlier plan of this scenario that this one \
+                    does not have (first: corridor ma-g-ppo@fast N_train=2 rep 0)";
+    assert!(stderr.contains(expected), "{stderr}");
+    let again = harness(&args);
+    assert!(
+        !String::from_utf8_lossy(&again.stderr).contains("earlier plan"),
+        "the plan it left behind is no longer the folder's"
+    );
 }
 
 #[test]

@@ -512,6 +512,16 @@ mod tests {
             let error = parse(&with(claims)).unwrap_err().to_string();
             assert!(error.contains(expected), "{error}\n  expected: {expected}");
         }
+        // `@fast` is the first fast's label; a scenario's `profile: fast` is today's.
+        let today = format!(
+            "{}claims:\n{good}",
+            scenario(&learned.replace("fast-v1", "fast"), &inline("a"))
+        );
+        let error = parse(&today).unwrap_err().to_string();
+        let expected = "no policy \"ma-ppo@fast\" in this scenario (its policies: random, \
+                        ma-ppo@fast-v2); `@fast` labels the profile fast-v1 (the first `fast`), \
+                        while `profile: fast` trains fast-v2 today, labelled \"ma-ppo@fast-v2\"";
+        assert!(error.contains(expected), "{error}");
     }
 
     #[test]

@@ -106,11 +106,7 @@ impl Learned {
         // As the key writes the profile (fast-v1 is `@fast`): a cell's files hold its label,
         // so a label may never change once cells were computed.
         if self.profile != Profile::Paper {
-            let written = serde_json::to_value(self.profile).expect("a profile serialises");
-            label = format!(
-                "{label}@{}",
-                written.as_str().expect("a profile is a string")
-            );
+            label = format!("{label}@{}", self.profile.written());
         }
         label
     }

@@ -306,6 +306,12 @@ impl Store {
         }
     }
 
+    /// Whether cell `key` has a record, without reading it or checking its files: a cheap
+    /// count of what a folder holds, not a promise that the cell is whole.
+    pub fn has_record(&self, key: &str) -> bool {
+        std::fs::symlink_metadata(self.cell_folder(key).join(RECORD_FILE)).is_ok()
+    }
+
     /// Cell `key`'s record as written, unchecked against its files; a table store's from its
     /// cells table.
     fn record(&self, key: &str) -> Result<CellRecord, StoreError> {

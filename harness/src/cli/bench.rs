@@ -12,7 +12,7 @@ use bench::scale::{self, ScaleSetup};
 use bench::training;
 use bench::world_steps::{PYTHON_STEPS_PER_SECOND, measure};
 use engine::stats::median_with_infinities;
-use policies::ppo::ArchitectureName;
+use policies::ppo::{ArchitectureName, Profile, TrainingConfig};
 use world::World;
 
 use super::WorldArgs;
@@ -45,8 +45,8 @@ enum BenchTarget {
     /// teams (attention within a radius), and the memory of the visibility tables.
     Scale(ScaleArgs),
     /// Time to quality: the training CPU until a run's test penalty first reaches GCS's, for
-    /// the `fast` profile and for a candidate (`fast` with `--candidate` overrides), seed by
-    /// seed, and the ratio of their medians.
+    /// a reference profile (`fast-v1`) and a candidate (`fast`, with `--candidate` overrides),
+    /// seed by seed, and the ratio of their medians.
     Quality(QualityArgs),
 }
 
@@ -70,6 +70,12 @@ struct QualityArgs {
     /// Training seeds per profile.
     #[arg(long, default_value_t = 3)]
     seeds: u64,
+    /// The profile the candidate is measured against.
+    #[arg(long, default_value = "fast-v1", value_parser = |name: &str| Profile::named(name))]
+    reference: Profile,
+    /// The candidate's profile, before `--set` and `--candidate`.
+    #[arg(long, default_value = "fast", value_parser = |name: &str| Profile::named(name))]
+    profile: Profile,
     /// Training fields of both (`key=value`, as `harness train --set`).
     #[arg(long)]
     set: Vec<String>,
@@ -96,8 +102,9 @@ struct ScaleArgs {
     /// Communication radius of the attention, in cells.
     #[arg(long, default_value_t = 50.0)]
     radius: f64,
-    /// Timed rounds (8 episodes each) per row, after one uncounted round.
-    #[arg(long, default_value_t = 1)]
+    /// Timed rounds per row (an update each, after one episode in `fast`), after one
+    /// uncounted round.
+    #[arg(long, default_value_t = 8)]
     rounds: u64,
 }
 
@@ -108,8 +115,9 @@ struct TrainingArgs {
     /// Team sizes, comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = [2, 4, 6, 10])]
     agents: Vec<usize>,
-    /// Timed rounds per team size (8 episodes each), after one uncounted round.
-    #[arg(long, default_value_t = 1)]
+    /// Timed rounds per team size (an update each, after one episode in `fast`), after one
+    /// uncounted round.
+    #[arg(long, default_value_t = 8)]
     rounds: u64,
 }
 
@@ -194,9 +202,11 @@ fn run_training(args: &TrainingArgs) -> anyhow::Result<()> {
             .map()
             .check_agents(agents, std::path::Path::new(&args.world.map))?;
     }
+    let environments = training::fast_config(ArchitectureName::MaGPpo, 1).environments;
     println!(
-        "training throughput, fast profile, map {}: {} timed round(s) of 8 episodes after one \
-         uncounted; process CPU time on {} threads",
+        "training throughput, fast profile ({}), map {}: {} timed round(s) of {environments} \
+         episode(s) after one uncounted; process CPU time on {} threads",
+        Profile::FAST.name(),
         world.map().name(),
         args.rounds,
         rayon::current_num_threads()
@@ -245,10 +255,16 @@ fn run_quality(args: &QualityArgs) -> anyhow::Result<()> {
         format!("agents={{\"min\":{0},\"max\":{0}}}", args.agents),
         format!("episodes={}", args.episodes),
     ];
-    let base = training::fast_config(ArchitectureName::MaGPpo, args.agents)
-        .with_overrides(&[&owned[..], &args.set[..]].concat())
-        .context("--set")?;
-    let candidate = base
+    let shared = [&owned[..], &args.set[..]].concat();
+    let configured = |profile| {
+        let config = TrainingConfig {
+            architecture: ArchitectureName::MaGPpo,
+            ..TrainingConfig::profile(profile)
+        };
+        config.with_overrides(&shared).context("--set")
+    };
+    let reference = configured(args.reference)?;
+    let candidate = configured(args.profile)?
         .with_overrides(&args.candidate)
         .context("--candidate")?;
     println!(
@@ -267,7 +283,11 @@ fn run_quality(args: &QualityArgs) -> anyhow::Result<()> {
     // Per profile: the median time to GCS (inf when the median run did not reach it) and
     // the median of the runs' whole training CPU.
     let mut medians = Vec::new();
-    for (name, config) in [("fast", &base), ("candidate", &candidate)] {
+    let names = [
+        format!("reference ({})", args.reference.name()),
+        format!("candidate ({})", args.profile.name()),
+    ];
+    for (name, config) in names.iter().zip([&reference, &candidate]) {
         println!(
             "{name}\n  {:>6} {:>16} {:>12} {:>14}",
             "seed", "CPU s to GCS", "episodes", "last penalty"
@@ -292,17 +312,18 @@ fn run_quality(args: &QualityArgs) -> anyhow::Result<()> {
             median_with_infinities(&totals),
         ));
     }
-    let ((fast, fast_total), (candidate, _)) = (medians[0], medians[1]);
-    let ratio = match (fast.is_finite(), candidate.is_finite()) {
-        (true, _) => format!("= {:.2}", candidate / fast),
+    let ((reference, reference_total), (candidate, _)) = (medians[0], medians[1]);
+    let ratio = match (reference.is_finite(), candidate.is_finite()) {
+        (true, _) => format!("= {:.2}", candidate / reference),
         (false, true) => format!(
-            "< {:.2} (fast did not reach GCS within its {fast_total:.1} s)",
-            candidate / fast_total
+            "< {:.2} (the reference did not reach GCS within its {reference_total:.1} s)",
+            candidate / reference_total
         ),
         (false, false) => "unknown: neither reached GCS".to_owned(),
     };
     println!(
-        "median CPU to GCS: fast {fast:.1} s, candidate {candidate:.1} s: candidate / fast {ratio}"
+        "median CPU to GCS: reference {reference:.1} s, candidate {candidate:.1} s: \
+         candidate / reference {ratio}"
     );
     Ok(())
 }

@@ -7,6 +7,7 @@ use engine::shard::Shard;
 use engine::store::Store;
 use engine::store::taken::TakenTables;
 use engine::sweep::{SweepOptions, run_sweep};
+use policies::ppo::Profile;
 use report::write_report;
 
 #[derive(clap::Args)]
@@ -74,6 +75,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
             .map(|folder| TakenTables::open(Store::new(folder)))
             .collect::<Result<_, _>>()?,
     };
+    warn_of_cells_left_behind(&scenario, &out)?;
     let report = run_sweep(&scenario, &text, &Store::new(&out), &options)?;
     engine::sweep::exit_if_asked();
     let shard = args
@@ -134,6 +136,25 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         report.failed.len(),
         out.display()
     );
+    Ok(())
+}
+
+/// Says so when `out` holds finished cells of its scenario's earlier plan that this plan no
+/// longer has, so that nobody waits hours for cells they thought were done.
+fn warn_of_cells_left_behind(scenario: &Scenario, out: &std::path::Path) -> anyhow::Result<()> {
+    let left =
+        engine::sweep::cells_left_behind(&Store::new(out), &scenario.name, &scenario.cells())?;
+    if let Some(first) = left.first() {
+        eprintln!(
+            "warning: {} holds {} finished cells of an earlier plan of this scenario that this \
+             one does not have (first: {first}): their keys moved with the scenario file, the \
+             results fingerprint or what a profile name means (`fast` is {} today, `@fast` \
+             the first fast-v1). They stay in the folder; this sweep computes its own cells",
+            out.display(),
+            left.len(),
+            Profile::FAST.name(),
+        );
+    }
     Ok(())
 }
 

@@ -40,7 +40,7 @@ pub enum Profile {
 
 impl Profile {
     /// What the name `fast` means: our current default.
-    pub const FAST: Profile = Profile::FastV1;
+    pub const FAST: Profile = Profile::FastV2;
 
     /// The names a user gives, with what each means.
     pub const NAMES: [(&'static str, Profile); 4] = [
@@ -57,6 +57,16 @@ impl Profile {
             .find(|(known, _)| *known == name)
             .map(|(_, profile)| *profile)
             .ok_or_else(|| UnknownProfile(name.to_owned()))
+    }
+
+    /// The profile as keys, labels and checkpoints write it (`fast` for `FastV1`, its name
+    /// when the first keys were made).
+    pub fn written(self) -> &'static str {
+        match self {
+            Profile::Paper => "paper",
+            Profile::FastV1 => "fast",
+            Profile::FastV2 => "fast-v2",
+        }
     }
 
     /// The profile's own name (`fast-v1`, not `fast`, which moves).
@@ -670,6 +680,10 @@ mod tests {
             serde_json::to_string(&Profile::FastV1).unwrap(),
             r#""fast""#
         );
+        for (_, profile) in Profile::NAMES {
+            let written = serde_json::to_value(profile).unwrap();
+            assert_eq!(written.as_str(), Some(profile.written()), "{profile:?}");
+        }
     }
 
     #[test]

@@ -10,6 +10,7 @@ use super::format::{
 };
 use super::{Behaviour, Claim, ClaimTest, GCS, Pair, Point, RANDOM, Scale, Tolerance};
 use crate::scenario::ScenarioError;
+use policies::ppo::Profile;
 
 /// What a scenario offers claims to name.
 pub struct ClaimContext {
@@ -484,9 +485,10 @@ impl Checker<'_> {
             None => {
                 let known: Vec<&str> = context.policies.iter().map(|(l, _)| l.as_str()).collect();
                 let problem = format!(
-                    "no policy {:?} in this scenario (its policies: {})",
+                    "no policy {:?} in this scenario (its policies: {}){}",
                     label.value,
-                    known.join(", ")
+                    known.join(", "),
+                    moved_profile_hint(&label.value, &known)
                 );
                 Err(fail(label, field, problem))
             }
@@ -564,5 +566,25 @@ impl Checker<'_> {
         }
         let problem = format!("N = {} is not in {name} {list:?}", count.value);
         Err(fail(count, field, problem))
+    }
+}
+
+/// Tables label a learned policy by its profile as keys write it, so `@fast` names the first
+/// `fast` (fast-v1) for good, while `profile: fast` trains today's. A claim naming `X@fast`
+/// where the scenario trains `X` with today's `fast` gets told which label that is.
+fn moved_profile_hint(label: &str, known: &[&str]) -> String {
+    let (first, today) = (Profile::FastV1.written(), Profile::FAST.written());
+    let today_label = label
+        .strip_suffix(first)
+        .filter(|policy| policy.ends_with('@') && first != today)
+        .map(|policy| format!("{policy}{today}"));
+    match today_label {
+        Some(today_label) if known.contains(&today_label.as_str()) => format!(
+            "; `@{first}` labels the profile {} (the first `fast`), while `profile: fast` \
+             trains {} today, labelled {today_label:?}",
+            Profile::FastV1.name(),
+            Profile::FAST.name()
+        ),
+        _ => String::new(),
     }
 }

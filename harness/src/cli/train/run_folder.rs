@@ -192,12 +192,15 @@ fn may_change(field: &str, saved: &Settings, asked: &Settings) -> bool {
     }
 }
 
-/// A value as a user would type it: the architecture as `--architecture` spells it, a word
-/// bare, anything else as JSON; a field left out of the file has its default.
+/// A value as a user would type it: the architecture as `--architecture` spells it, a
+/// profile by its own name (`fast-v1`, which the file writes `fast`), a word bare, anything
+/// else as JSON; a field left out of the file has its default.
 fn shown(field: &str, value: Option<&Value>) -> String {
     match value {
         None => "the default".to_owned(),
         Some(Value::String(word)) if field == "architecture" => word.replace('_', "-"),
+        Some(written) if field == "profile" => serde_json::from_value::<Profile>(written.clone())
+            .map_or_else(|_| written.to_string(), |profile| profile.name().to_owned()),
         Some(Value::String(word)) => word.clone(),
         Some(other) => other.to_string(),
     }
@@ -247,6 +250,17 @@ mod tests {
         assert_eq!(
             found,
             ["it was saved with architecture ma-g-ppo, this command asks for ma-ppo"]
+        );
+    }
+
+    #[test]
+    fn a_profile_is_named_by_its_own_name_not_as_the_file_writes_it() {
+        let mut first = saved();
+        first.insert("profile".into(), json!("fast"));
+        let found = differences(&first, &asked(json!({"profile": "fast-v2"})));
+        assert_eq!(
+            found,
+            ["it was saved with profile fast-v1, this command asks for fast-v2"]
         );
     }
 

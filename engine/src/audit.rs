@@ -12,13 +12,13 @@ use world::{ParamError, Seed, StartError, World};
 use policies::checkpoint::{self, WEIGHTS_FILE};
 use policies::ppo::{ConfigError, TrainError, Trainer};
 
-use crate::cell::CellConfig;
 use crate::execution::{CellError, disturbed_test_episode, stored_policy, test_episode};
 use crate::store::columns::{strings, u32s};
 use crate::store::disturbed;
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{CellRecord, Store, StoreError, TRAINING_FILE};
 use crate::training_log;
+use plan::cell::CellConfig;
 
 /// Why a stored episode or training run could not be repeated, or came back different.
 #[derive(Debug, thiserror::Error)]

@@ -12,12 +12,9 @@ use policies::{LearnedPolicy, PlanError, Policy};
 use world::{StartError, World};
 
 use crate::adaptation::{self, Adaptation};
-use crate::cell::{CellConfig, SweepCell};
-use crate::code_version::{code_version, git_commit, sources};
-use crate::disturbance::{Disturbance, UNDISTURBED};
 use crate::provenance::{cpu_description, host_name, utc_timestamp};
+use crate::provenance::{git_commit, sources};
 use crate::runner::{StepObserver, run_disturbed_episode};
-use crate::scenario::{Learned, ScenarioPolicy};
 use crate::store::disturbed::{self, DisturbedRow};
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{
@@ -27,6 +24,10 @@ use crate::store::{
 use crate::test_curve::{CpuMeter, CurvePoint, TestCurve};
 use crate::training_run::{TrainingRun, TrainingRunError};
 use crate::trajectory::CellRecording;
+use plan::cell::{CellConfig, SweepCell};
+use plan::code_version::code_version;
+use plan::disturbance::{Disturbance, UNDISTURBED};
+use plan::scenario::{Learned, ScenarioPolicy};
 
 #[derive(Debug, thiserror::Error)]
 pub enum CellError {

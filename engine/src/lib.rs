@@ -1,14 +1,11 @@
-//! The engine: a scenario becomes a checked plan of cells, each cell runs reproducibly into a
-//! results store; sweeps, shards, merges, audits, statistics and Slurm work on that store.
+//! The engine: each cell of a plan (`plan`, a checked scenario) runs reproducibly into a
+//! results store; sweeps, merges, audits, statistics and Slurm work on that store.
 
 pub mod adaptation;
 pub mod atomic_file;
 pub mod audit;
-pub mod cell;
 pub mod checkpoint_dir;
-pub mod code_version;
 pub mod cpu_clock;
-pub mod disturbance;
 pub mod execution;
 pub mod grouping;
 pub mod idleness;
@@ -21,8 +18,6 @@ pub mod provenance;
 pub mod replay;
 pub mod results_fingerprint;
 pub mod runner;
-pub mod scenario;
-pub mod shard;
 pub mod slurm;
 pub mod source_hash;
 pub mod stats;

@@ -12,11 +12,11 @@ use std::collections::BTreeMap;
 
 use serde_json::{Value, json};
 
-use crate::cell::CellConfig;
 use crate::grouping::group_rows;
 use crate::store::record::CellRecord;
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{EPISODES_FILE, Store, StoreError};
+use plan::cell::CellConfig;
 
 /// The environment's name in the export.
 pub const ENVIRONMENT: &str = "vpm";

@@ -1,4 +1,6 @@
-//! Where and when a result was computed, for the `cells` table.
+//! Where, when and from which code a result was computed, for the `cells` table: provenance
+//! only, never part of a key (`plan::code_version` is). `build.rs` sets the source hash
+//! (`source_hash`) and the git commit.
 
 use std::time::{SystemTime, UNIX_EPOCH};
 
@@ -71,6 +73,16 @@ fn civil_from_days(days: i64) -> (i64, u32, u32) {
     let month = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
     let year = year_of_era + era * 400 + i64::from(month <= 2);
     (year, month, day)
+}
+
+/// The hash of the numeric sources the binary was built from, or empty outside a checkout.
+pub fn sources() -> &'static str {
+    env!("VPM_SOURCE_HASH")
+}
+
+/// The commit the binary was built from, or empty outside git.
+pub fn git_commit() -> &'static str {
+    env!("VPM_GIT_COMMIT")
 }
 
 #[cfg(test)]

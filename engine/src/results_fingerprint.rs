@@ -5,7 +5,7 @@
 //! and keeps them when a dependency upgrade changes a bit elsewhere. So the key uses instead
 //! a fingerprint of results: a small sweep (`fingerprint/scenario.yaml`: every policy and
 //! learned variant, seconds of work) whose cells' reproducible content is hashed. The value
-//! pinned in `fingerprint/pinned.txt` goes into every key; the test suite recomputes it and
+//! pinned in `plan/fingerprint/pinned.txt` goes into every key; the test suite recomputes it and
 //! fails when the code gives other bits, until the new value is pinned, which re-keys every
 //! cell. Code that passes keeps every key; the cross-machine golden tests and `harness audit`
 //! cover what a small sweep cannot (the paper profile at full size, stored cells themselves).
@@ -14,10 +14,10 @@ use std::path::Path;
 
 use polars::prelude::DataFrame;
 
-use crate::scenario::Scenario;
 use crate::store::{CellRecord, Store, StoreError, tables};
 use crate::sweep::{SweepError, SweepOptions, run_sweep};
 use crate::training_log::TIMING_COLUMNS;
+use plan::scenario::Scenario;
 
 /// The scenario whose results are fingerprinted.
 pub const SCENARIO: &str = include_str!("../fingerprint/scenario.yaml");

@@ -2,8 +2,8 @@
 
 use std::sync::Arc;
 
-use crate::disturbance::EpisodeDisturbance;
 use crate::idleness::{Idleness, IdlenessTracker};
+use plan::disturbance::EpisodeDisturbance;
 use policies::Policy;
 use world::{Action, Cell, Episode, Seed, StartError, World};
 

@@ -9,16 +9,16 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 use world::World;
 
-use crate::cell::{CellConfig, SweepCell};
-use crate::code_version::code_version;
 use crate::execution::{CellError, CellOrigin, run_cell};
 use crate::progress::Progress;
-use crate::scenario::Scenario;
-use crate::shard::Shard;
 use crate::stop;
 use crate::store::lease::exit_giving_back_leases;
 use crate::store::taken::TakenTables;
 use crate::store::{Manifest, Store, StoreError};
+use plan::cell::{CellConfig, SweepCell};
+use plan::code_version::code_version;
+use plan::scenario::Scenario;
+use plan::shard::Shard;
 
 pub struct SweepOptions {
     /// Cells run at once.

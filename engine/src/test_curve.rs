@@ -25,10 +25,10 @@ use std::time::{Duration, Instant};
 use polars::prelude::*;
 
 use crate::atomic_file::write_atomic;
-use crate::cell::CellConfig;
 use crate::cpu_clock::thread_cpu_time;
 use crate::store::tables::{self, CELL_COLUMNS, EpisodeRow};
 use crate::store::{MAX_FILE_BYTES, StoreError, TEST_CURVE_FILE};
+use plan::cell::CellConfig;
 
 /// The columns a test curve adds to an episodes table's.
 pub const TRAINING_EPISODE: &str = "training_episode";
@@ -237,7 +237,7 @@ mod tests {
         assert_eq!(curve.next_stop(80, 100), 100);
         assert!(curve.due(100, 100), "the end is always played");
         // The schedule's count is what the cost estimate counts.
-        use crate::scenario::cost::plays;
+        use plan::scenario::cost::plays;
         assert_eq!(plays(100, 40), 4);
         assert_eq!(plays(80, 40), 3);
     }
@@ -247,7 +247,7 @@ mod tests {
                     world: {fov: 3, test_steps: 10, train_steps: 4}\npolicies:\n  \
                     - ma-ppo: {profile: fast-v1, episodes: 100, evaluate_every: 40, \
                     set: {network: compact}}\nagents: {train: [2], test: [2]}\ntest_episodes: 2\n";
-        let scenario = crate::scenario::Scenario::parse(text, Path::new("unit.yaml")).unwrap();
+        let scenario = plan::scenario::Scenario::parse(text, Path::new("unit.yaml")).unwrap();
         scenario.cells().remove(0).config
     }
 

@@ -9,7 +9,7 @@ use polars::prelude::*;
 use super::behaviour_replay::EpisodeMeasure;
 use super::judgement::{Verdict, at_point};
 use super::{ReportError, ReportWriter};
-use engine::scenario::claims::{Behaviour, Claim, ClaimTest, Point};
+use plan::scenario::claims::{Behaviour, Claim, ClaimTest, Point};
 
 /// The verdict rule, as the report states it.
 pub const RULE: &str = "An episode shows the structure when every feature the claim names \

@@ -23,8 +23,8 @@ use super::columns::{GroupKey, PolicyKey, strings, u32s};
 use super::judgement::at_point;
 use super::motion::{Motion, sin_theta};
 use engine::execution::{CellError, observed_test_episode, stored_policy};
-use engine::scenario::claims::{Claim, ClaimTest, Point};
 use engine::store::{CellRecord, Store, StoreError};
+use plan::scenario::claims::{Claim, ClaimTest, Point};
 
 /// The store table of measured episodes (`NAME.parquet` and `NAME.csv` in the store's root).
 pub const TABLE: &str = "behaviour_episodes";

@@ -15,9 +15,9 @@ use super::columns::{GroupKey, distinct, f64s, optional_u32s, strings, u32s};
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, samples, samples_of};
 use super::motion::map_shades;
 use super::{ReportError, ReportWriter, file_stem};
-use engine::disturbance::UNDISTURBED;
-use engine::scenario::claims::Point;
 use engine::stats::{StatsError, mean, standard_deviation};
+use plan::disturbance::UNDISTURBED;
+use plan::scenario::claims::Point;
 use world::Map;
 
 /// Per-step penalties are reported in thousands.

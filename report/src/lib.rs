@@ -56,7 +56,7 @@ pub enum ReportError {
     #[error("{0} holds no sweep (no sweep.json)")]
     NoSweep(PathBuf),
     #[error(transparent)]
-    Claims(#[from] engine::scenario::ScenarioError),
+    Claims(#[from] plan::scenario::ScenarioError),
     #[error(transparent)]
     Status(#[from] engine::status::StatusError),
     #[error(transparent)]
@@ -192,9 +192,9 @@ fn missing_paragraph(missing: &[MissingCell], cells: usize) -> String {
 }
 
 /// The claims of the scenario as the sweep ran it (its copy in the store).
-pub fn store_claims(store: &Store) -> Result<Vec<engine::scenario::claims::Claim>, ReportError> {
+pub fn store_claims(store: &Store) -> Result<Vec<plan::scenario::claims::Claim>, ReportError> {
     let text = store.scenario_text()?;
-    Ok(engine::scenario::claims::claims_of_text(
+    Ok(plan::scenario::claims::claims_of_text(
         &text,
         &store.scenario_path(),
     )?)
@@ -236,7 +236,7 @@ impl StoreTables {
     /// The verdict of every claim.
     pub fn verdicts(
         &self,
-        claims: &[engine::scenario::claims::Claim],
+        claims: &[plan::scenario::claims::Claim],
     ) -> Result<Vec<verdicts::ClaimResult>, ReportError> {
         self.judge(claims, &self.behaviour_measures(claims)?)
     }
@@ -244,7 +244,7 @@ impl StoreTables {
     /// The verdict of every claim, the behaviour claims' from `behaviours`, their measures.
     pub fn judge(
         &self,
-        claims: &[engine::scenario::claims::Claim],
+        claims: &[plan::scenario::claims::Claim],
         behaviours: &[behaviour_replay::EpisodeMeasure],
     ) -> Result<Vec<verdicts::ClaimResult>, ReportError> {
         let recorded = verdicts::Recorded {
@@ -261,7 +261,7 @@ impl StoreTables {
     /// `behaviour_replay`).
     pub fn behaviour_measures(
         &self,
-        claims: &[engine::scenario::claims::Claim],
+        claims: &[plan::scenario::claims::Claim],
     ) -> Result<Vec<behaviour_replay::EpisodeMeasure>, ReportError> {
         let motions = self.motions.as_ref().map(|(_, m)| m.as_slice());
         let (store, episodes) = (&self.store, &self.episodes);

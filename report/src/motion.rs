@@ -12,8 +12,8 @@ use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{GroupKey, f64s, group_rows, strings, u32s};
 use super::judgement::at_point;
 use super::{ReportError, ReportWriter, file_stem};
-use engine::scenario::claims::{Claim, ClaimTest};
 use engine::store::Store;
+use plan::scenario::claims::{Claim, ClaimTest};
 
 /// The maps of a store by name, from its `cells` table and map files.
 pub fn maps(store: &Store) -> Result<HashMap<String, Map>, ReportError> {
@@ -281,7 +281,7 @@ fn signals(motion: &Motion) -> LineChart {
 
 #[cfg(test)]
 mod tests {
-    use engine::scenario::claims::{Behaviour, Point};
+    use plan::scenario::claims::{Behaviour, Point};
 
     use super::*;
     use crate::columns::PolicyKey;

@@ -21,10 +21,8 @@ use super::test_curve::{samples_at, trained_curves};
 use super::time_to_quality;
 use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use engine::scenario::claims::{
-    Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance,
-};
 use engine::stats::{Bootstrap, StatsError, least_squares_slope, mean, mean_difference};
+use plan::scenario::claims::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
 
 /// One claim's verdict and the numbers behind it.
 #[derive(Clone, Debug)]

@@ -15,7 +15,7 @@ fn the_code_gives_the_pinned_results_fingerprint() {
     let printed = String::from_utf8_lossy(&output.stdout);
     let errors = String::from_utf8_lossy(&output.stderr);
     assert!(output.status.success(), "{printed}{errors}");
-    let pinned = std::fs::read_to_string(repo_file("engine/fingerprint/pinned.txt")).unwrap();
+    let pinned = std::fs::read_to_string(repo_file("plan/fingerprint/pinned.txt")).unwrap();
     assert!(
         printed.contains(&format!("fingerprint {}", pinned.trim())),
         "{printed}"

@@ -7,9 +7,13 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-const CRATES: [&str; 8] = [
-    "world", "policies", "engine", "report", "record", "bench", "harness", "python",
+const CRATES: [&str; 9] = [
+    "world", "policies", "plan", "engine", "report", "record", "bench", "harness", "python",
 ];
+
+/// The crates whose modules a cell run reaches besides the numeric ones (`world` and
+/// `policies`, which `NUMERIC_SOURCES` lists whole).
+const CELL_CRATES: [&str; 2] = ["plan", "engine"];
 
 /// A crate's modules by path (`store::tables`), each with its file (relative to `src`) and
 /// its source, test modules left out.
@@ -284,33 +288,76 @@ fn the_checker_reads_paths_as_rust_resolves_them() {
     assert_eq!(found[0], BTreeSet::from(["a", "b", "c"].map(String::from)));
 }
 
-/// The provenance hash of a cell (`engine::source_hash`) covers every engine module that
-/// running a cell reaches through its imports, from `execution` on: a module left out could
-/// change a cell's numbers without changing the hash its record keeps.
+/// The paths `code` names in crate `name` (`plan::cell::SweepCell`, grouped imports spread),
+/// from that crate's root; comments left out, where one crate names another's modules to say
+/// where a thing is done.
+fn paths_into(name: &str, code: &str) -> Vec<Vec<String>> {
+    let code: String = code
+        .lines()
+        .filter(|line| !line.trim_start().starts_with("//"))
+        .map(|line| format!("{line}\n"))
+        .collect();
+    let start = format!("{name}::");
+    let bytes = code.as_bytes();
+    let mut paths = Vec::new();
+    for (i, _) in code.match_indices(&start) {
+        let before = i.checked_sub(1).map(|b| bytes[b]);
+        if before.is_some_and(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b':') {
+            continue;
+        }
+        paths.extend(use_tree(&code[i + start.len()..]).0);
+    }
+    paths
+}
+
+/// The provenance hash of a cell (`engine::source_hash`) covers every module of the plan and
+/// the engine that running a cell reaches through its imports, from `engine::execution` on: a
+/// module left out could change a cell's numbers without changing the hash its record keeps.
 #[test]
 fn the_numeric_sources_cover_every_module_a_cell_run_reaches() {
-    let modules = modules(&crate_src("engine"));
-    let known: BTreeSet<Vec<String>> = modules.keys().cloned().collect();
-    let mut reached = BTreeSet::from([vec!["execution".to_owned()]]);
-    let mut pending: Vec<Vec<String>> = reached.iter().cloned().collect();
-    while let Some(module) = pending.pop() {
-        for path in named_paths(&module, &modules[&module].1) {
+    let crates: BTreeMap<&str, _> = CELL_CRATES
+        .iter()
+        .map(|name| (*name, modules(&crate_src(name))))
+        .collect();
+    let known: BTreeMap<&str, BTreeSet<Vec<String>>> = crates
+        .iter()
+        .map(|(name, modules)| (*name, modules.keys().cloned().collect()))
+        .collect();
+    let start = ("engine", vec!["execution".to_owned()]);
+    let mut reached = BTreeSet::from([start.clone()]);
+    let mut pending = vec![start];
+    while let Some((name, module)) = pending.pop() {
+        let code = &crates[name][&module].1;
+        let own = named_paths(&module, code)
+            .into_iter()
+            .map(|path| (name, path));
+        let other = CELL_CRATES.iter().flat_map(|other| {
+            paths_into(other, code)
+                .into_iter()
+                .map(|path| (*other, path))
+        });
+        for (target_crate, path) in own.chain(other).collect::<Vec<_>>() {
+            let modules = &known[target_crate];
             // The module named and every folder above it (whose mod.rs is compiled with it).
-            let Some(target) = resolve(&path, &known) else {
+            let Some(target) = resolve(&path, modules) else {
                 continue;
             };
             for n in 1..=target.len() {
-                let step = target[..n].to_vec();
-                if known.contains(&step) && reached.insert(step.clone()) {
+                let step = (target_crate, target[..n].to_vec());
+                if modules.contains(&step.1) && reached.insert(step.clone()) {
                     pending.push(step);
                 }
             }
         }
     }
+    assert!(
+        reached.iter().any(|(name, _)| *name == "plan"),
+        "a cell run reaches the plan (its configuration): the walk lost its way"
+    );
     let listed = engine::source_hash::NUMERIC_SOURCES;
     let uncovered: Vec<String> = reached
         .iter()
-        .map(|module| format!("engine/src/{}", modules[module].0.display()))
+        .map(|(name, module)| format!("{name}/src/{}", crates[name][module].0.display()))
         .filter(|file| {
             !listed
                 .iter()

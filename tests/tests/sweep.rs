@@ -747,7 +747,7 @@ fn bad_scenarios_give_clear_errors_and_leave_the_output_alone() {
 /// The keys of a committed scenario's cells, learned cells only when `learned`.
 fn scenario_keys(file: &str, learned: bool) -> std::collections::BTreeSet<String> {
     let path = PathBuf::from(common::repo_file(file));
-    let scenario = engine::scenario::Scenario::load(&path)
+    let scenario = plan::scenario::Scenario::load(&path)
         .unwrap_or_else(|e| panic!("{file} does not load: {e}"));
     scenario
         .cells()

@@ -7,7 +7,7 @@ use polars::prelude::*;
 use super::StoreError;
 use super::tables::{cell_columns, column};
 use crate::adaptation::Adaptation;
-use crate::cell::CellConfig;
+use plan::cell::CellConfig;
 
 /// One test episode played undisturbed or under one disturbance.
 #[derive(Clone, Debug, PartialEq)]

@@ -48,8 +48,8 @@ use std::time::SystemTime;
 use polars::prelude::{DataFrame, PolarsError};
 
 use crate::atomic_file::write_atomic;
-use crate::scenario::Output;
 pub use lease::{Lease, LeaseHolder, Liveness};
+use plan::scenario::Output;
 use policies::checkpoint::WEIGHTS_FILE;
 pub use record::{CellFailure, CellRecord, Manifest};
 pub use table_store::{MissingCell, TABLE_STORE_FILE, TableStoreMarker};
@@ -292,7 +292,7 @@ impl Store {
         keys.into_iter()
             .filter_map(|key| self.finished(&key))
             .filter(|r| r.files.contains_key(TRAINING_FILE) && r.files.contains_key(WEIGHTS_FILE))
-            .filter(|r| r.code_version == crate::code_version::code_version())
+            .filter(|r| r.code_version == plan::code_version::code_version())
             .filter(|r| r.config.training_identity().as_deref() == Some(identity))
             .find_map(|r| self.verified_record(&r.key).ok())
     }
@@ -354,7 +354,7 @@ impl Store {
             error: error.to_owned(),
             host: crate::provenance::host_name(),
             when: crate::provenance::utc_timestamp(std::time::SystemTime::now()),
-            code_version: crate::code_version::code_version(),
+            code_version: plan::code_version::code_version(),
         };
         write(&folder.join(FAILURE_FILE), &json_bytes(&failure))
     }
@@ -443,7 +443,7 @@ impl Store {
     /// The scenario file as run, checked against the hash the manifest holds for it.
     pub fn scenario_text(&self) -> Result<String, StoreError> {
         let path = self.scenario_path();
-        let limit = crate::scenario::MAX_SCENARIO_BYTES;
+        let limit = plan::scenario::MAX_SCENARIO_BYTES;
         let text = world::read_bounded_text(&path, limit, "a scenario")?;
         if let Some(manifest) = self.manifest()?
             && blake3::hash(text.as_bytes()).to_hex().as_str() != manifest.scenario_hash
@@ -468,7 +468,7 @@ impl Store {
         let path = self.map_path(hash);
         let map = world::Map::parse_text(name, &self.map_text(hash)?, &path)
             .map_err(|e| StoreError::corrupt(&path, e))?;
-        if crate::scenario::map_hash(&map) != hash {
+        if plan::scenario::map_hash(&map) != hash {
             return Err(StoreError::corrupt(
                 &path,
                 "the map does not match its hash",
@@ -657,7 +657,7 @@ fn json_bytes<T: serde::Serialize>(value: &T) -> Vec<u8> {
 /// The largest file a store reads whose size it did not record (its tables, its records):
 /// the memory a checked sweep's tables may take, so no file of a sweep within the limits
 /// is larger. A cell's files are held to the sizes its record gives.
-pub const MAX_FILE_BYTES: u64 = crate::scenario::Limits::DEFAULT.memory_bytes;
+pub const MAX_FILE_BYTES: u64 = plan::scenario::Limits::DEFAULT.memory_bytes;
 
 /// A file of the store: a regular file of at most `limit` bytes.
 pub(crate) fn read(path: &Path, limit: u64, what: &'static str) -> Result<Vec<u8>, StoreError> {

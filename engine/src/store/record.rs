@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use crate::cell::CellConfig;
+use plan::cell::CellConfig;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CellRecord {
@@ -16,7 +16,7 @@ pub struct CellRecord {
     pub config: CellConfig,
     pub code_version: String,
     pub git_commit: String,
-    /// The hash of the numeric sources that computed it (`code_version::sources`); empty in
+    /// The hash of the numeric sources that computed it (`provenance::sources`); empty in
     /// records written before it was kept.
     #[serde(default)]
     pub sources: String,
@@ -64,7 +64,7 @@ pub struct Manifest {
     /// A shard's own cells, in order; `None` when the folder runs every cell.
     #[serde(default)]
     pub selected: Option<Vec<String>>,
-    pub outputs: Vec<crate::scenario::Output>,
+    pub outputs: Vec<plan::scenario::Output>,
 }
 
 /// Why a cell's last run failed, kept in its folder (`failed.json`) until a run succeeds: the

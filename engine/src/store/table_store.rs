@@ -29,7 +29,7 @@ use super::{
     CellRecord, MANIFEST_FILE, MAX_FILE_BYTES, SCENARIO_FILE, Store, StoreError, read, read_json,
     write,
 };
-use crate::scenario::Output;
+use plan::scenario::Output;
 
 /// The file that makes a folder a table store.
 pub const TABLE_STORE_FILE: &str = "table-store.json";

@@ -9,7 +9,7 @@ use polars::prelude::*;
 use super::StoreError;
 use super::record::CellRecord;
 use crate::atomic_file::write_atomic;
-use crate::cell::CellConfig;
+use plan::cell::CellConfig;
 use policies::checkpoint::WEIGHTS_FILE;
 
 /// One test episode's result.

@@ -19,7 +19,7 @@ use super::columns::{optional_strings, strings};
 use super::table_store::record_of_row;
 use super::tables::parquet_bytes;
 use super::{CellRecord, EPISODES_FILE, Store, StoreError, TRAINING_FILE, per_cell_file};
-use crate::scenario::Output;
+use plan::scenario::Output;
 
 /// The files whose hashes the cells table keeps, by its column.
 const HASHED: [(&str, &str); 2] = [

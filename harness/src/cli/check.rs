@@ -2,9 +2,9 @@
 
 use std::path::PathBuf;
 
-use engine::scenario::cost::Cost;
-use engine::scenario::{Limits, Scenario};
 use engine::store::Store;
+use plan::scenario::cost::Cost;
+use plan::scenario::{Limits, Scenario};
 
 #[derive(clap::Args)]
 pub struct CheckArgs {
@@ -50,7 +50,7 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
     let cache = args.cache.as_deref().map(Store::new);
     let cached = |key: &str| cache.as_ref().is_some_and(|c| c.finished(key).is_some());
     // A learned cell whose training run the cache holds (it differs in its tests) only tests.
-    let trained = |cell: &engine::cell::SweepCell| {
+    let trained = |cell: &plan::cell::SweepCell| {
         let identity = cell.config.training_identity();
         (cache.as_ref().zip(identity))
             .is_some_and(|(c, id)| c.trained_run(&id, &cell.key).is_some())

@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use engine::scenario::Scenario;
 use engine::store::Store;
+use plan::scenario::Scenario;
 use report::{StoreTables, markdown, store_claims, verdicts};
 
 #[derive(clap::Args)]

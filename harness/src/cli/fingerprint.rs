@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use engine::code_version::pinned_fingerprint as pinned;
 use engine::results_fingerprint::compute;
+use plan::code_version::pinned_fingerprint as pinned;
 
 #[derive(clap::Args)]
 pub struct FingerprintArgs {
@@ -28,7 +28,7 @@ pub fn run(args: FingerprintArgs) -> anyhow::Result<()> {
     anyhow::ensure!(
         computed == pinned(),
         "this code gives other results than the pinned fingerprint. If that is intended, write \
-         {computed} into engine/fingerprint/pinned.txt: every cached cell is then keyed anew \
+         {computed} into plan/fingerprint/pinned.txt: every cached cell is then keyed anew \
          (and recomputed)"
     );
     println!("the code gives the pinned results: cached cells keep their keys");

@@ -6,12 +6,12 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use super::check::duration;
-use engine::scenario::Scenario;
-use engine::scenario::cost::work_seconds;
-use engine::shard::{slices, weight};
 use engine::slurm::{ArrayJob, SbatchOptions, submit};
 use engine::store::Store;
 use engine::sweep::prepare;
+use plan::scenario::Scenario;
+use plan::scenario::cost::work_seconds;
+use plan::shard::{slices, weight};
 
 #[derive(clap::Args)]
 pub struct SlurmArgs {
@@ -49,7 +49,7 @@ pub struct SlurmArgs {
 }
 
 pub fn run(args: SlurmArgs) -> anyhow::Result<()> {
-    let text = engine::scenario::read_scenario_text(&args.scenario)?;
+    let text = plan::scenario::read_scenario_text(&args.scenario)?;
     let limits = super::check::limits(args.no_limits);
     let scenario = Scenario::parse_within(&text, &args.scenario, &limits)?;
     let cells = scenario.cells();

@@ -2,11 +2,11 @@
 
 use std::path::PathBuf;
 
-use engine::scenario::Scenario;
-use engine::shard::Shard;
 use engine::store::Store;
 use engine::store::taken::TakenTables;
 use engine::sweep::{SweepOptions, run_sweep};
+use plan::scenario::Scenario;
+use plan::shard::Shard;
 use policies::ppo::Profile;
 use report::write_report;
 
@@ -49,7 +49,7 @@ pub struct SweepArgs {
 }
 
 pub fn run(args: SweepArgs) -> anyhow::Result<()> {
-    let text = engine::scenario::read_scenario_text(&args.scenario)?;
+    let text = plan::scenario::read_scenario_text(&args.scenario)?;
     let limits = super::check::limits(args.no_limits);
     let scenario = Scenario::parse_within(&text, &args.scenario, &limits)?;
     if args.record {

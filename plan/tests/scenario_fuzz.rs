@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use engine::scenario::Scenario;
+use plan::scenario::Scenario;
 use proptest::prelude::*;
 
 fn repository() -> PathBuf {

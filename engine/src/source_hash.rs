@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 /// Sources, relative to the workspace root, whose change can change a cell's numbers: the two
 /// numeric crates, and the engine modules that running a cell reaches through its imports
-/// (`tests/tests/layers.rs` checks that none is left out: the scenario resolves a policy's
+/// (`tests/tests/e2e/layers.rs` checks that none is left out: the scenario resolves a policy's
 /// training configuration, the store writes the result files, the statistics the summary).
 pub const NUMERIC_SOURCES: [&str; 26] = [
     "world/src",

@@ -1,6 +1,6 @@
 """What the tests share: the repository's maps and the harness binary to compare against.
 
-`tests/tests/python.rs` runs these tests with `VPM_HARNESS` set to the harness it built; run by
+`tests/tests/e2e/python.rs` runs these tests with `VPM_HARNESS` set to the harness it built; run by
 hand, set it to `target/release/harness` (the tests that need it fail without it).
 """
 

@@ -4,16 +4,12 @@
 //! run's bit for bit, also when a task is killed mid-run and re-queued.
 //!
 //! It needs root and the Debian packages slurmctld, slurmd, slurm-client and munge; `.ci/run`
-//! installs them and sets `VPM_REQUIRE_SLURM=1`, under which a missing Slurm fails the test.
-//! Elsewhere (a laptop without Slurm) the tests say that they did not run, and pass.
+//! installs them and sets `VPM_FULL=1`, under which the tests run and a missing Slurm fails
+//! them. Elsewhere they say that they did not run, and pass.
 
-mod common;
-mod smoke;
+use crate::common::{harness, repo_file, scratch, slow_test_runs, succeed};
+use crate::smoke::{SMOKE, assert_same_tables, cells_in_flight, finished_cells, reference_run};
 
-use common::{harness, repo_file, scratch, succeed};
-use smoke::{SMOKE, assert_same_tables, cells_in_flight, finished_cells, reference_run};
-
-use std::io::Write;
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -43,12 +39,12 @@ fn one_at_a_time() -> MutexGuard<'static, ()> {
         .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// Set (by `.ci/run`) where the Slurm tests must run: a missing Slurm then fails them.
-const REQUIRE: &str = "VPM_REQUIRE_SLURM";
-
-/// Whether a loopback Slurm can start here: its programs on PATH and root. Where not, the
-/// test fails under `VPM_REQUIRE_SLURM` and otherwise prints that it did not run.
+/// Whether the Slurm tests run (`common::FULL`) and a loopback Slurm can start here: its
+/// programs on PATH and root. Where it cannot, the test fails under `VPM_FULL`.
 fn slurm_available(test: &str) -> bool {
+    if !slow_test_runs(test) {
+        return false;
+    }
     let path = std::env::var_os("PATH").unwrap_or_default();
     let found = |program: &&str| std::env::split_paths(&path).any(|d| d.join(program).is_file());
     let root = Command::new("id")
@@ -65,11 +61,7 @@ fn slurm_available(test: &str) -> bool {
          `apt-get install -y --no-install-recommends {PACKAGES}` (Debian; .ci/run does this \
          when sbatch is missing)"
     );
-    assert!(std::env::var_os(REQUIRE).is_none(), "{install}");
-    // Straight to the process's stderr: the test harness captures `eprintln!` of a test that
-    // passes, and a test that did not run must say so in `cargo test`'s output.
-    let _ = writeln!(std::io::stderr(), "NOT RUN: {test}: {install}");
-    false
+    panic!("{install}");
 }
 
 /// A Slurm started by up.sh in `folder`. Dropping it stops the daemons with down.sh, also when

@@ -22,6 +22,9 @@ fn small_two_room() -> Arc<World> {
 
 #[test]
 fn the_fast_profile_halves_randoms_penalty_on_a_small_two_room_map() {
+    if !crate::common::slow_test_runs("learning on a small two-room map") {
+        return;
+    }
     let world = small_two_room();
     let config = TrainingConfig::profile(Profile::FAST)
         .with_overrides(&[

@@ -3,12 +3,10 @@
 //! learned policy's, from its checkpoint), keeps the measures in the store's
 //! `behaviour_episodes` table and judges the claims from it under a heading of their own.
 
-mod common;
-
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
-use common::{harness, scratch, succeed};
+use crate::common::{harness, scratch, succeed};
 use polars::prelude::*;
 
 const TEST_EPISODES: u32 = 3;

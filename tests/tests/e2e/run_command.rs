@@ -1,8 +1,6 @@
 //! `harness run` as a user runs it: a real process, real files.
 
-mod common;
-
-use common::{harness, repo_file, scratch, succeed};
+use crate::common::{harness, repo_file, scratch, succeed};
 
 fn map(name: &str) -> String {
     repo_file(&format!("scenarios/maps/{name}"))

@@ -2,15 +2,13 @@
 //! a scenario or an actions file. Each must fail at once with a message naming the file (and
 //! the limit, for a file too large), and write nothing.
 
-mod common;
-
 use std::os::unix::ffi::OsStringExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::mpsc;
 use std::time::Duration;
 
-use common::{repo_file, scratch};
+use crate::common::{repo_file, scratch};
 
 /// Longer than any of these commands takes when it refuses its input at once; a regression
 /// that reads `/dev/zero` or waits on a FIFO is killed instead of hanging the suite.
@@ -193,7 +191,7 @@ fn a_map_with_a_byte_order_mark_or_a_hash_in_its_name_is_read_as_written() {
             &inputs.work,
             &["run", "--map", map, "--agents", "2", "--steps", "5"],
         );
-        common::succeed(output)
+        crate::common::succeed(output)
     };
     let named = inputs.path("a#b.txt");
     let mut text = b"\xEF\xBB\xBF".to_vec();

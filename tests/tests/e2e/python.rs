@@ -1,22 +1,24 @@
 //! The world from Python: the `vpm_world` wheel is built from `python/` with maturin,
 //! installed into the Python that `.ci/run` prepares, and its tests run (PettingZoo's API and
 //! seed tests, the same episodes as this harness, errors, lost robots), then the README's
-//! example. Without that Python the test prints `NOT RUN`.
-
-mod common;
+//! example. A slow test: without `VPM_FULL=1` it prints `NOT RUN`.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{repo_file, scratch, succeed};
+use crate::common::{repo_file, required_path, scratch, slow_test_runs, succeed};
 
 /// A Python with maturin, pettingzoo, numpy and pytest (`.ci/run` makes one under target/).
 const PYTHON: &str = "VPM_PYTHON";
 
 #[test]
 fn the_python_package_passes_its_tests_and_plays_the_harness_episodes() {
-    let Some(python) = std::env::var_os(PYTHON).map(PathBuf::from) else {
-        eprintln!("NOT RUN: the Python package's tests ({PYTHON} is not set)");
+    let test = "the Python package's tests";
+    if !slow_test_runs(test) {
+        return;
+    }
+    let Some(python) = required_path(test, PYTHON, "a Python with maturin, pettingzoo and pytest")
+    else {
         return;
     };
     let wheel = build_wheel(&python);

@@ -2,7 +2,7 @@
 //! (a module and its own submodules, which name each other as `super`, are one node). A cycle
 //! makes every module on it depend on all the others: a cell's key on the sweep orchestrator,
 //! the report on the running engine. The check reads the sources alone (std only), so anyone
-//! can run it: `cargo test -p vpm-tests --test layers`.
+//! can run it: `cargo test -p vpm-tests --test e2e layers::`.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};

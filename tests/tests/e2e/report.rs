@@ -2,9 +2,7 @@
 //! (every figure decodes, every link resolves, the tables hold the store's numbers), a rerun
 //! recording read back with rerun's own loader, and test curves with time to quality.
 
-mod common;
-
-use common::{harness, scratch, succeed};
+use crate::common::{harness, scratch, succeed};
 
 use std::path::{Path, PathBuf};
 

@@ -1,8 +1,6 @@
 //! `harness train` and `harness run --policy checkpoint:DIR` as a user runs them.
 
-mod common;
-
-use common::{harness, repo_file, scratch, succeed};
+use crate::common::{harness, repo_file, scratch, succeed};
 
 use std::collections::BTreeMap;
 use std::path::Path;

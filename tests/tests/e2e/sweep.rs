@@ -2,11 +2,8 @@
 //! folders, a real SIGKILL. The plumbing runs on the tiny scenario; the smoke sweep runs once,
 //! for its pinned tables.
 
-mod common;
-mod smoke;
-
-use common::{harness, scratch, succeed};
-use smoke::{
+use crate::common::{harness, scratch, succeed};
+use crate::smoke::{
     SMOKE, TINY, assert_same_tables, cells_in_flight, finished_cells, read_table, reference_run,
     sweep,
 };
@@ -82,7 +79,7 @@ fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
 
     // The same scenario with its learned policy as `fast`, which moved since fast-v1: new
     // keys for its two runs, and the sweep says so before it computes them.
-    let tiny = std::fs::read_to_string(common::repo_file(TINY)).unwrap();
+    let tiny = std::fs::read_to_string(crate::common::repo_file(TINY)).unwrap();
     let moved = dir.join("tiny-fast.yaml");
     std::fs::write(&moved, tiny.replace("profile: fast-v1", "profile: fast")).unwrap();
     let out_arg = out.to_str().unwrap();
@@ -150,7 +147,7 @@ fn tiny_sweep(out: &Path) -> Command {
     command
         .args([
             "sweep",
-            &common::repo_file(TINY),
+            &crate::common::repo_file(TINY),
             "--jobs",
             "1",
             "--no-report",
@@ -438,7 +435,7 @@ fn a_training_run_serves_every_cell_that_differs_only_in_its_tests() {
     let a = dir.join("a");
     sweep(TINY, &a, &["--jobs", "2", "--cache", cache_arg]);
     // The same training runs, other tests: a cell key of its own, the training of tiny's.
-    let tiny = std::fs::read_to_string(common::repo_file(TINY)).unwrap();
+    let tiny = std::fs::read_to_string(crate::common::repo_file(TINY)).unwrap();
     let other_tests = tiny
         .replace("name: tiny", "name: tiny-tests")
         .replace("test: [2, 3]", "test: [3]")
@@ -559,7 +556,7 @@ fn audit_passes_and_fails_when_a_stored_number_is_altered() {
 
 #[test]
 fn check_prints_every_cell_and_the_cost() {
-    let printed = succeed(harness(&["check", &common::repo_file(SMOKE)]));
+    let printed = succeed(harness(&["check", &crate::common::repo_file(SMOKE)]));
     assert!(printed.starts_with("scenario smoke"), "{printed}");
     let cells = printed
         .lines()
@@ -746,7 +743,7 @@ fn bad_scenarios_give_clear_errors_and_leave_the_output_alone() {
 
 /// The keys of a committed scenario's cells, learned cells only when `learned`.
 fn scenario_keys(file: &str, learned: bool) -> std::collections::BTreeSet<String> {
-    let path = PathBuf::from(common::repo_file(file));
+    let path = PathBuf::from(crate::common::repo_file(file));
     let scenario = plan::scenario::Scenario::load(&path)
         .unwrap_or_else(|e| panic!("{file} does not load: {e}"));
     scenario
@@ -760,7 +757,7 @@ fn scenario_keys(file: &str, learned: bool) -> std::collections::BTreeSet<String
 #[test]
 fn every_committed_scenario_loads_and_the_rq_scenarios_share_their_common_cells() {
     for folder in ["scenarios", "scenarios/paper"] {
-        for entry in std::fs::read_dir(common::repo_file(folder))
+        for entry in std::fs::read_dir(crate::common::repo_file(folder))
             .unwrap()
             .flatten()
         {
@@ -833,9 +830,10 @@ fn two_sweeps_into_one_folder_never_compute_a_cell_twice() {
 /// on purpose re-pin this file with the results fingerprint.
 #[test]
 fn the_smoke_tables_are_the_pinned_bytes() {
-    let pinned = std::fs::read_to_string(common::repo_file("tests/tests/smoke/tables.blake3"))
-        .unwrap_or_default();
-    let computed = smoke::table_hashes(&reference_run(SMOKE));
+    let pinned =
+        std::fs::read_to_string(crate::common::repo_file("tests/tests/smoke/tables.blake3"))
+            .unwrap_or_default();
+    let computed = crate::smoke::table_hashes(&reference_run(SMOKE));
     assert!(
         computed == pinned,
         "the smoke sweep's tables changed; if on purpose, write into \
@@ -843,8 +841,8 @@ fn the_smoke_tables_are_the_pinned_bytes() {
     );
 }
 
-/// Where `.ci/run` puts a Python with marl-eval installed; without it the round trip through
-/// marl-eval's own code prints `NOT RUN` and the test checks the export's shape alone.
+/// Where `.ci/run` puts a Python with marl-eval installed. The round trip through marl-eval's
+/// own code is slow (`VPM_FULL`); without it the test checks the export's shape alone.
 const MARL_EVAL_PYTHON: &str = "VPM_MARL_EVAL_PYTHON";
 
 /// The smoke sweep in marl-eval's format: every task holds every algorithm with every run,
@@ -890,13 +888,18 @@ fn the_smoke_sweep_exports_to_marl_eval() {
     stored.sort_by(f64::total_cmp);
     returns.sort_by(f64::total_cmp);
     assert_eq!(returns, stored);
-    let Some(python) = std::env::var_os(MARL_EVAL_PYTHON) else {
-        eprintln!("NOT RUN: marl-eval's round trip ({MARL_EVAL_PYTHON} is not set)");
+    let test = "marl-eval's round trip";
+    if !crate::common::slow_test_runs(test) {
+        return;
+    }
+    let Some(python) =
+        crate::common::required_path(test, MARL_EVAL_PYTHON, "a Python with marl-eval")
+    else {
         return;
     };
     let out = file.parent().unwrap();
     let loaded = Command::new(python)
-        .arg(common::repo_file("tests/tests/marl_eval/load.py"))
+        .arg(crate::common::repo_file("tests/tests/marl_eval/load.py"))
         .args([&file, out])
         .output()
         .unwrap();
@@ -912,7 +915,7 @@ fn the_smoke_sweep_exports_to_marl_eval() {
 fn a_sweep_goes_on_from_its_committed_tables_to_the_same_results() {
     let dir = scratch("from-tables");
     // What was committed: the tables of the first repetition (half the cells).
-    let text = std::fs::read_to_string(common::repo_file(TINY)).unwrap();
+    let text = std::fs::read_to_string(crate::common::repo_file(TINY)).unwrap();
     let first = dir.join("first.yaml");
     std::fs::write(&first, text.replace("repetitions: 2", "repetitions: 1")).unwrap();
     let (lost, reports) = (dir.join("lost"), dir.join("reports"));
@@ -979,7 +982,7 @@ fn a_sweep_goes_on_from_its_committed_tables_to_the_same_results() {
     // Tables that are not a table store's, or that changed since their marker, give nothing.
     let refused = |tables: &Path, expected: &str| {
         let out = dir.join("refused");
-        let file = common::repo_file(TINY);
+        let file = crate::common::repo_file(TINY);
         let args = [
             "sweep",
             &file,

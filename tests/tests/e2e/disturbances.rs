@@ -2,12 +2,10 @@
 //! and the same cut links, the undisturbed episodes are the episodes table's, policies that send
 //! nothing are untouched by cut links, and the claims and the report read the disturbed table.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use common::{harness, scratch, succeed};
+use crate::common::{harness, scratch, succeed};
 use polars::prelude::*;
 
 const SCENARIO: &str = "name: disturbed

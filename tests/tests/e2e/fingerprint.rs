@@ -2,11 +2,9 @@
 //! the code gives the same bits. A failure means the code computes other results; pin the new
 //! value if that is intended (every cached cell is then recomputed).
 
-mod common;
-
 use std::path::Path;
 
-use common::{harness, repo_file, scratch};
+use crate::common::{harness, repo_file, scratch};
 use engine::results_fingerprint::compute_for;
 
 #[test]

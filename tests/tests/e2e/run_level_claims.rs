@@ -2,13 +2,11 @@
 //! learned runs disagree says inconclusive, where resampling test episodes within runs (what
 //! the verdicts did before) said supported.
 
-mod common;
-
 use std::collections::HashMap;
 use std::fs::File;
 use std::path::Path;
 
-use common::{harness, scratch, succeed};
+use crate::common::{harness, scratch, succeed};
 use polars::prelude::*;
 
 /// The tiny corridor, three training runs of MA-G-PPO and three repetitions of each baseline.

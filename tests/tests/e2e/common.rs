@@ -1,9 +1,6 @@
 //! What the end-to-end tests share: the `harness` binary as a process, the repository's files,
 //! and scratch folders.
 
-// Each test crate includes this module and uses a part of it.
-#![allow(dead_code)]
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

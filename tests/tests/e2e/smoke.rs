@@ -1,10 +1,7 @@
-//! Sweeps as the end-to-end tests run them: a scenario swept locally, once per test binary, as
+//! Sweeps as the end-to-end tests run them: a scenario swept locally, once per test run, as
 //! the reference that sharded, interrupted or cluster runs must equal, and the comparison of
 //! two stores' tables. The plumbing tests sweep `TINY` (seconds); the smoke sweep, the main
 //! job, runs once for its pinned tables (and on Slurm, where runs must be slow enough to kill).
-
-// Each test crate includes this module and uses a part of it.
-#![allow(dead_code)]
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use policies::{Baseline, PlanError, Policy};
 use world::{Action, Episode, Seed, World};
 
-use engine::runner::reset_episode;
+use engine::episode::reset_episode;
 
 /// Steps per episode: long enough for the penalties, and so the policies' work, to settle.
 const EPISODE: usize = 2000;

@@ -9,7 +9,7 @@
 
 use std::sync::Arc;
 
-use engine::runner::run_episode;
+use engine::episode::run_episode;
 use policies::ppo::{TrainError, Trainer, TrainingConfig};
 use policies::{ActionChoice, Baseline, LearnedPolicy, Policy};
 use world::{Seed, World};

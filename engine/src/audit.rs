@@ -14,7 +14,7 @@ use policies::ppo::{ConfigError, TrainError, Trainer};
 
 use crate::execution::{CellError, disturbed_test_episode, stored_policy, test_episode};
 use crate::store::columns::{strings, u32s};
-use crate::store::disturbed;
+use crate::store::disturbance;
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{CellRecord, Store, StoreError, TRAINING_FILE};
 use crate::training_log;
@@ -228,7 +228,7 @@ fn replay_disturbed(
         disturbance,
         &mut penalties,
     )?;
-    let again = disturbed::disturbed_frame(key, config, &[again])?;
+    let again = disturbance::disturbed_frame(key, config, &[again])?;
     if !again.equals_missing(stored) {
         return Err(AuditError::RowDiffers);
     }

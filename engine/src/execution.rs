@@ -12,10 +12,10 @@ use policies::{LearnedPolicy, PlanError, Policy};
 use world::{StartError, World};
 
 use crate::adaptation::{self, Adaptation};
+use crate::episode::{StepObserver, run_disturbed_episode};
 use crate::provenance::{cpu_description, host_name, utc_timestamp};
 use crate::provenance::{git_commit, sources};
-use crate::runner::{StepObserver, run_disturbed_episode};
-use crate::store::disturbed::{self, DisturbedRow};
+use crate::store::disturbance::{self, DisturbedRow};
 use crate::store::tables::{self, EpisodeRow};
 use crate::store::{
     CellRecord, DISTURBED_FILE, DISTURBED_STEPS_FILE, EPISODES_FILE, Store, StoreError,
@@ -141,9 +141,9 @@ pub fn run_cell(
         }
     }
     if !disturbed.is_empty() {
-        let frame = disturbed::disturbed_frame(&cell.key, config, &disturbed)?;
+        let frame = disturbance::disturbed_frame(&cell.key, config, &disturbed)?;
         files.push((DISTURBED_FILE, tables::parquet_bytes(&frame)?));
-        let frame = disturbed::disturbed_steps_frame(&cell.key, config, &disturbed)?;
+        let frame = disturbance::disturbed_steps_frame(&cell.key, config, &disturbed)?;
         files.push((DISTURBED_STEPS_FILE, tables::parquet_bytes(&frame)?));
     }
     let episodes = tables::episodes_frame(&cell.key, config, &rows)?;

@@ -34,7 +34,7 @@ pub const NUMERIC_SOURCES: [&str; 26] = [
     "engine/src/grouping.rs",
     "engine/src/idleness.rs",
     "engine/src/provenance.rs",
-    "engine/src/runner.rs",
+    "engine/src/episode.rs",
     "engine/src/source_hash.rs",
     "engine/src/stats",
     "engine/src/store",

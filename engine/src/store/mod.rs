@@ -33,7 +33,7 @@
 //! the rows of its cells table, and refuses what needs a cell's own files.
 
 pub mod columns;
-pub mod disturbed;
+pub mod disturbance;
 pub mod lease;
 pub mod record;
 pub mod table_store;

@@ -12,7 +12,7 @@ use policies::{ActionChoice, LearnedPolicy, RandomPolicy};
 use world::Seed;
 
 use super::WorldArgs;
-use engine::runner::mean_penalty;
+use engine::episode::mean_penalty;
 use engine::training_run::TrainingRun;
 
 #[derive(clap::Args)]

@@ -7,7 +7,7 @@ use std::path::Path;
 use serde_saphyr::Spanned;
 use world::{Map, MapError, WorldParams};
 
-use super::disturbances::check_disturbances;
+use super::disturbance::check_disturbances;
 use super::error::ScenarioError;
 use super::format::{MapSpec, PolicySpec, ProfileName, ScenarioFile, WorldSpec};
 use super::size::{Limits, check_size};

@@ -4,7 +4,7 @@
 mod check;
 pub mod claims;
 pub mod cost;
-mod disturbances;
+mod disturbance;
 pub mod error;
 pub mod format;
 mod policy;

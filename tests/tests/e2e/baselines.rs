@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use engine::runner::run_episode;
+use engine::episode::run_episode;
 use policies::tspc::Tspc;
 use policies::{Baseline, Policy};
 use world::paths::move_between;

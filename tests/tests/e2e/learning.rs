@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use engine::runner::mean_penalty;
+use engine::episode::mean_penalty;
 use policies::ppo::{Profile, Trainer, TrainingConfig};
 use policies::{ActionChoice, LearnedPolicy, RandomPolicy};
 use world::{Map, Seed, World, WorldParams};

@@ -12,6 +12,7 @@ use world::{ParamError, Seed, StartError, World};
 use policies::checkpoint::{self, WEIGHTS_FILE};
 use policies::ppo::{ConfigError, TrainError, Trainer};
 
+use crate::aggregate::{AggregateError, tables_of};
 use crate::execution::{CellError, disturbed_test_episode, stored_policy, test_episode};
 use crate::store::columns::{strings, u32s};
 use crate::store::disturbance;
@@ -90,7 +91,7 @@ pub struct TableAuditLine {
 /// finished cell of the sweep when it is absent), each cell's files verified, and compares
 /// it with the stored table, whose own hash `Store::table` checks. None for a table store,
 /// which has no cells (its marker's hashes are checked whenever it is opened).
-pub fn audit_tables(store: &Store) -> Result<Vec<TableAuditLine>, StoreError> {
+pub fn audit_tables(store: &Store) -> Result<Vec<TableAuditLine>, AggregateError> {
     let Some(manifest) = store.manifest()? else {
         return Ok(Vec::new());
     };
@@ -102,7 +103,7 @@ pub fn audit_tables(store: &Store) -> Result<Vec<TableAuditLine>, StoreError> {
         None => manifest.selected.clone().unwrap_or(manifest.cells.clone()),
     };
     let records = store.verified_records(&keys)?;
-    let rebuilt = store.tables_of(&records, &manifest.outputs)?;
+    let rebuilt = tables_of(store, &records, &manifest.outputs)?;
     Ok(rebuilt
         .into_iter()
         .map(|(name, frame)| TableAuditLine {

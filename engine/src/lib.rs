@@ -2,6 +2,7 @@
 //! results store; sweeps, merges, audits, statistics and Slurm work on that store.
 
 pub mod adaptation;
+pub mod aggregate;
 pub mod atomic_file;
 pub mod audit;
 pub mod checkpoint_dir;

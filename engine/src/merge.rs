@@ -22,6 +22,8 @@ pub struct MergeReport {
 pub enum MergeError {
     #[error(transparent)]
     Store(#[from] StoreError),
+    #[error(transparent)]
+    Tables(#[from] crate::aggregate::AggregateError),
     #[error("{0}: not a sweep folder (no sweep.json)")]
     NotASweep(PathBuf),
     #[error("{0}: holds another sweep than {1} (scenario, cell list or outputs differ)")]
@@ -62,7 +64,7 @@ pub fn merge(out: &Store, shards: &[Store]) -> Result<MergeReport, MergeError> {
             damaged.push((key.clone(), why.to_string()));
         }
     }
-    let tabled = out.build_tables(&merged.cells, &merged.outputs)?;
+    let tabled = crate::aggregate::build_tables(out, &merged.cells, &merged.outputs)?;
     let missing = merged
         .cells
         .iter()

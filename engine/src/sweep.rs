@@ -60,6 +60,8 @@ pub struct SweepReport {
 pub enum SweepError {
     #[error(transparent)]
     Store(#[from] StoreError),
+    #[error(transparent)]
+    Tables(#[from] crate::aggregate::AggregateError),
     #[error("cannot start {0} worker threads: {1}")]
     Threads(usize, rayon::ThreadPoolBuildError),
     /// The store took no more: no further cell was started, and finished cells are kept.
@@ -117,7 +119,7 @@ pub fn run_sweep(
     }
 
     let selected_keys: Vec<String> = selected.iter().map(|c| c.key.clone()).collect();
-    let tabled = store.build_tables(&selected_keys, &scenario.outputs)?;
+    let tabled = crate::aggregate::build_tables(store, &selected_keys, &scenario.outputs)?;
     Ok(SweepReport {
         selected: selected.len(),
         already_finished: selected.len() - todo.len() - from_cache - from_tables,

@@ -95,8 +95,6 @@ pub enum StoreError {
     Input(#[from] world::InputError),
     #[error("{0}")]
     Polars(#[from] PolarsError),
-    #[error(transparent)]
-    Summary(#[from] crate::summary::SummaryError),
     #[error("{path}: {problem}")]
     Corrupt { path: PathBuf, problem: String },
     #[error("{folder} holds the sweep {found:?}, not {expected:?}; choose another output folder")]
@@ -510,24 +508,21 @@ impl Store {
         Ok(true)
     }
 
-    /// Builds the sweep-level tables from the finished cells among `keys`, in that order,
-    /// writes them with their hashes, and returns the records included. A damaged cell among
-    /// `keys` is an error naming it: its numbers are not read.
-    pub fn build_tables(
+    /// Writes the sweep-level tables built from the cells `cells` (`engine::aggregate`) and
+    /// lists them with their hashes in `tables.json`.
+    pub fn write_tables(
         &self,
-        keys: &[String],
-        outputs: &[Output],
-    ) -> Result<Vec<CellRecord>, StoreError> {
-        let records = self.verified_records(keys)?;
+        cells: Vec<String>,
+        built: &[(&'static str, DataFrame)],
+    ) -> Result<(), StoreError> {
         let mut listing = self.table_hashes()?.unwrap_or_default();
-        listing.cells = records.iter().map(|r| r.key.clone()).collect();
-        for (name, frame) in self.tables_of(&records, outputs)? {
+        listing.cells = cells;
+        for (name, frame) in built {
             listing
                 .tables
-                .extend(tables::write_table(&self.root, name, &frame)?);
+                .extend(tables::write_table(&self.root, name, frame)?);
         }
-        write(&self.root.join(TABLES_FILE), &json_bytes(&listing))?;
-        Ok(records)
+        write(&self.root.join(TABLES_FILE), &json_bytes(&listing))
     }
 
     /// Writes a table of the sweep's own (`NAME.parquet` and `.csv`) and lists its hashes.
@@ -547,64 +542,9 @@ impl Store {
             .collect()
     }
 
-    /// The sweep-level tables of `outputs` that `records`' cells make, by name; a table no
-    /// cell has a file for is left out.
-    pub fn tables_of(
-        &self,
-        records: &[CellRecord],
-        outputs: &[Output],
-    ) -> Result<Vec<(&'static str, DataFrame)>, StoreError> {
-        let per_cell = |file: &str| -> Result<Option<DataFrame>, StoreError> {
-            let frames = records
-                .iter()
-                .filter_map(|r| self.cell_table(r, file).transpose())
-                .collect::<Result<Vec<_>, _>>()?;
-            tables::stack(frames)
-        };
-        let episodes = per_cell(EPISODES_FILE)?;
-        let mut built = Vec::new();
-        for &output in outputs {
-            let frame = match (output, per_cell_file(output)) {
-                (Output::Episodes, _) => episodes.clone(),
-                (Output::Cells, _) => Some(tables::cells_frame(records)?),
-                (Output::Summary, _) => episodes
-                    .as_ref()
-                    .map(crate::summary::summary_frame)
-                    .transpose()?,
-                (_, Some(file)) => per_cell(file)?,
-                (_, None) => None,
-            };
-            built.extend(frame.map(|frame| (output.name(), frame)));
-        }
-        Ok(built)
-    }
-
-    /// Builds the sweep-level tables from the finished cells when the tables there are not
-    /// those cells' (the sweep is still running, or was stopped, or an earlier look built
-    /// them from fewer) or do not match their hashes, so that its report and claims read the
-    /// cells as they are, mid-sweep too. Returns how many of the sweep's cells the tables
-    /// hold, out of how many, or `None` when there is no sweep, its tables were current or
-    /// it is a table store. A damaged cell is an error naming it.
-    pub fn build_missing_tables(&self) -> Result<Option<(usize, usize)>, StoreError> {
-        // A table store's tables are its content: there are no cells to build them from.
-        if self.is_table_store() {
-            return Ok(None);
-        }
-        let Some(manifest) = self.manifest()? else {
-            return Ok(None);
-        };
-        let keys = manifest.selected.as_ref().unwrap_or(&manifest.cells);
-        let finished = self.verified_records(keys)?;
-        if self.tables_current(&finished)? {
-            return Ok(None);
-        }
-        let records = self.build_tables(keys, &manifest.outputs)?;
-        Ok(Some((records.len(), keys.len())))
-    }
-
     /// Whether `tables.json` lists exactly the cells of `records` and every table it lists
     /// is there with its hash.
-    fn tables_current(&self, records: &[CellRecord]) -> Result<bool, StoreError> {
+    pub fn tables_current(&self, records: &[CellRecord]) -> Result<bool, StoreError> {
         let Some(listing) = self.table_hashes()? else {
             return Ok(false);
         };

@@ -35,7 +35,7 @@ pub fn run(args: ReportArgs) -> anyhow::Result<()> {
 /// hashes in `tables.json` are not read: they are built from the finished cells, every file
 /// verified, and the report names the missing ones.
 pub fn tables_of_unfinished_sweep(store: &Store) -> anyhow::Result<()> {
-    let Some((finished, cells)) = store.build_missing_tables()? else {
+    let Some((finished, cells)) = engine::aggregate::build_missing_tables(store)? else {
         return Ok(());
     };
     anyhow::ensure!(

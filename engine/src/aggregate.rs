@@ -6,10 +6,10 @@
 
 use polars::prelude::DataFrame;
 
-use crate::store::tables::{cells_frame, stack};
-use crate::store::{CellRecord, EPISODES_FILE, Store, StoreError, per_cell_file};
 use crate::summary::{SummaryError, summary_frame};
 use plan::scenario::Output;
+use store::tables::{cells_frame, stack};
+use store::{CellRecord, EPISODES_FILE, Store, StoreError, per_cell_file};
 
 #[derive(Debug, thiserror::Error)]
 pub enum AggregateError {

@@ -14,12 +14,12 @@ use policies::ppo::{ConfigError, TrainError, Trainer};
 
 use crate::aggregate::{AggregateError, tables_of};
 use crate::execution::{CellError, disturbed_test_episode, stored_policy, test_episode};
-use crate::store::columns::{strings, u32s};
-use crate::store::disturbance;
-use crate::store::tables::{self, EpisodeRow};
-use crate::store::{CellRecord, Store, StoreError, TRAINING_FILE};
 use crate::training_log;
 use plan::cell::CellConfig;
+use store::columns::{strings, u32s};
+use store::disturbance;
+use store::tables::{self, EpisodeRow};
+use store::{CellRecord, Store, StoreError, TRAINING_FILE};
 
 /// Why a stored episode or training run could not be repeated, or came back different.
 #[derive(Debug, thiserror::Error)]

@@ -11,7 +11,7 @@ use policies::ppo::{ConfigError, TrainingState};
 use policies::{ActionChoice, LearnedPolicy};
 use world::World;
 
-use crate::atomic_file::write_atomic;
+use store::atomic_file::write_atomic;
 
 /// The prefix that names a checkpoint folder where a policy name is expected.
 pub const POLICY_PREFIX: &str = "checkpoint:";
@@ -50,7 +50,7 @@ fn in_checkpoint(dir: &Path) -> impl FnOnce(CheckpointError) -> CheckpointDirErr
 
 fn read(dir: &Path, name: &str) -> Result<Vec<u8>, CheckpointDirError> {
     let path = dir.join(name);
-    let limit = crate::store::MAX_FILE_BYTES;
+    let limit = store::MAX_FILE_BYTES;
     Ok(world::read_bounded(&path, limit, "a store's file")?)
 }
 

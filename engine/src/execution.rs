@@ -11,16 +11,7 @@ use policies::ppo::{ConfigError, TrainError, Trainer, TrainingConfig, TrainingSt
 use policies::{LearnedPolicy, PlanError, Policy};
 use world::{StartError, World};
 
-use crate::adaptation::{self, Adaptation};
 use crate::episode::{StepObserver, run_disturbed_episode};
-use crate::provenance::{cpu_description, host_name, utc_timestamp};
-use crate::provenance::{git_commit, sources};
-use crate::store::disturbance::{self, DisturbedRow};
-use crate::store::tables::{self, EpisodeRow};
-use crate::store::{
-    CellRecord, DISTURBED_FILE, DISTURBED_STEPS_FILE, EPISODES_FILE, Store, StoreError,
-    TEST_CURVE_FILE, TRAINING_FILE,
-};
 use crate::test_curve::{CpuMeter, CurvePoint, TestCurve};
 use crate::training_run::{TrainingRun, TrainingRunError};
 use crate::trajectory::CellRecording;
@@ -28,6 +19,15 @@ use plan::cell::{CellConfig, SweepCell};
 use plan::code_version::code_version;
 use plan::disturbance::{Disturbance, UNDISTURBED};
 use plan::scenario::{Learned, ScenarioPolicy};
+use store::adaptation::{self, Adaptation};
+use store::disturbance::{self, DisturbedRow};
+use store::provenance::{cpu_description, host_name, utc_timestamp};
+use store::provenance::{git_commit, sources};
+use store::tables::{self, EpisodeRow};
+use store::{
+    CellRecord, DISTURBED_FILE, DISTURBED_STEPS_FILE, EPISODES_FILE, Store, StoreError,
+    TEST_CURVE_FILE, TRAINING_FILE,
+};
 
 #[derive(Debug, thiserror::Error)]
 pub enum CellError {

@@ -1,9 +1,7 @@
 //! The engine: each cell of a plan (`plan`, a checked scenario) runs reproducibly into a
 //! results store; sweeps, merges, audits, statistics and Slurm work on that store.
 
-pub mod adaptation;
 pub mod aggregate;
-pub mod atomic_file;
 pub mod audit;
 pub mod checkpoint_dir;
 pub mod cpu_clock;
@@ -16,15 +14,12 @@ pub mod merge;
 pub mod palette;
 pub mod probe;
 pub mod progress;
-pub mod provenance;
 pub mod replay;
 pub mod results_fingerprint;
 pub mod slurm;
-pub mod source_hash;
 pub mod stats;
 pub mod status;
 pub mod stop;
-pub mod store;
 pub mod summary;
 pub mod sweep;
 pub mod test_curve;

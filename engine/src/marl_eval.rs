@@ -13,10 +13,10 @@ use std::collections::BTreeMap;
 use serde_json::{Value, json};
 
 use crate::grouping::group_rows;
-use crate::store::record::CellRecord;
-use crate::store::tables::{self, EpisodeRow};
-use crate::store::{EPISODES_FILE, Store, StoreError};
 use plan::cell::CellConfig;
+use store::record::CellRecord;
+use store::tables::{self, EpisodeRow};
+use store::{EPISODES_FILE, Store, StoreError};
 
 /// The environment's name in the export.
 pub const ENVIRONMENT: &str = "vpm";

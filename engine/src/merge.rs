@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use crate::store::{Manifest, Store, StoreError};
+use store::{Manifest, Store, StoreError};
 
 #[derive(Debug)]
 pub struct MergeReport {

@@ -12,8 +12,8 @@ use polars::prelude::*;
 use policies::{AttentionEdges, LearnedPolicy, Policy};
 use world::{Action, Cell, Episode, Seed, World};
 
-use crate::store::StoreError;
-use crate::store::tables::parquet_bytes;
+use store::StoreError;
+use store::tables::parquet_bytes;
 
 /// A learned policy that records its network's inputs and outputs at chosen steps.
 pub struct ProbingPolicy {

@@ -14,10 +14,10 @@ use std::path::Path;
 
 use polars::prelude::DataFrame;
 
-use crate::store::{CellRecord, Store, StoreError, tables};
 use crate::sweep::{SweepError, SweepOptions, run_sweep};
 use crate::training_log::TIMING_COLUMNS;
 use plan::scenario::Scenario;
+use store::{CellRecord, Store, StoreError, tables};
 
 /// The scenario whose results are fingerprinted.
 pub const SCENARIO: &str = include_str!("../fingerprint/scenario.yaml");

@@ -12,13 +12,13 @@ use world::World;
 use crate::execution::{CellError, CellOrigin, run_cell};
 use crate::progress::Progress;
 use crate::stop;
-use crate::store::lease::exit_giving_back_leases;
-use crate::store::taken::TakenTables;
-use crate::store::{Manifest, Store, StoreError};
 use plan::cell::{CellConfig, SweepCell};
 use plan::code_version::code_version;
 use plan::scenario::Scenario;
 use plan::shard::Shard;
+use store::lease::exit_giving_back_leases;
+use store::taken::TakenTables;
+use store::{Manifest, Store, StoreError};
 
 pub struct SweepOptions {
     /// Cells run at once.

@@ -24,11 +24,11 @@ use std::time::{Duration, Instant};
 
 use polars::prelude::*;
 
-use crate::atomic_file::write_atomic;
 use crate::cpu_clock::thread_cpu_time;
-use crate::store::tables::{self, CELL_COLUMNS, EpisodeRow};
-use crate::store::{MAX_FILE_BYTES, StoreError, TEST_CURVE_FILE};
 use plan::cell::CellConfig;
+use store::atomic_file::write_atomic;
+use store::tables::{self, CELL_COLUMNS, EpisodeRow};
+use store::{MAX_FILE_BYTES, StoreError, TEST_CURVE_FILE};
 
 /// The columns a test curve adds to an episodes table's.
 pub const TRAINING_EPISODE: &str = "training_episode";
@@ -72,7 +72,7 @@ impl TestCurve {
         if !path.exists() {
             return Ok(curve);
         }
-        let bytes = crate::store::read(&path, MAX_FILE_BYTES, "a run's test curve")?;
+        let bytes = store::read(&path, MAX_FILE_BYTES, "a run's test curve")?;
         let frame = tables::read_parquet(bytes)?;
         curve.points = points(&frame)?;
         curve.points.retain(|p| p.training_episode <= done);

@@ -11,9 +11,9 @@ use policies::ppo::{
 };
 use world::World;
 
-use crate::atomic_file::write_atomic;
 use crate::checkpoint_dir::{self, CheckpointDirError};
 use crate::training_log;
+use store::atomic_file::write_atomic;
 
 pub const LOG_FILE: &str = "training.parquet";
 
@@ -70,7 +70,7 @@ impl TrainingRun {
         let mut state = checkpoint_dir::read_state(folder)?;
         state.config = state.config.with_overrides(overrides)?;
         let path = folder.join(LOG_FILE);
-        let limit = crate::store::MAX_FILE_BYTES;
+        let limit = store::MAX_FILE_BYTES;
         let bytes = world::read_bounded(&path, limit, "a store's file")?;
         let log = training_log::from_parquet(&bytes)
             .map_err(|source| TrainingRunError::Log { path, source })?;

@@ -10,9 +10,9 @@
 use polars::prelude::*;
 use world::{Episode, ObservationConfig, Observer};
 
-use crate::store::tables::cell_columns;
-use crate::store::{SNAPSHOTS_FILE, StoreError, TRAJECTORIES_FILE, tables};
 use plan::cell::CellConfig;
+use store::tables::cell_columns;
+use store::{SNAPSHOTS_FILE, StoreError, TRAJECTORIES_FILE, tables};
 
 /// Layer names of the `snapshots` table.
 pub mod layer {

@@ -4,7 +4,7 @@
 //! key: the package version plus the pinned results fingerprint (`engine::results_fingerprint`
 //! computes it), which moves when, and only when, the code gives other bits. Which sources
 //! computed a result and the git commit are recorded beside each result as provenance only
-//! (`engine::provenance`).
+//! (`store::provenance`).
 
 /// `VERSION+FINGERPRINT`: what a cell's key says about the code.
 pub fn code_version() -> String {

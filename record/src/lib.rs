@@ -19,7 +19,7 @@ use policies::{AttentionEdges, Policy};
 
 use engine::execution::{CellError, observed_test_episode, stored_policy};
 use engine::palette;
-use engine::store::{Store, StoreError};
+use store::{Store, StoreError};
 
 /// The timeline every entity is logged on: the episode's step (0 is the start).
 pub const TIMELINE: &str = "step";

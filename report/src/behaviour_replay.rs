@@ -23,8 +23,8 @@ use super::columns::{GroupKey, PolicyKey, strings, u32s};
 use super::judgement::at_point;
 use super::motion::{Motion, sin_theta};
 use engine::execution::{CellError, observed_test_episode, stored_policy};
-use engine::store::{CellRecord, Store, StoreError};
 use plan::scenario::claims::{Claim, ClaimTest, Point};
+use store::{CellRecord, Store, StoreError};
 
 /// The store table of measured episodes (`NAME.parquet` and `NAME.csv` in the store's root).
 pub const TABLE: &str = "behaviour_episodes";
@@ -428,8 +428,8 @@ mod tests {
     #[test]
     fn the_table_reads_back_what_it_wrote() {
         let rows_written = vec![row("a", 0, None), row("b", 3, Some(2))];
-        let bytes = engine::store::tables::parquet_bytes(&frame(&rows_written).unwrap()).unwrap();
-        let read = rows(&engine::store::tables::read_parquet(bytes).unwrap()).unwrap();
+        let bytes = store::tables::parquet_bytes(&frame(&rows_written).unwrap()).unwrap();
+        let read = rows(&store::tables::read_parquet(bytes).unwrap()).unwrap();
         assert_eq!(read, rows_written);
     }
 

@@ -2,7 +2,7 @@
 
 use polars::prelude::*;
 
-pub use engine::store::columns::{f64s, optional_u32s, strings, u32s};
+pub use store::columns::{f64s, optional_u32s, strings, u32s};
 
 /// A policy as the tables name it: its label and, for a learned one, its N_train.
 #[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

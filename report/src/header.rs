@@ -33,7 +33,7 @@ pub fn section(report: &mut ReportWriter, tables: &HeaderTables) -> Result<(), R
         Some(cells) => distinct(strings(cells, "git_commit")?),
         None => Vec::new(),
     };
-    let writer = engine::provenance::git_commit().to_owned();
+    let writer = store::provenance::git_commit().to_owned();
     if let Some(warning) = dirty_warning(&commits, &writer) {
         report.paragraph(&warning);
     }

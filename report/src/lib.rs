@@ -30,9 +30,9 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 use chart::{ChartError, Figure, render};
-use engine::atomic_file::write_atomic;
 use engine::status::CellState;
-use engine::store::{MissingCell, Store, StoreError, tables};
+use store::atomic_file::write_atomic;
+use store::{MissingCell, Store, StoreError, tables};
 use world::Map;
 
 /// Penalties are reported in millions, as in the paper.

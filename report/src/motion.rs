@@ -12,8 +12,8 @@ use super::chart::lines::{Line, LineChart, Panel};
 use super::columns::{GroupKey, f64s, group_rows, strings, u32s};
 use super::judgement::at_point;
 use super::{ReportError, ReportWriter, file_stem};
-use engine::store::Store;
 use plan::scenario::claims::{Claim, ClaimTest};
+use store::Store;
 
 /// The maps of a store by name, from its `cells` table and map files.
 pub fn maps(store: &Store) -> Result<HashMap<String, Map>, ReportError> {

@@ -7,8 +7,8 @@ use engine::audit::{
     AuditLine, DisturbedAuditLine, TrainingAuditLine, audit, audit_disturbed, audit_tables,
     audit_training,
 };
-use engine::provenance;
-use engine::store::Store;
+use store::Store;
+use store::provenance;
 
 #[derive(clap::Args)]
 pub struct AuditArgs {

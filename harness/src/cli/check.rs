@@ -2,9 +2,9 @@
 
 use std::path::PathBuf;
 
-use engine::store::Store;
 use plan::scenario::cost::Cost;
 use plan::scenario::{Limits, Scenario};
+use store::Store;
 
 #[derive(clap::Args)]
 pub struct CheckArgs {

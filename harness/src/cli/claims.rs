@@ -2,9 +2,9 @@
 
 use std::path::PathBuf;
 
-use engine::store::Store;
 use plan::scenario::Scenario;
 use report::{StoreTables, markdown, store_claims, verdicts};
+use store::Store;
 
 #[derive(clap::Args)]
 pub struct ClaimsArgs {

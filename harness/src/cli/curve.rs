@@ -19,7 +19,7 @@ pub struct CurveArgs {
 
 pub fn run(args: CurveArgs) -> anyhow::Result<()> {
     let path = args.dir.join("training.parquet");
-    let bytes = world::read_bounded(&path, engine::store::MAX_FILE_BYTES, "a store's file")?;
+    let bytes = world::read_bounded(&path, store::MAX_FILE_BYTES, "a store's file")?;
     let log = anyhow::Context::with_context(training_log::from_parquet(&bytes), || {
         format!("reading {}", path.display())
     })?;

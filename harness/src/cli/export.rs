@@ -4,8 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use engine::atomic_file::write_atomic;
-use engine::store::Store;
+use store::Store;
+use store::atomic_file::write_atomic;
 
 #[derive(clap::Subcommand)]
 pub enum ExportCommand {

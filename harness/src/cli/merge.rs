@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use engine::merge::merge;
-use engine::store::Store;
+use store::Store;
 
 #[derive(clap::Args)]
 pub struct MergeArgs {

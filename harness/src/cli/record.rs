@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use engine::store::Store;
+use store::Store;
 
 #[derive(clap::Args)]
 pub struct RecordArgs {

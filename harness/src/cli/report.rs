@@ -4,8 +4,8 @@
 
 use std::path::PathBuf;
 
-use engine::store::Store;
 use report::write_report;
+use store::Store;
 
 #[derive(clap::Args)]
 pub struct ReportArgs {

@@ -7,11 +7,11 @@ use anyhow::Context;
 
 use super::check::duration;
 use engine::slurm::{ArrayJob, SbatchOptions, submit};
-use engine::store::Store;
 use engine::sweep::prepare;
 use plan::scenario::Scenario;
 use plan::scenario::cost::work_seconds;
 use plan::shard::{slices, weight};
+use store::Store;
 
 #[derive(clap::Args)]
 pub struct SlurmArgs {

@@ -4,7 +4,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use engine::status::{CellState, SweepStatus, sweep_status};
-use engine::store::LeaseHolder;
+use store::LeaseHolder;
 
 #[derive(clap::Args)]
 pub struct StatusArgs {

@@ -2,13 +2,13 @@
 
 use std::path::PathBuf;
 
-use engine::store::Store;
-use engine::store::taken::TakenTables;
 use engine::sweep::{SweepOptions, run_sweep};
 use plan::scenario::Scenario;
 use plan::shard::Shard;
 use policies::ppo::Profile;
 use report::write_report;
+use store::Store;
+use store::taken::TakenTables;
 
 #[derive(clap::Args)]
 pub struct SweepArgs {

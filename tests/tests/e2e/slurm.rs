@@ -293,7 +293,7 @@ fn a_task_pre_empted_with_sigterm_and_requeued_still_gives_the_same_tables() {
 
 /// The process id in the lease of a cell in flight in the store `shard`, once one is readable.
 fn running_pid(shard: &Path) -> Option<u32> {
-    let store = engine::store::Store::new(shard);
+    let store = store::Store::new(shard);
     let entries = std::fs::read_dir(shard.join("cells")).ok()?;
     let holder = entries
         .flatten()

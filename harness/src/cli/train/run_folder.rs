@@ -10,13 +10,13 @@
 use std::path::Path;
 
 use anyhow::Context;
-use engine::atomic_file::write_atomic;
 use engine::checkpoint_dir;
 use engine::training_run::LOG_FILE;
 use plan::scenario::map_hash;
 use policies::checkpoint::{METADATA_FILE, OPTIMIZER_FILE, WEIGHTS_FILE};
 use policies::ppo::{Profile, TrainingConfig};
 use serde_json::{Map, Value, json};
+use store::atomic_file::write_atomic;
 use world::World;
 
 use crate::cli::WorldArgs;
@@ -134,7 +134,7 @@ fn read_world(folder: &Path) -> anyhow::Result<Option<Settings>> {
     if !path.exists() {
         return Ok(None);
     }
-    let limit = engine::store::MAX_FILE_BYTES;
+    let limit = store::MAX_FILE_BYTES;
     let text = world::read_bounded_text(&path, limit, "a store's file")?;
     serde_json::from_str(&text)
         .map(Some)

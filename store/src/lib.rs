@@ -1,5 +1,5 @@
-//! The results store: one folder per sweep, one subfolder per finished cell, and the sweep-level
-//! tables built from the cells.
+//! The results store: one folder per sweep, one subfolder per finished cell, and the files of
+//! the sweep-level tables (`engine::aggregate` builds them from the cells).
 //!
 //! ```text
 //! OUT/sweep.json               manifest: scenario, code version, every cell key in order
@@ -32,10 +32,14 @@
 //! without `cells/`: what a report carries to be rebuilt. It reads as a store whose cells are
 //! the rows of its cells table, and refuses what needs a cell's own files.
 
+pub mod adaptation;
+pub mod atomic_file;
 pub mod columns;
 pub mod disturbance;
 pub mod lease;
+pub mod provenance;
 pub mod record;
+pub mod source_hash;
 pub mod table_store;
 pub mod tables;
 pub mod taken;
@@ -129,7 +133,7 @@ impl StoreError {
         }
     }
 
-    pub(crate) fn corrupt(path: &Path, problem: impl ToString) -> Self {
+    pub fn corrupt(path: &Path, problem: impl ToString) -> Self {
         Self::Corrupt {
             path: path.to_owned(),
             problem: problem.to_string(),
@@ -600,7 +604,7 @@ fn json_bytes<T: serde::Serialize>(value: &T) -> Vec<u8> {
 pub const MAX_FILE_BYTES: u64 = plan::scenario::Limits::DEFAULT.memory_bytes;
 
 /// A file of the store: a regular file of at most `limit` bytes.
-pub(crate) fn read(path: &Path, limit: u64, what: &'static str) -> Result<Vec<u8>, StoreError> {
+pub fn read(path: &Path, limit: u64, what: &'static str) -> Result<Vec<u8>, StoreError> {
     Ok(world::read_bounded(path, limit, what)?)
 }
 

@@ -12,8 +12,8 @@ use std::collections::BTreeMap;
 
 use serde_json::{Value, json};
 
-use crate::grouping::group_rows;
 use plan::cell::CellConfig;
+use stats::grouping::group_rows;
 use store::record::CellRecord;
 use store::tables::{self, EpisodeRow};
 use store::{EPISODES_FILE, Store, StoreError};

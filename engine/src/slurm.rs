@@ -19,8 +19,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::status::SHARDS_FOLDER;
 use store::atomic_file::write_atomic;
+use store::status::SHARDS_FOLDER;
 
 /// Where the job scripts and their logs go, inside the output folder.
 pub const SLURM_FOLDER: &str = "slurm";

@@ -14,8 +14,8 @@
 use polars::prelude::*;
 use world::Seed;
 
-use crate::grouping::group_rows;
-use crate::stats::{
+use stats::grouping::group_rows;
+use stats::{
     Block, RESAMPLES, Sample, StatsError, Unit, bootstrap, iqm, mean, median, named_seed,
     standard_deviation,
 };

@@ -27,13 +27,9 @@ use polars::prelude::*;
 use crate::cpu_clock::thread_cpu_time;
 use plan::cell::CellConfig;
 use store::atomic_file::write_atomic;
+use store::schema::test_curve::{CPU_SECONDS, TRAINING_EPISODE, WALL_SECONDS};
 use store::tables::{self, CELL_COLUMNS, EpisodeRow};
 use store::{MAX_FILE_BYTES, StoreError, TEST_CURVE_FILE};
-
-/// The columns a test curve adds to an episodes table's.
-pub const TRAINING_EPISODE: &str = "training_episode";
-pub const CPU_SECONDS: &str = "cpu_seconds";
-pub const WALL_SECONDS: &str = "wall_seconds";
 
 /// The test episodes played with the policy of one moment of training.
 #[derive(Clone, Debug, PartialEq)]

@@ -11,18 +11,9 @@ use polars::prelude::*;
 use world::{Episode, ObservationConfig, Observer};
 
 use plan::cell::CellConfig;
+use store::schema::layer;
 use store::tables::cell_columns;
 use store::{SNAPSHOTS_FILE, StoreError, TRAJECTORIES_FILE, tables};
-
-/// Layer names of the `snapshots` table.
-pub mod layer {
-    /// The whole map: a free cell's penalty (<= 0), obstacles 150.
-    pub const PENALTY: &str = "penalty";
-    /// Agent 0's local map, in the paper's codes (obstacle 150, agent 200).
-    pub const LOCAL: &str = "local";
-    /// Agent 0's mini-map, in the paper's codes.
-    pub const MINI: &str = "mini";
-}
 
 /// The recorded steps and snapshots of a cell's chosen test episodes.
 #[derive(Default)]

@@ -1,10 +1,11 @@
 //! An episode drawn as an RGB image (PettingZoo's `rgb_array` render mode).
 
 use numpy::ndarray::Array3;
-use world::{Cell, Episode};
+use world::{Cell, Episode, palette};
 
-/// Obstacles dark; free cells white when just seen, turning red as their penalty falls to
-/// -Rmax; agents blue (grey once lost). `scale` pixels per cell, top row first.
+/// Drawn as the report's figures and the rerun recordings draw it (`world::palette`):
+/// obstacles dark grey, free cells from blue (just seen) to red (at -Rmax), agent i in series
+/// colour i (light grey once lost). `scale` pixels per cell, top row first.
 pub fn rgb(episode: &Episode, scale: usize) -> Array3<u8> {
     let world = episode.world();
     let (map, rmax) = (world.map(), world.params().rmax());
@@ -13,19 +14,19 @@ pub fn rgb(episode: &Episode, scale: usize) -> Array3<u8> {
     for y in 0..height {
         for x in 0..width {
             let cell = Cell::new(x as u16, y as u16);
-            let colour = if map.is_free(cell) {
-                let fallen = (-episode.penalty().at(cell) / rmax).clamp(0.0, 1.0);
-                let fade = (255.0 * (1.0 - fallen)).round() as u8;
-                [255, fade, fade]
-            } else {
-                [40, 40, 40]
+            let colour = match map.is_free(cell) {
+                true => palette::penalty(f64::from(-episode.penalty().at(cell) / rmax)),
+                false => palette::OBSTACLE,
             };
             paint(&mut image, height - 1 - y, x, scale, colour);
         }
     }
     let agents = episode.positions().iter().zip(episode.stopped());
-    for (cell, &lost) in agents {
-        let colour = if lost { [128, 128, 128] } else { [30, 90, 220] };
+    for (agent, (cell, &lost)) in agents.enumerate() {
+        let colour = match lost {
+            true => palette::LOST,
+            false => palette::series(agent),
+        };
         paint(
             &mut image,
             height - 1 - cell.y as usize,

@@ -18,8 +18,8 @@ use world::{Episode, World};
 use policies::{AttentionEdges, Policy};
 
 use engine::execution::{CellError, observed_test_episode, stored_policy};
-use engine::palette;
 use store::{Store, StoreError};
+use world::palette;
 
 /// The timeline every entity is logged on: the episode's step (0 is the start).
 pub const TIMELINE: &str = "step";

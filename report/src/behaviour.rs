@@ -122,7 +122,7 @@ fn motion_rhythms(index: usize, motion: &Motion) -> Vec<Rhythm> {
     for (signal, values) in motion.signals() {
         let periods: Vec<Option<f64>> = values.iter().map(|v| dominant_period(v)).collect();
         let found: Vec<f64> = periods.iter().flatten().copied().collect();
-        let team_period = engine::stats::median(&found).ok();
+        let team_period = stats::median(&found).ok();
         let harmonics: Vec<Option<Harmonic>> = values
             .iter()
             .map(|v| team_period.and_then(|p| fit_harmonic(v, p)))

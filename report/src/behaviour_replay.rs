@@ -22,9 +22,28 @@ use super::behaviour::measure;
 use super::columns::{GroupKey, PolicyKey, strings, u32s};
 use super::judgement::at_point;
 use super::motion::{Motion, sin_theta};
-use engine::execution::{CellError, observed_test_episode, stored_policy};
 use plan::scenario::claims::{Claim, ClaimTest, Point};
 use store::{CellRecord, Store, StoreError};
+
+/// Plays stored test episodes again. The engine does it (`engine::execution`, handed in by the
+/// binary): the report only measures what it is shown, and runs no cell itself.
+pub trait Replay: Sync {
+    /// Plays test episodes `episodes`, in that order, of the stored cell `record` with `n_test`
+    /// agents in `world`, one policy for all of them as the cell's tests had, calling
+    /// `after_step(episode, state)` after every step.
+    fn play(
+        &self,
+        store: &Store,
+        record: &CellRecord,
+        world: &Arc<World>,
+        n_test: u32,
+        episodes: &[u32],
+        after_step: &mut dyn FnMut(u32, &world::Episode),
+    ) -> Result<(), ReplayError>;
+}
+
+/// Why a replay failed, as the engine says it.
+pub type ReplayError = Box<dyn std::error::Error + Send + Sync>;
 
 /// The store table of measured episodes (`NAME.parquet` and `NAME.csv` in the store's root).
 pub const TABLE: &str = "behaviour_episodes";
@@ -49,8 +68,7 @@ pub enum BehaviourError {
     #[error(transparent)]
     Store(#[from] StoreError),
     #[error("replaying test episodes of cell {key}: {source}")]
-    /// Boxed: a cell's error is large, and this one is rare.
-    Replay { key: String, source: Box<CellError> },
+    Replay { key: String, source: ReplayError },
     #[error("the stored world parameters of cell {key} are not valid: {source}")]
     World {
         key: String,
@@ -70,8 +88,8 @@ pub enum BehaviourError {
 pub fn measures(
     store: &Store,
     claims: &[Claim],
-    episodes: &DataFrame,
-    motions: &[Motion],
+    (episodes, motions): (&DataFrame, &[Motion]),
+    replayer: &dyn Replay,
 ) -> Result<Vec<EpisodeMeasure>, BehaviourError> {
     let points = claimed_points(claims);
     if points.is_empty() {
@@ -90,7 +108,7 @@ pub fn measures(
         let fresh = held.iter().all(|m| m.pool == pool.identity);
         let replayable = cells_at_hand(store, &needed);
         if replayable && !(covered && fresh) {
-            let rows = replay(store, &pool, &needed, point.n_test)?;
+            let rows = replay(replayer, store, &pool, (&needed, point.n_test))?;
             table.retain(|m| !at_point(&m.group, policy, point));
             table.extend(rows);
             replayed = true;
@@ -124,7 +142,7 @@ fn claimed_points(claims: &[Claim]) -> Vec<(String, Point)> {
         ClaimTest::Behaviour { policy, point, .. } => Some((policy.clone(), point.clone())),
         _ => None,
     });
-    engine::grouping::distinct(points)
+    stats::grouping::distinct(points)
 }
 
 /// Whether `held` is one row for each test episode of `needed`, and no more.
@@ -219,10 +237,10 @@ impl<'a> Pool<'a> {
 /// Plays the test episodes `needed` (by cell) with `n_test` agents again and measures them,
 /// the cells in parallel.
 fn replay(
+    replayer: &dyn Replay,
     store: &Store,
     pool: &Pool,
-    needed: &BTreeMap<String, BTreeSet<u32>>,
-    n_test: u32,
+    (needed, n_test): (&BTreeMap<String, BTreeSet<u32>>, u32),
 ) -> Result<Vec<EpisodeMeasure>, BehaviourError> {
     let records: Vec<CellRecord> = (needed.keys())
         .map(|key| store.verified_record(key))
@@ -247,11 +265,10 @@ fn replay(
         .map(|record| {
             let world = &worlds[&record.config.map.hash];
             let episodes = &needed[&record.key];
-            replay_cell(store, pool, world, record, episodes, n_test).map_err(|source| {
-                BehaviourError::Replay {
-                    key: record.key.clone(),
-                    source: Box::new(source),
-                }
+            let played = (world, record, episodes, n_test);
+            replay_cell(replayer, store, pool, played).map_err(|source| BehaviourError::Replay {
+                key: record.key.clone(),
+                source,
             })
         })
         .collect::<Result<_, _>>()?;
@@ -259,14 +276,11 @@ fn replay(
 }
 
 fn replay_cell(
+    replayer: &dyn Replay,
     store: &Store,
     pool: &Pool,
-    world: &Arc<World>,
-    record: &CellRecord,
-    episodes: &BTreeSet<u32>,
-    n_test: u32,
-) -> Result<Vec<EpisodeMeasure>, CellError> {
-    let mut policy = stored_policy(store, record, world)?;
+    (world, record, episodes, n_test): (&Arc<World>, &CellRecord, &BTreeSet<u32>, u32),
+) -> Result<Vec<EpisodeMeasure>, ReplayError> {
     let config = &record.config;
     let group = GroupKey {
         map: config.map.name.clone(),
@@ -280,19 +294,25 @@ fn replay_cell(
         world.map().width() as f64 / 2.0,
         world.map().height() as f64 / 2.0,
     );
-    let mut rows = Vec::new();
-    for &episode in episodes {
-        let mut motion = empty_motion(group.clone());
-        observed_test_episode(
-            world,
-            policy.as_mut(),
-            config,
-            (n_test, episode),
-            None,
-            &mut |e, _, _| follow(&mut motion, e, centre),
-        )?;
+    let mut motions: BTreeMap<u32, Motion> = (episodes.iter())
+        .map(|&episode| (episode, empty_motion(group.clone())))
+        .collect();
+    let order: Vec<u32> = episodes.iter().copied().collect();
+    replayer.play(
+        store,
+        record,
+        world,
+        n_test,
+        &order,
+        &mut |episode, state| {
+            if let Some(motion) = motions.get_mut(&episode) {
+                follow(motion, state, centre);
+            }
+        },
+    )?;
+    let rows = motions.into_iter().map(|(episode, motion)| {
         let (stationary, touring, periodic) = pool.measure(&motion);
-        rows.push(EpisodeMeasure {
+        EpisodeMeasure {
             group: group.clone(),
             cell_key: record.key.clone(),
             repetition: config.repetition,
@@ -301,9 +321,9 @@ fn replay_cell(
             touring,
             periodic,
             pool: pool.identity.clone(),
-        });
-    }
-    Ok(rows)
+        }
+    });
+    Ok(rows.collect())
 }
 
 fn empty_motion(group: GroupKey) -> Motion {

@@ -11,11 +11,11 @@ pub mod marker;
 
 use std::sync::OnceLock;
 
-use engine::palette;
 use image::ImageEncoder;
 use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
+use world::palette;
 
 /// Why a figure could not be drawn.
 #[derive(Debug, thiserror::Error)]

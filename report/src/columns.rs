@@ -76,5 +76,5 @@ impl GroupKey {
     }
 }
 
-pub use engine::grouping::{distinct, group_rows};
-pub use engine::stats::named_seed;
+pub use stats::grouping::{distinct, group_rows};
+pub use stats::named_seed;

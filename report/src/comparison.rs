@@ -1,6 +1,6 @@
 //! Pairwise comparisons of policies on one map and N_test: the difference of mean penalties
 //! and the probability of improvement, each with a 95 % bootstrap interval over the unit of
-//! replication (a learned policy's training runs, a baseline's episodes: `engine::stats`), so
+//! replication (a learned policy's training runs, a baseline's episodes: `stats`), so
 //! no claim rests on two means alone.
 
 use polars::prelude::*;
@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::columns::{GroupKey, PolicyKey, f64s, group_rows, named_seed, strings, u32s};
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use engine::stats::{
+use stats::{
     self, Block, Bootstrap, Pairing, RESAMPLES, StatsError, Unit, UnitsStatistic, bootstrap,
     mean_difference, probability_of_improvement,
 };

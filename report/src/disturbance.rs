@@ -15,9 +15,9 @@ use super::columns::{GroupKey, distinct, f64s, optional_u32s, strings, u32s};
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, samples, samples_of};
 use super::motion::map_shades;
 use super::{ReportError, ReportWriter, file_stem};
-use engine::stats::{StatsError, mean, standard_deviation};
 use plan::disturbance::UNDISTURBED;
 use plan::scenario::claims::Point;
+use stats::{StatsError, mean, standard_deviation};
 use world::Map;
 
 /// Per-step penalties are reported in thousands.
@@ -182,8 +182,7 @@ fn adaptation_frame(
             let quarter = DisturbedSamples::find(&samples.last_quarters, name, policy, &point);
             let ratio = match samples.ratio_samples(policy, &point, name) {
                 Ok((d, r)) => {
-                    let seed =
-                        engine::stats::named_seed(&format!("ratio\0{}\0{name}", group.label()));
+                    let seed = stats::named_seed(&format!("ratio\0{}\0{name}", group.label()));
                     Some((mean(&r.values())?, ratio_interval(d, r, seed)?))
                 }
                 Err(_) => None,

@@ -11,7 +11,7 @@ use super::columns::{
 };
 use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use engine::stats::{least_squares_slope, summarize};
+use stats::{least_squares_slope, summarize};
 
 /// The paper's training budget per learned policy, in episodes.
 pub const PAPER_TRAINING_EPISODES: u64 = 30_000;
@@ -389,7 +389,7 @@ fn improving_section(report: &mut ReportWriter, training: &DataFrame) -> Result<
         "For each learned (map, policy, N_train): the least-squares slope of each training \
          run's training penalty over its last quarter of episodes (`last_quarter`, at least \
          two), in 10^6 per 100 episodes; `slope` is their mean over the runs, with its 95 % \
-         interval over runs (`engine::stats::summarize`). *still improving*: the interval lies \
+         interval over runs (`stats::summarize`). *still improving*: the interval lies \
          below 0 (the penalty was still falling, so longer training may change the verdicts \
          below); *flat*: it holds 0; *worse*: it lies above 0. One run gives no interval. \
          The episodes of one round are played in parallel by one policy, so a run of a few \

@@ -8,8 +8,8 @@ use super::chart::grid::{GridFigure, GridPanel, Shade};
 use super::columns::{f64s, strings, u32s};
 use super::motion::maps;
 use super::{ReportError, ReportWriter, file_stem};
-use engine::trajectory::layer;
 use store::Store;
+use store::schema::layer;
 
 /// The layer of the illustration table holding the agents (value: the agent's index).
 const AGENTS: &str = "agents";

@@ -3,8 +3,8 @@
 //! are a policy's at a point. Below every section that judges something (the claims table,
 //! behaviour, disturbances, time to quality), so that none of them depends on another.
 
-use engine::stats::{Bootstrap, StatsError, holm};
 use plan::scenario::claims::Point;
+use stats::{Bootstrap, StatsError, holm};
 
 use super::columns::GroupKey;
 use super::comparison::{CONFIDENCE, Sample};

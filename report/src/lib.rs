@@ -30,10 +30,12 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 use chart::{ChartError, Figure, render};
-use engine::status::CellState;
 use store::atomic_file::write_atomic;
+use store::status::CellState;
 use store::{MissingCell, Store, StoreError, tables};
 use world::Map;
+
+pub use behaviour_replay::{Replay, ReplayError};
 
 /// Penalties are reported in millions, as in the paper.
 pub const PENALTY_UNIT: f64 = 1e6;
@@ -47,7 +49,7 @@ pub enum ReportError {
     #[error(transparent)]
     Chart(#[from] ChartError),
     #[error(transparent)]
-    Stats(#[from] engine::stats::StatsError),
+    Stats(#[from] stats::StatsError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -58,7 +60,7 @@ pub enum ReportError {
     #[error(transparent)]
     Claims(#[from] plan::scenario::ScenarioError),
     #[error(transparent)]
-    Status(#[from] engine::status::StatusError),
+    Status(#[from] store::status::StatusError),
     #[error(transparent)]
     Behaviour(#[from] behaviour_replay::BehaviourError),
 }
@@ -79,7 +81,11 @@ pub const STORE_FOLDER: &str = "store";
 /// Writes the report of the sweep in `store` (a sweep's store or a table store) to
 /// `reports_root/<scenario>/`, with the store's tables as a table store in its `store/`, so
 /// that the report can be rebuilt, byte for byte, from the repository alone.
-pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary, ReportError> {
+pub fn write_report(
+    store: &Store,
+    reports_root: &Path,
+    replay: &dyn Replay,
+) -> Result<ReportSummary, ReportError> {
     let manifest = store
         .manifest()?
         .ok_or_else(|| ReportError::NoSweep(store.root().to_owned()))?;
@@ -107,7 +113,7 @@ pub fn write_report(store: &Store, reports_root: &Path) -> Result<ReportSummary,
     }
     let claims = store_claims(store)?;
     if !claims.is_empty() {
-        let measures = loaded.behaviour_measures(&claims)?;
+        let measures = loaded.behaviour_measures(&claims, replay)?;
         verdicts::section(&mut report, &loaded.judge(&claims, &measures)?)?;
         // Under the behaviour claims' verdicts: every run's share and every episode.
         behaviour_claims::section(&mut report, &claims, &measures)?;
@@ -157,7 +163,7 @@ fn missing_cells(store: &Store) -> Result<Vec<MissingCell>, ReportError> {
     if let Some(marker) = store.table_store()? {
         return Ok(marker.missing);
     }
-    let status = engine::status::sweep_status(store.root())?;
+    let status = store::status::sweep_status(store.root())?;
     Ok(status
         .cells
         .into_iter()
@@ -233,12 +239,14 @@ impl StoreTables {
         })
     }
 
-    /// The verdict of every claim.
+    /// The verdict of every claim; behaviour claims' test episodes played again by `replay`
+    /// where the store holds no measures of them.
     pub fn verdicts(
         &self,
         claims: &[plan::scenario::claims::Claim],
+        replay: &dyn Replay,
     ) -> Result<Vec<verdicts::ClaimResult>, ReportError> {
-        self.judge(claims, &self.behaviour_measures(claims)?)
+        self.judge(claims, &self.behaviour_measures(claims, replay)?)
     }
 
     /// The verdict of every claim, the behaviour claims' from `behaviours`, their measures.
@@ -262,11 +270,11 @@ impl StoreTables {
     pub fn behaviour_measures(
         &self,
         claims: &[plan::scenario::claims::Claim],
+        replay: &dyn Replay,
     ) -> Result<Vec<behaviour_replay::EpisodeMeasure>, ReportError> {
         let motions = self.motions.as_ref().map(|(_, m)| m.as_slice());
-        let (store, episodes) = (&self.store, &self.episodes);
-        let measures =
-            behaviour_replay::measures(store, claims, episodes, motions.unwrap_or_default())?;
+        let recorded = (&self.episodes, motions.unwrap_or_default());
+        let measures = behaviour_replay::measures(&self.store, claims, recorded, replay)?;
         Ok(measures)
     }
 }

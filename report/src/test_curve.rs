@@ -16,8 +16,8 @@ use super::chart::lines::{Line, LineChart, Panel, Spread};
 use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
 use super::comparison::{self, Sample};
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
-use engine::stats::median_with_infinities as median;
-use engine::test_curve::{CPU_SECONDS, TRAINING_EPISODE};
+use stats::median_with_infinities as median;
+use store::schema::test_curve::{CPU_SECONDS, TRAINING_EPISODE};
 
 /// A reference's test penalty by (map, N_train): its name and level.
 pub type Levels = BTreeMap<(String, u32), (String, f64)>;

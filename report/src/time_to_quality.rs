@@ -15,9 +15,9 @@ use super::judgement::{PointTest, Verdict};
 use super::markdown::number;
 use super::test_curve::{Levels, RunCurve, Trained, across};
 use super::{ReportError, ReportWriter};
-use engine::stats::median_with_infinities as median;
-use engine::stats::{self, Block, RESAMPLES, StatsError, Unit, bootstrap};
 use plan::scenario::claims::{GCS, Point};
+use stats::median_with_infinities as median;
+use stats::{self, Block, RESAMPLES, StatsError, Unit, bootstrap};
 
 /// When a run first reached a level.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -3,7 +3,7 @@
 //! that opens with them.
 //!
 //! Every interval draws a learned policy's training runs (then the test episodes within them)
-//! and a baseline's test episodes (`engine::stats::resampling`); samples of the same runs
+//! and a baseline's test episodes (`stats::resampling`); samples of the same runs
 //! under two conditions are drawn as pairs (`comparison::blocks`).
 
 use std::collections::{BTreeMap, HashMap};
@@ -21,8 +21,8 @@ use super::test_curve::{samples_at, trained_curves};
 use super::time_to_quality;
 use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use engine::stats::{Bootstrap, StatsError, least_squares_slope, mean, mean_difference};
 use plan::scenario::claims::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
+use stats::{Bootstrap, StatsError, least_squares_slope, mean, mean_difference};
 
 /// One claim's verdict and the numbers behind it.
 #[derive(Clone, Debug)]

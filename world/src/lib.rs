@@ -10,6 +10,7 @@ pub mod input;
 pub mod links;
 pub mod map;
 pub mod observation;
+pub mod palette;
 pub mod params;
 pub mod paths;
 pub mod penalty;

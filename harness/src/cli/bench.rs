@@ -11,8 +11,8 @@ use bench::quality;
 use bench::scale::{self, ScaleSetup};
 use bench::training;
 use bench::world_steps::{PYTHON_STEPS_PER_SECOND, measure};
-use engine::stats::median_with_infinities;
 use policies::ppo::{ArchitectureName, Profile, TrainingConfig};
+use stats::median_with_infinities;
 use world::World;
 
 use super::WorldArgs;

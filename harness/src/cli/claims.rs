@@ -29,7 +29,7 @@ pub fn run(args: ClaimsArgs) -> anyhow::Result<()> {
     };
     anyhow::ensure!(!claims.is_empty(), "the scenario has no claims");
     super::report::tables_of_unfinished_sweep(&store)?;
-    let results = StoreTables::load(&store)?.verdicts(&claims)?;
+    let results = StoreTables::load(&store)?.verdicts(&claims, &super::report::EngineReplay)?;
     let results: Vec<&verdicts::ClaimResult> = results.iter().collect();
     print!("{}", markdown::table(&verdicts::results_frame(&results)?)?);
     Ok(())

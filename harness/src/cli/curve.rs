@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use polars::prelude::*;
 
-use engine::grouping::group_rows;
 use engine::training_log;
+use stats::grouping::group_rows;
 
 #[derive(clap::Args)]
 pub struct CurveArgs {

@@ -3,9 +3,12 @@
 //! read as they read a sweep's store).
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
-use report::write_report;
-use store::Store;
+use engine::execution::{observed_test_episode, stored_policy};
+use report::{Replay, ReplayError, write_report};
+use store::{CellRecord, Store};
+use world::World;
 
 #[derive(clap::Args)]
 pub struct ReportArgs {
@@ -19,7 +22,7 @@ pub struct ReportArgs {
 pub fn run(args: ReportArgs) -> anyhow::Result<()> {
     let store = Store::new(&args.store);
     tables_of_unfinished_sweep(&store)?;
-    let summary = write_report(&store, &args.to)?;
+    let summary = write_report(&store, &args.to, &EngineReplay)?;
     println!(
         "report: {} tables and {} figures in {}, and its store's tables in {} ({:.1} MB)",
         summary.tables,
@@ -56,4 +59,37 @@ pub fn tables_of_unfinished_sweep(store: &Store) -> anyhow::Result<()> {
         ),
     }
     Ok(())
+}
+
+/// Stored test episodes played again by the engine, as the cell's tests played them, for the
+/// behaviour claims a report measures (`report::Replay`): the report itself runs nothing.
+pub struct EngineReplay;
+
+impl Replay for EngineReplay {
+    fn play(
+        &self,
+        store: &Store,
+        record: &CellRecord,
+        world: &Arc<World>,
+        n_test: u32,
+        episodes: &[u32],
+        after_step: &mut dyn FnMut(u32, &world::Episode),
+    ) -> Result<(), ReplayError> {
+        let mut policy = stored_policy(store, record, world)?;
+        for &episode in episodes {
+            let mut follow = |state: &world::Episode, _: Option<&[world::Action]>, _: f64| {
+                after_step(episode, state)
+            };
+            let played = (n_test, episode);
+            observed_test_episode(
+                world,
+                policy.as_mut(),
+                &record.config,
+                played,
+                None,
+                &mut follow,
+            )?;
+        }
+        Ok(())
+    }
 }

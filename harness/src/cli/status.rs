@@ -3,8 +3,8 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use engine::status::{CellState, SweepStatus, sweep_status};
 use store::LeaseHolder;
+use store::status::{CellState, SweepStatus, sweep_status};
 
 #[derive(clap::Args)]
 pub struct StatusArgs {

@@ -116,7 +116,11 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         println!("recordings: {written} written in {}", folder.display());
     }
     if !args.no_report && args.shard.is_none() {
-        match write_report(&Store::new(&out), &args.report_to) {
+        match write_report(
+            &Store::new(&out),
+            &args.report_to,
+            &super::report::EngineReplay,
+        ) {
             Ok(written) => println!(
                 "report: {} tables and {} figures in {}",
                 written.tables,

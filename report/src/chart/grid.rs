@@ -5,7 +5,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use engine::palette;
+use world::palette;
 
 use super::{
     ChartError, FONT, Figure, draw_colour_bar, draw_legend, rgb, series_colour, tick_label,

@@ -7,14 +7,14 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-const CRATES: [&str; 10] = [
-    "world", "policies", "plan", "store", "engine", "report", "record", "bench", "harness",
-    "python",
+const CRATES: [&str; 11] = [
+    "world", "policies", "stats", "plan", "store", "engine", "report", "record", "bench",
+    "harness", "python",
 ];
 
 /// The crates whose modules a cell run reaches besides the numeric ones (`world` and
 /// `policies`, which `NUMERIC_SOURCES` lists whole).
-const CELL_CRATES: [&str; 3] = ["plan", "store", "engine"];
+const CELL_CRATES: [&str; 4] = ["stats", "plan", "store", "engine"];
 
 /// A crate's modules by path (`store::tables`), each with its file (relative to `src`) and
 /// its source, test modules left out.
@@ -368,5 +368,55 @@ fn the_numeric_sources_cover_every_module_a_cell_run_reaches() {
     assert!(
         uncovered.is_empty(),
         "running a cell reaches these, which NUMERIC_SOURCES leaves out:\n{uncovered:#?}"
+    );
+}
+
+/// The workspace crates a crate's `[dependencies]` names in its Cargo.toml.
+fn workspace_dependencies(crate_name: &str) -> BTreeSet<String> {
+    let manifest = crate_src(crate_name).join("../Cargo.toml");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let section = text
+        .split("\n[")
+        .find(|part| part.starts_with("dependencies]"))
+        .unwrap_or_default();
+    section
+        .lines()
+        .filter_map(|line| line.split([' ', '.', '=']).next())
+        .filter(|name| CRATES.contains(name))
+        .map(str::to_owned)
+        .collect()
+}
+
+/// The crates point one way, and each may name only the layers below it: the plan no store
+/// and no engine (a key cannot depend on how cells run), the store no engine, the report
+/// nothing that runs a cell (the binary hands it the engine's replay), the Python package the
+/// world alone. Cargo enforces what the manifests say; this pins what they may say.
+#[test]
+fn each_crate_depends_only_on_the_layers_below_it() {
+    let below: [(&str, &[&str]); 10] = [
+        ("world", &[]),
+        ("policies", &["world"]),
+        ("stats", &["world"]),
+        ("plan", &["world", "policies"]),
+        ("store", &["world", "policies", "plan"]),
+        ("engine", &["world", "policies", "plan", "store", "stats"]),
+        ("report", &["world", "policies", "plan", "store", "stats"]),
+        ("record", &["world", "policies", "plan", "store", "engine"]),
+        ("bench", &["world", "policies", "engine"]),
+        ("python", &["world"]),
+    ];
+    for (crate_name, allowed) in below {
+        let found = workspace_dependencies(crate_name);
+        let beyond: Vec<&String> = (found.iter())
+            .filter(|d| !allowed.contains(&d.as_str()))
+            .collect();
+        assert!(
+            beyond.is_empty(),
+            "{crate_name} depends on {beyond:?}, above or beside it"
+        );
+    }
+    assert!(
+        workspace_dependencies("engine").contains("store"),
+        "the check reads the manifests"
     );
 }

@@ -74,8 +74,8 @@ pub fn assert_same_tables(a: &Path, b: &Path) {
     // A test curve's penalties are reproducible, its CPU and wall seconds are not.
     if a.join("test_curve.parquet").exists() || b.join("test_curve.parquet").exists() {
         let timing = [
-            engine::test_curve::CPU_SECONDS,
-            engine::test_curve::WALL_SECONDS,
+            store::schema::test_curve::CPU_SECONDS,
+            store::schema::test_curve::WALL_SECONDS,
         ];
         let curve = |store| read_table(store, "test_curve").drop_many(timing);
         let (x, y) = (curve(a), curve(b));

@@ -1,5 +1,6 @@
-//! The colours that report figures and rerun recordings share, so that an agent or a penalty
-//! looks the same in a figure and in the viewer.
+//! How the world looks: the colours that report figures, rerun recordings and the Python
+//! package's render share, so that an agent or a penalty looks the same in a figure, in the
+//! viewer and in a notebook.
 
 /// An sRGB colour.
 pub type Rgb = [u8; 3];

@@ -288,7 +288,7 @@ fn plain_mean(values: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::stats::{mean, mean_difference};
+    use crate::{mean, mean_difference};
 
     fn mean_of_first(units: &[Vec<f64>]) -> Result<f64, StatsError> {
         mean(&units[0])

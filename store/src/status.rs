@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use store::{CellFailure, LeaseHolder, Liveness, Store, StoreError};
+use crate::{CellFailure, LeaseHolder, Liveness, Store, StoreError};
 
 /// Where a Slurm output folder's tasks keep their stores.
 pub const SHARDS_FOLDER: &str = "shards";

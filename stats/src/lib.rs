@@ -1,12 +1,15 @@
 //! Summaries of episode results: mean, spread, robust centres (median, interquartile mean),
 //! bootstrap intervals (`resampling`: a learned policy's training runs are the unit of
-//! replication) and a multiple-testing correction (`multiplicity`).
+//! replication), a multiple-testing correction (`multiplicity`), and rows grouped by key
+//! (`grouping`). The engine's summary table and the report's verdicts both use them; they
+//! read no store and run nothing.
 //!
 //! Ten test episodes are too few to trust a normal approximation, and penalties are skewed
 //! (one bad episode can dominate), so intervals are the spread of statistics of resampled sets
 //! rather than mean ± 1.96 standard errors.
 
 mod distributions;
+pub mod grouping;
 mod multiplicity;
 mod resampling;
 

@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use policies::ppo::{ArchitectureName, NeighbourRule, TrainError};
+use policies::ppo::{ArchitectureName, NeighbourRule, TrainError, TrainingParams};
 use world::{ImageGeometry, World};
 
 use crate::training::{self, Throughput};
@@ -39,9 +39,12 @@ pub fn measure(
     agents: usize,
     setup: ScaleSetup,
 ) -> Result<ScaleRow, TrainError> {
-    let mut config = training::fast_config(ArchitectureName::MaGPpo, agents);
-    config.steps_per_episode = setup.steps_per_episode;
-    config.neighbours = NeighbourRule::WithinRadius(setup.radius);
+    let params = TrainingParams {
+        steps_per_episode: setup.steps_per_episode,
+        neighbours: NeighbourRule::WithinRadius(setup.radius),
+        ..training::fast_config(ArchitectureName::MaGPpo, agents).params()
+    };
+    let config = params.check()?;
     let map = world.map();
     let geometry = ImageGeometry::new(map, world.params().fov(), config.mini_map_block);
     let throughput = training::measure(world, config, setup.rounds)?;

@@ -8,7 +8,9 @@
 
 use std::sync::Arc;
 
-use policies::ppo::{AgentCount, ArchitectureName, Profile, TrainError, Trainer, TrainingConfig};
+use policies::ppo::{
+    AgentCount, ArchitectureName, Profile, TrainError, Trainer, TrainingConfig, TrainingParams,
+};
 use world::World;
 
 use crate::cpu_clock::process_cpu_time;
@@ -33,23 +35,30 @@ impl Throughput {
 
 /// The `fast` profile for `architecture` and a fixed team of `agents`.
 pub fn fast_config(architecture: ArchitectureName, agents: usize) -> TrainingConfig {
-    TrainingConfig {
+    let params = TrainingParams {
         architecture,
         agents: AgentCount::fixed(agents),
-        ..TrainingConfig::profile(Profile::FAST)
-    }
+        ..TrainingConfig::profile(Profile::FAST).params()
+    };
+    params
+        .check()
+        .expect("the fast profile with a fixed team is valid")
 }
 
 /// Trains with `config` (a fixed team) on `world` for one uncounted round and then `rounds`
 /// timed ones.
 pub fn measure(
     world: &Arc<World>,
-    mut config: TrainingConfig,
+    config: TrainingConfig,
     rounds: u64,
 ) -> Result<Throughput, TrainError> {
     let agents = config.agents.max;
     let round = config.environments as u64;
-    config.episodes = (rounds + 1) * round;
+    let config = TrainingParams {
+        episodes: (rounds + 1) * round,
+        ..config.params()
+    };
+    let config = config.check()?;
     let steps_per_episode = config.steps_per_episode as u64;
     let mut trainer = Trainer::new(world.clone(), config, 0)?;
     trainer.train(round, &mut |_| {})?;

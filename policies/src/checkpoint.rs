@@ -194,7 +194,6 @@ pub fn read_metadata(text: &str) -> Result<CheckpointMetadata, CheckpointError> 
             found: metadata.format_version,
         });
     }
-    metadata.config.check()?;
     Ok(metadata)
 }
 

@@ -11,7 +11,7 @@ use bench::quality;
 use bench::scale::{self, ScaleSetup};
 use bench::training;
 use bench::world_steps::{PYTHON_STEPS_PER_SECOND, measure};
-use policies::ppo::{ArchitectureName, Profile, TrainingConfig};
+use policies::ppo::{ArchitectureName, Profile, TrainingConfig, TrainingParams};
 use stats::median_with_infinities;
 use world::World;
 
@@ -257,11 +257,11 @@ fn run_quality(args: &QualityArgs) -> anyhow::Result<()> {
     ];
     let shared = [&owned[..], &args.set[..]].concat();
     let configured = |profile| {
-        let config = TrainingConfig {
+        let params = TrainingParams {
             architecture: ArchitectureName::MaGPpo,
-            ..TrainingConfig::profile(profile)
+            ..TrainingConfig::profile(profile).params()
         };
-        config.with_overrides(&shared).context("--set")
+        params.with_overrides(&shared).context("--set")
     };
     let reference = configured(args.reference)?;
     let candidate = configured(args.profile)?

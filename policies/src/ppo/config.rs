@@ -223,10 +223,11 @@ impl AgentCount {
     }
 }
 
-/// Everything that decides a training run, besides the world and the seed.
+/// Everything that decides a training run, besides the world and the seed, as given: any
+/// values. `check` turns them into a [`TrainingConfig`], which is what trains.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct TrainingConfig {
+pub struct TrainingParams {
     /// The preset the other fields started from (for the record).
     pub profile: Profile,
     pub architecture: ArchitectureName,
@@ -314,19 +315,52 @@ fn invalid(field: &'static str, reason: impl Into<String>) -> ConfigError {
     }
 }
 
+/// Training parameters checked once (`TrainingParams::check`), in the manner of linfa's
+/// checked parameters: a trainer, a checkpoint and a cell hold this, so that none checks
+/// again. It reads as its parameters and is written exactly as they are (keys and checkpoints
+/// do not change); reading one back checks it. A change goes through
+/// [`TrainingConfig::with_overrides`] or [`TrainingConfig::params`] and a new check.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(transparent)]
+pub struct TrainingConfig(TrainingParams);
+
+impl std::ops::Deref for TrainingConfig {
+    type Target = TrainingParams;
+
+    fn deref(&self) -> &TrainingParams {
+        &self.0
+    }
+}
+
+impl<'de> Deserialize<'de> for TrainingConfig {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let params = TrainingParams::deserialize(deserializer)?;
+        params.check().map_err(serde::de::Error::custom)
+    }
+}
+
 impl TrainingConfig {
+    /// A named profile's values, which are valid by construction (a test checks each).
     pub fn profile(profile: Profile) -> Self {
-        match profile {
-            Profile::Paper => Self::paper(),
-            Profile::FastV1 => Self::fast_v1(),
-            Profile::FastV2 => Self::fast_v2(),
-        }
+        let params = match profile {
+            Profile::Paper => TrainingParams::paper(),
+            Profile::FastV1 => TrainingParams::fast_v1(),
+            Profile::FastV2 => TrainingParams::fast_v2(),
+        };
+        TrainingConfig(params)
     }
 
+    /// The parameters, to change and check again.
+    pub fn params(&self) -> TrainingParams {
+        self.0.clone()
+    }
+}
+
+impl TrainingParams {
     /// The released hyper-parameters: Adam 2e-6, one update per 1000-step episode on one
     /// minibatch of 1000 x N samples, 4 epochs, normalised Monte-Carlo returns.
     fn paper() -> Self {
-        TrainingConfig {
+        TrainingParams {
             profile: Profile::Paper,
             architecture: ArchitectureName::MaGPpo,
             heads: PAPER_HEADS,
@@ -364,7 +398,7 @@ impl TrainingConfig {
     }
 
     fn fast_v1() -> Self {
-        TrainingConfig {
+        TrainingParams {
             profile: Profile::FastV1,
             init: InitName::Orthogonal,
             episodes: 3000,
@@ -385,7 +419,7 @@ impl TrainingConfig {
     /// 3.6 CPU-minutes (median of 5 runs, `open` and `eight_room`, N = 4) where `fast-v1`
     /// took 7.3 and never reached it within 800 episodes, at the same CPU per episode.
     fn fast_v2() -> Self {
-        TrainingConfig {
+        TrainingParams {
             profile: Profile::FastV2,
             environments: 1,
             ..Self::fast_v1()
@@ -401,8 +435,11 @@ impl TrainingConfig {
         }
     }
 
-    /// This configuration with `key=value` overrides applied in order, then checked.
-    pub fn with_overrides<S: AsRef<str>>(&self, overrides: &[S]) -> Result<Self, ConfigError> {
+    /// These parameters with `key=value` overrides applied in order, then checked.
+    pub fn with_overrides<S: AsRef<str>>(
+        &self,
+        overrides: &[S],
+    ) -> Result<TrainingConfig, ConfigError> {
         let values = overrides
             .iter()
             .map(|given| {
@@ -426,7 +463,7 @@ impl TrainingConfig {
     pub fn with_values(
         &self,
         values: impl IntoIterator<Item = (String, serde_json::Value)>,
-    ) -> Result<Self, ConfigError> {
+    ) -> Result<TrainingConfig, ConfigError> {
         let mut tree = serde_json::to_value(self).expect("the configuration serialises");
         let mut config = self.clone();
         // One field at a time, so that a value of the wrong type names its field (serde's
@@ -437,13 +474,17 @@ impl TrainingConfig {
             config = serde_json::from_value(tree.clone())
                 .map_err(|e| ConfigError::Override(format!("{field}: {e}")))?;
         }
-        config.check()?;
-        Ok(config)
+        config.check()
     }
 
-    /// Rejects values no run could use; the network's fit to the images is checked by
-    /// [`TrainingConfig::model_config`].
-    pub fn check(&self) -> Result<(), ConfigError> {
+    /// These values as a [`TrainingConfig`], or the first that no run could use; the
+    /// network's fit to the images is checked by [`TrainingParams::model_config`].
+    pub fn check(self) -> Result<TrainingConfig, ConfigError> {
+        self.check_values()?;
+        Ok(TrainingConfig(self))
+    }
+
+    fn check_values(&self) -> Result<(), ConfigError> {
         let positive = [
             ("heads", self.heads),
             ("steps_per_episode", self.steps_per_episode),
@@ -733,5 +774,28 @@ mod tests {
         let fast = TrainingConfig::profile(Profile::FAST);
         let text = serde_json::to_string(&fast).unwrap();
         assert_eq!(serde_json::from_str::<TrainingConfig>(&text).unwrap(), fast);
+    }
+
+    #[test]
+    fn a_checked_configuration_is_written_as_its_parameters_and_checked_when_read() {
+        for profile in [Profile::Paper, Profile::FastV1, Profile::FastV2] {
+            let config = TrainingConfig::profile(profile);
+            let written = serde_json::to_string(&config).unwrap();
+            assert_eq!(written, serde_json::to_string(&config.params()).unwrap());
+            assert_eq!(
+                config.params().check().unwrap(),
+                config,
+                "{profile:?} is valid"
+            );
+        }
+        let zero = TrainingParams {
+            environments: 0,
+            ..TrainingConfig::profile(Profile::FAST).params()
+        };
+        let text = serde_json::to_string(&zero).unwrap();
+        assert!(serde_json::from_str::<TrainingParams>(&text).is_ok());
+        let refused = serde_json::from_str::<TrainingConfig>(&text).unwrap_err();
+        assert!(refused.to_string().contains("environments"), "{refused}");
+        assert!(zero.check().is_err());
     }
 }

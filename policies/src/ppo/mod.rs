@@ -18,6 +18,7 @@ pub mod value_norm;
 
 pub use config::{
     AgentCount, ArchitectureName, ConfigError, NeighbourRule, Profile, TrainingConfig,
+    TrainingParams,
 };
 pub use trainer::{EpisodeRecord, TrainError, Trainer, TrainingState};
 pub use update::UpdateStats;

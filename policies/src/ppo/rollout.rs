@@ -214,12 +214,13 @@ mod tests {
         let text = "########\n#..#...#\n#......#\n#..#...#\n#..#...#\n########\n";
         let map = Map::parse_text("tiny", text, Path::new("tiny.txt")).unwrap();
         let world = World::new(map, WorldParams::new(5, 1.0, 40.0).unwrap());
-        let config = TrainingConfig {
+        let config = crate::ppo::TrainingParams {
             agents: crate::ppo::AgentCount::fixed(3),
             steps_per_episode: 10,
             loss_probability: 1.0,
-            ..TrainingConfig::profile(crate::ppo::Profile::FastV1)
+            ..TrainingConfig::profile(crate::ppo::Profile::FastV1).params()
         };
+        let config = config.check().unwrap();
         let mut rollout = EnvironmentRollout::new(&world, &config, Seed::new(4)).unwrap();
         let (robot, at) = rollout.loss.expect("a loss with probability 1");
         assert!(robot < 3 && (1..10).contains(&at), "{robot} after {at}");
@@ -255,10 +256,11 @@ mod tests {
         assert_eq!(graph.edges(), 6 + 4);
         let again = EnvironmentRollout::new(&world, &config, Seed::new(4)).unwrap();
         assert_eq!(again.loss, rollout.loss, "drawn from the episode's seed");
-        let never = TrainingConfig {
+        let never = crate::ppo::TrainingParams {
             loss_probability: 0.0,
-            ..config
+            ..config.params()
         };
+        let never = never.check().unwrap();
         assert_eq!(
             EnvironmentRollout::new(&world, &never, Seed::new(4))
                 .unwrap()

@@ -90,7 +90,6 @@ pub struct Trainer {
 impl Trainer {
     /// A fresh run: weights drawn from the seed's `INIT` stream.
     pub fn new(world: Arc<World>, config: TrainingConfig, seed: u64) -> Result<Self, TrainError> {
-        config.check()?;
         let side = world::Observer::new(&world, config.observation_config()).side();
         let model_config = config.model_config(side)?;
         let mut rng = Seed::new(seed).child(stream::INIT).rng();
@@ -111,7 +110,6 @@ impl Trainer {
     /// Continues a run from its saved state. Value normalisation switched on by an override
     /// starts from empty statistics; switched off, it drops them.
     pub fn resume(world: Arc<World>, mut state: TrainingState) -> Result<Self, TrainError> {
-        state.config.check()?;
         let statistics = state.value_norm.unwrap_or_default();
         state.value_norm = state.config.value_normalisation.map(|_| statistics);
         let free = world.map().free_cells().len();

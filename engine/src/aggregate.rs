@@ -27,6 +27,7 @@ pub fn build_tables(
     keys: &[String],
     outputs: &[Output],
 ) -> Result<Vec<CellRecord>, AggregateError> {
+    let _tables = store.lock_tables()?;
     let records = store.verified_records(keys)?;
     let built = tables_of(store, &records, outputs)?;
     let cells = records.iter().map(|r| r.key.clone()).collect();

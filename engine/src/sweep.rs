@@ -119,7 +119,7 @@ pub fn run_sweep(
     }
 
     let selected_keys: Vec<String> = selected.iter().map(|c| c.key.clone()).collect();
-    let tabled = crate::aggregate::build_tables(store, &selected_keys, &scenario.outputs)?;
+    let tabled = crate::aggregate::build_tables(store, &selected_keys, scenario.outputs())?;
     Ok(SweepReport {
         selected: selected.len(),
         already_finished: selected.len() - todo.len() - from_cache - from_tables,
@@ -176,17 +176,17 @@ pub fn prepare(
     shard: Option<Shard>,
 ) -> Result<(), StoreError> {
     let manifest = Manifest {
-        scenario: scenario.name.clone(),
+        scenario: scenario.name().to_owned(),
         scenario_hash: blake3::hash(scenario_text.as_bytes()).to_hex().to_string(),
         code_version: code_version(),
         cells: cells.iter().map(|c| c.key.clone()).collect(),
         labels: cells.iter().map(|c| cell_title(&c.config)).collect(),
         shard: shard.map(|s| s.to_string()),
         selected: shard.map(|s| s.select(cells).iter().map(|c| c.key.clone()).collect()),
-        outputs: scenario.outputs.clone(),
+        outputs: scenario.outputs().to_vec(),
     };
     let maps: Vec<(&str, String)> = scenario
-        .maps
+        .maps()
         .iter()
         .map(|m| (m.hash.as_str(), m.map.to_text()))
         .collect();
@@ -264,18 +264,19 @@ fn run_cells(
 ) -> Result<CellsRun, SweepError> {
     let cores = std::thread::available_parallelism().map_or(1, usize::from);
     let threads_per_cell = (cores / jobs).max(1);
-    let worlds: Vec<OnceLock<Arc<World>>> = scenario.maps.iter().map(|_| OnceLock::new()).collect();
+    let worlds: Vec<OnceLock<Arc<World>>> =
+        scenario.maps().iter().map(|_| OnceLock::new()).collect();
     let params = scenario
-        .world
+        .world()
         .params()
         .expect("checked when the scenario was loaded");
     let progress = Progress::new(todo.iter().map(|c| c.config.cost().env_steps).sum());
     let elsewhere = AtomicUsize::new(0);
     let run_one = |cell: &SweepCell| -> Result<(), CellError> {
-        let map = &scenario.maps[cell.map_index];
+        let map = &scenario.maps()[cell.map_index];
         let world = worlds[cell.map_index].get_or_init(|| World::new(map.map.clone(), params));
         let origin = CellOrigin {
-            scenario: &scenario.name,
+            scenario: scenario.name(),
             map_source: &map.source,
         };
         // The lease marks the cell as running until it is saved (or fails), and keeps

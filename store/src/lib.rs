@@ -14,6 +14,7 @@
 //! OUT/cells/KEY/failed.json    why the cell's last run failed, until one succeeds
 //! OUT/{episodes,training,cells,summary,trajectories,snapshots,...}.{parquet,csv}
 //! OUT/tables.json              the cells those tables hold, and every table file's blake3
+//! OUT/tables.lock              locked while a sweep or a report writes the tables
 //! ```
 //!
 //! Per-cell files make shards independent and resume simple: a cell is finished when its
@@ -88,6 +89,8 @@ const MANIFEST_FILE: &str = "sweep.json";
 const SCENARIO_FILE: &str = "scenario.yaml";
 /// The sweep-level tables' hashes (`TableHashes`).
 pub const TABLES_FILE: &str = "tables.json";
+/// Locked while the sweep-level tables are written (`Store::lock_tables`).
+const TABLES_LOCK_FILE: &str = "tables.lock";
 
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
@@ -514,8 +517,24 @@ impl Store {
         Ok(true)
     }
 
+    /// Holds the sweep-level tables for one writer until the guard drops: two sweeps into
+    /// one folder that end together, or a report of a sweep that is ending, would otherwise
+    /// interleave their table files and leave tables of different cells beside one
+    /// `tables.json`. A writer that waits builds from every cell finished by then.
+    pub fn lock_tables(&self) -> Result<TablesLock, StoreError> {
+        let path = self.root.join(TABLES_LOCK_FILE);
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .map_err(|e| StoreError::io(&path, e))?;
+        file.lock().map_err(|e| StoreError::io(&path, e))?;
+        Ok(TablesLock { _locked: file })
+    }
+
     /// Writes the sweep-level tables built from the cells `cells` (`engine::aggregate`) and
-    /// lists them with their hashes in `tables.json`.
+    /// lists them with their hashes in `tables.json`; the caller holds `lock_tables`.
     pub fn write_tables(
         &self,
         cells: Vec<String>,
@@ -533,6 +552,7 @@ impl Store {
 
     /// Writes a table of the sweep's own (`NAME.parquet` and `.csv`) and lists its hashes.
     pub fn write_table(&self, name: &str, frame: &DataFrame) -> Result<(), StoreError> {
+        let _tables = self.lock_tables()?;
         let mut listing = self.table_hashes()?.unwrap_or_default();
         listing
             .tables
@@ -580,6 +600,11 @@ impl Store {
         }
         read_json(&path).map(Some)
     }
+}
+
+/// The sweep-level tables held for one writer (`Store::lock_tables`); dropping it unlocks.
+pub struct TablesLock {
+    _locked: std::fs::File,
 }
 
 /// `tables.json`: the cells the sweep-level tables were built from and every table file's

@@ -26,14 +26,14 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
     let cells = scenario.cells();
     println!(
         "scenario {} ({}): {} maps, {} policies, N_train {:?}, N_test {:?}, {} repetitions, {} test episodes",
-        scenario.name,
+        scenario.name(),
         args.scenario.display(),
-        scenario.maps.len(),
-        scenario.policies.len(),
-        scenario.train_agents,
-        scenario.test_agents,
-        scenario.repetitions,
-        scenario.test_episodes
+        scenario.maps().len(),
+        scenario.policies().len(),
+        scenario.train_agents(),
+        scenario.test_agents(),
+        scenario.repetitions(),
+        scenario.test_episodes()
     );
     println!(
         "{:>5}  {:<20}  {:<12}  {:<16}  {:>7}  {:>3}  {:>17}  {:>15}  {:>10}",

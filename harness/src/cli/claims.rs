@@ -24,7 +24,7 @@ pub fn run(args: ClaimsArgs) -> anyhow::Result<()> {
         args.dir.display()
     );
     let claims = match &args.scenario {
-        Some(file) => Scenario::load(file)?.claims,
+        Some(file) => Scenario::load(file)?.claims().to_vec(),
         None => store_claims(&store)?,
     };
     anyhow::ensure!(!claims.is_empty(), "the scenario has no claims");

@@ -67,7 +67,7 @@ pub fn run(args: SlurmArgs) -> anyhow::Result<()> {
     let out = std::path::absolute(&args.out)
         .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
     let job = ArrayJob::new(
-        &scenario.name,
+        scenario.name(),
         &harness,
         &absolute(&args.scenario)?,
         &out,
@@ -89,7 +89,7 @@ pub fn run(args: SlurmArgs) -> anyhow::Result<()> {
         .collect();
     println!(
         "sweep {}: {} cells in {tasks} array tasks, estimated CPU per task {} to {}",
-        scenario.name,
+        scenario.name(),
         cells.len(),
         duration(work_seconds(
             *loads.iter().min().expect("at least one task")

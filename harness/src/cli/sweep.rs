@@ -59,7 +59,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
     engine::stop::catch_termination();
     let out = args
         .out
-        .unwrap_or_else(|| PathBuf::from("results").join(&scenario.name));
+        .unwrap_or_else(|| PathBuf::from("results").join(scenario.name()));
     let jobs = match args.jobs {
         Some(jobs) => jobs as usize,
         None => std::thread::available_parallelism().map_or(1, usize::from),
@@ -83,7 +83,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         .map_or(String::new(), |s| format!(" (shard {s})"));
     println!(
         "sweep {}{shard}: {} cells, {} already finished, {} from the cache,{} {} computed, {} failed; tables of {} cells in {}",
-        scenario.name,
+        scenario.name(),
         report.selected,
         report.already_finished,
         report.from_cache,
@@ -147,7 +147,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
 /// longer has, so that nobody waits hours for cells they thought were done.
 fn warn_of_cells_left_behind(scenario: &Scenario, out: &std::path::Path) -> anyhow::Result<()> {
     let left =
-        engine::sweep::cells_left_behind(&Store::new(out), &scenario.name, &scenario.cells())?;
+        engine::sweep::cells_left_behind(&Store::new(out), scenario.name(), &scenario.cells())?;
     if let Some(first) = left.first() {
         eprintln!(
             "warning: {} holds {} finished cells of an earlier plan of this scenario that this \

@@ -36,23 +36,90 @@ pub fn read_scenario_text(path: &Path) -> Result<String, ScenarioError> {
 /// A checked scenario: every map loaded, every value possible.
 #[derive(Debug)]
 pub struct Scenario {
-    pub name: String,
-    pub description: String,
+    pub(crate) name: String,
+    pub(crate) description: String,
     /// The file it was read from, for messages.
-    pub file: PathBuf,
-    pub maps: Vec<ScenarioMap>,
-    pub world: WorldConfig,
-    pub policies: Vec<ScenarioPolicy>,
-    pub train_agents: Vec<u32>,
-    pub test_agents: Vec<u32>,
-    pub seed: u64,
-    pub repetitions: u32,
-    pub test_episodes: u32,
-    pub outputs: Vec<Output>,
+    pub(crate) file: PathBuf,
+    pub(crate) maps: Vec<ScenarioMap>,
+    pub(crate) world: WorldConfig,
+    pub(crate) policies: Vec<ScenarioPolicy>,
+    pub(crate) train_agents: Vec<u32>,
+    pub(crate) test_agents: Vec<u32>,
+    pub(crate) seed: u64,
+    pub(crate) repetitions: u32,
+    pub(crate) test_episodes: u32,
+    pub(crate) outputs: Vec<Output>,
     /// What the test episodes are also played under, besides undisturbed.
-    pub disturbances: Vec<crate::disturbance::Disturbance>,
+    pub(crate) disturbances: Vec<crate::disturbance::Disturbance>,
     /// Checked against the scenario's maps, policies and agent counts.
-    pub claims: Vec<crate::scenario::claims::Claim>,
+    pub(crate) claims: Vec<crate::scenario::claims::Claim>,
+}
+
+/// A checked scenario is read, never changed: its fields are the plan's, its accessors
+/// everyone's.
+impl Scenario {
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    pub fn description(&self) -> &str {
+        &self.description
+    }
+
+    /// The file it was read from, for messages.
+    pub fn file(&self) -> &std::path::Path {
+        &self.file
+    }
+
+    pub fn maps(&self) -> &[ScenarioMap] {
+        &self.maps
+    }
+
+    pub fn world(&self) -> WorldConfig {
+        self.world
+    }
+
+    pub fn policies(&self) -> &[ScenarioPolicy] {
+        &self.policies
+    }
+
+    pub fn train_agents(&self) -> &[u32] {
+        &self.train_agents
+    }
+
+    pub fn test_agents(&self) -> &[u32] {
+        &self.test_agents
+    }
+
+    /// The root of the scenario's seed tree.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// Training runs per (map, policy, N_train).
+    pub fn repetitions(&self) -> u32 {
+        self.repetitions
+    }
+
+    /// Test episodes per cell and N_test.
+    pub fn test_episodes(&self) -> u32 {
+        self.test_episodes
+    }
+
+    /// The sweep-level tables to build.
+    pub fn outputs(&self) -> &[Output] {
+        &self.outputs
+    }
+
+    /// What the test episodes are also played under, besides undisturbed.
+    pub fn disturbances(&self) -> &[crate::disturbance::Disturbance] {
+        &self.disturbances
+    }
+
+    /// Checked against the scenario's maps, policies and agent counts.
+    pub fn claims(&self) -> &[crate::scenario::claims::Claim] {
+        &self.claims
+    }
 }
 
 /// A map of the scenario with where it came from and the hash of its contents.

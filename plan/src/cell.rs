@@ -13,8 +13,8 @@ use crate::scenario::{Learned, Scenario, ScenarioPolicy, WorldConfig};
 
 /// Branches of the scenario's seed tree, so training and testing never share a stream.
 mod branch {
-    pub const TRAINING: u64 = 1;
-    pub const TESTING: u64 = 2;
+    pub(crate) const TRAINING: u64 = 1;
+    pub(crate) const TESTING: u64 = 2;
 }
 
 /// Everything that determines a cell's result, and nothing else (not the scenario's name, not

@@ -49,7 +49,7 @@ pub struct LinkRule(LinkValues);
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct LinkValues {
+pub(crate) struct LinkValues {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radius: Option<f64>,
     #[serde(default)]
@@ -106,7 +106,7 @@ pub struct EpisodeDisturbance {
 
 impl Disturbance {
     /// How many robots every episode loses, when that is fixed (`None` without a loss).
-    pub fn robots_lost(&self) -> Option<u32> {
+    pub(crate) fn robots_lost(&self) -> Option<u32> {
         self.lose.as_ref().map(|loss| match &loss.robots {
             LostRobots::Count(count) => *count,
             LostRobots::Which(which) => which.len() as u32,

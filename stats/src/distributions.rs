@@ -3,24 +3,24 @@
 //! and `lgamma`, so the numbers do not depend on the system's C library.
 
 /// P(Z <= x) for a standard normal Z.
-pub fn normal_cdf(x: f64) -> f64 {
+pub(crate) fn normal_cdf(x: f64) -> f64 {
     0.5 * libm::erfc(-x / std::f64::consts::SQRT_2)
 }
 
 /// The x with P(Z <= x) = p, for 0 < p < 1 (bisection on [`normal_cdf`], to 1e-12).
-pub fn normal_quantile(p: f64) -> f64 {
+pub(crate) fn normal_quantile(p: f64) -> f64 {
     invert(normal_cdf, p)
 }
 
 /// P(T <= x) for Student's t with `df` degrees of freedom (df > 0), through the regularized
 /// incomplete beta function: P(|T| > |x|) = I_{df / (df + x^2)}(df / 2, 1 / 2).
-pub fn t_cdf(x: f64, df: f64) -> f64 {
+pub(crate) fn t_cdf(x: f64, df: f64) -> f64 {
     let tail = 0.5 * incomplete_beta(df / 2.0, 0.5, df / (df + x * x));
     if x >= 0.0 { 1.0 - tail } else { tail }
 }
 
 /// The x with P(T <= x) = p for Student's t with `df` degrees of freedom.
-pub fn t_quantile(p: f64, df: f64) -> f64 {
+pub(crate) fn t_quantile(p: f64, df: f64) -> f64 {
     invert(|x| t_cdf(x, df), p)
 }
 

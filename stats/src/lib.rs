@@ -16,7 +16,6 @@ mod resampling;
 use thiserror::Error;
 use world::Seed;
 
-pub use distributions::{normal_cdf, normal_quantile, t_cdf, t_quantile};
 pub use multiplicity::holm;
 pub use resampling::{Block, Bootstrap, Pairing, Sample, Unit, UnitsStatistic, bootstrap};
 
@@ -45,9 +44,6 @@ pub struct Summary {
     pub low: f64,
     pub high: f64,
 }
-
-/// A statistic of a set of values, for the bootstrap.
-pub type Statistic = fn(&[f64]) -> Result<f64, StatsError>;
 
 pub fn mean(values: &[f64]) -> Result<f64, StatsError> {
     check(values)?;
@@ -106,7 +102,7 @@ pub fn iqm(values: &[f64]) -> Result<f64, StatsError> {
 
 /// The expanded percentile bootstrap interval of the mean of independent `values` at
 /// `confidence` (0.95 for 95 %), with `resamples` replicates from `seed`'s stream.
-pub fn bootstrap_interval(
+pub(crate) fn bootstrap_interval(
     values: &[f64],
     confidence: f64,
     resamples: usize,

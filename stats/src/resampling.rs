@@ -68,7 +68,7 @@ impl<'a> Sample<'a> {
     }
 
     /// How many independent draws the sample holds.
-    pub fn unit_count(&self) -> usize {
+    pub(crate) fn unit_count(&self) -> usize {
         match self.unit {
             Unit::Run => self.strata.len(),
             Unit::Episode => self.strata.iter().map(|s| s.len()).sum(),

@@ -13,7 +13,7 @@ const SETTLE_WINDOW_FRACTION: usize = 10;
 const SETTLE_TOLERANCE: f64 = 0.1;
 
 /// Bins of the per-step penalty curve kept per episode for figures.
-pub const CURVE_BINS: usize = 50;
+pub(crate) const CURVE_BINS: usize = 50;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Adaptation {

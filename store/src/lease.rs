@@ -33,7 +33,7 @@ pub struct LeaseHolder {
 
 /// Whether a lease's process still runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Liveness {
+pub(crate) enum Liveness {
     Alive,
     Gone,
     /// The lease was written on another host.
@@ -49,7 +49,7 @@ impl LeaseHolder {
         }
     }
 
-    pub fn liveness(&self) -> Liveness {
+    pub(crate) fn liveness(&self) -> Liveness {
         if self.host != host_name() {
             Liveness::Unknown
         } else if process_exists(self.pid) {

@@ -55,11 +55,13 @@ use std::time::SystemTime;
 use polars::prelude::{DataFrame, PolarsError};
 
 use crate::atomic_file::write_atomic;
-pub use lease::{Lease, LeaseHolder, Liveness};
+pub(crate) use lease::Liveness;
+pub use lease::{Lease, LeaseHolder};
 use plan::scenario::Output;
 use policies::checkpoint::WEIGHTS_FILE;
 pub use record::{CellFailure, CellRecord, Manifest};
-pub use table_store::{MissingCell, TABLE_STORE_FILE, TableStoreMarker};
+pub(crate) use table_store::TABLE_STORE_FILE;
+pub use table_store::{MissingCell, TableStoreMarker};
 
 pub const EPISODES_FILE: &str = "episodes.parquet";
 pub const TRAINING_FILE: &str = "training.parquet";
@@ -88,7 +90,7 @@ const FAILURE_FILE: &str = "failed.json";
 const MANIFEST_FILE: &str = "sweep.json";
 const SCENARIO_FILE: &str = "scenario.yaml";
 /// The sweep-level tables' hashes (`TableHashes`).
-pub const TABLES_FILE: &str = "tables.json";
+pub(crate) const TABLES_FILE: &str = "tables.json";
 /// Locked while the sweep-level tables are written (`Store::lock_tables`).
 const TABLES_LOCK_FILE: &str = "tables.lock";
 
@@ -464,7 +466,7 @@ impl Store {
         Ok(text)
     }
 
-    pub fn map_text(&self, hash: &str) -> Result<String, StoreError> {
+    pub(crate) fn map_text(&self, hash: &str) -> Result<String, StoreError> {
         let path = self.map_path(hash);
         let limit = world::map::MAX_TEXT_MAP_BYTES;
         Ok(world::read_bounded_text(&path, limit, "a text map")?)

@@ -44,7 +44,7 @@ pub const NUMERIC_SOURCES: [&str; 23] = [
 ];
 
 /// The lock file, of which only the crates the numeric crates depend on count.
-pub const LOCK_FILE: &str = "Cargo.lock";
+pub(crate) const LOCK_FILE: &str = "Cargo.lock";
 
 /// The packages whose locked dependencies, transitively, can change a result.
 const NUMERIC_PACKAGES: [&str; 2] = ["world", "policies"];

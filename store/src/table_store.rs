@@ -32,7 +32,7 @@ use super::{
 use plan::scenario::Output;
 
 /// The file that makes a folder a table store.
-pub const TABLE_STORE_FILE: &str = "table-store.json";
+pub(crate) const TABLE_STORE_FILE: &str = "table-store.json";
 
 /// `table-store.json`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -40,14 +40,14 @@ pub fn work_seconds(work: u64) -> f64 {
 /// (MA-G-PPO) per agent, from the same cells' time outside training; a baseline's step 1 to
 /// 9 us (Random to TSPC, a world step included).
 pub(crate) mod work {
-    pub const UNIT_SECONDS: f64 = 0.5e-6;
-    pub const BASELINE_STEP: u64 = 10;
-    pub const LEARNED_STEP: u64 = 16;
-    pub const GRAPH_TRAINING_STEP: u64 = 560;
-    pub const INDEPENDENT_TRAINING_STEP: u64 = 400;
+    pub(crate) const UNIT_SECONDS: f64 = 0.5e-6;
+    pub(crate) const BASELINE_STEP: u64 = 10;
+    pub(crate) const LEARNED_STEP: u64 = 16;
+    pub(crate) const GRAPH_TRAINING_STEP: u64 = 560;
+    pub(crate) const INDEPENDENT_TRAINING_STEP: u64 = 400;
 
     /// A training agent-step of `architecture`.
-    pub fn training_step(architecture: super::ArchitectureName) -> u64 {
+    pub(crate) fn training_step(architecture: super::ArchitectureName) -> u64 {
         match architecture {
             super::ArchitectureName::MaGPpo => GRAPH_TRAINING_STEP,
             super::ArchitectureName::MaPpo => INDEPENDENT_TRAINING_STEP,
@@ -63,7 +63,7 @@ pub fn plays(episodes: u64, every: u64) -> u64 {
 }
 
 /// Test episodes played per N_test: each undisturbed, then once under every disturbance.
-pub fn test_plays(test_episodes: u32, disturbances: usize) -> u32 {
+pub(crate) fn test_plays(test_episodes: u32, disturbances: usize) -> u32 {
     let plays = u32::try_from(disturbances).map_or(u32::MAX, |d| d.saturating_add(1));
     test_episodes.saturating_mul(plays)
 }
@@ -72,7 +72,7 @@ impl Cost {
     /// A cell's cost from its shape: training `learned` for its episodes with `n_train`
     /// agents (none for a baseline), then `test_episodes` at every N_test. Saturates rather
     /// than overflows, so that a scenario's size can be checked from any numbers a file holds.
-    pub fn of_cell(
+    pub(crate) fn of_cell(
         world: &WorldConfig,
         learned: Option<&Learned>,
         n_train: Option<u32>,

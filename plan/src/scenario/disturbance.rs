@@ -8,7 +8,7 @@ use super::error::ScenarioError;
 use super::format::{DisturbanceSpec, LinksSpec, LoseSpec};
 use crate::disturbance::{Disturbance, LinkRule, LinkValues, Loss, LostRobots, UNDISTURBED};
 
-pub fn check_disturbances(
+pub(crate) fn check_disturbances(
     specs: &Spanned<Vec<Spanned<DisturbanceSpec>>>,
     test_steps: u32,
     test_agents: &[u32],

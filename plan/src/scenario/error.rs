@@ -32,7 +32,7 @@ impl ScenarioError {
 }
 
 /// The 1-based line of a location, or `None` for a default value that has no place.
-pub fn line_of(location: Location) -> Option<usize> {
+pub(crate) fn line_of(location: Location) -> Option<usize> {
     (location != Location::UNKNOWN).then(|| location.line() as usize)
 }
 

@@ -11,7 +11,7 @@ use serde_saphyr::{Location, Spanned};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ScenarioFile {
+pub(crate) struct ScenarioFile {
     /// Names the sweep: the default output folder and the `scenario` column.
     pub name: Spanned<String>,
     #[serde(default)]
@@ -42,14 +42,14 @@ pub struct ScenarioFile {
 /// A map by file (relative to the scenario file; `FILE#NAME` picks a polygon map) or inline.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "snake_case")]
-pub enum MapSpec {
+pub(crate) enum MapSpec {
     File(String),
     Inline { name: String, grid: String },
 }
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct WorldSpec {
+pub(crate) struct WorldSpec {
     /// Side L of the field of view.
     #[serde(default = "paper_fov")]
     pub fov: Spanned<usize>,
@@ -82,7 +82,7 @@ impl Default for WorldSpec {
 /// there is no learned policy.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct AgentsSpec {
+pub(crate) struct AgentsSpec {
     #[serde(default = "nothing")]
     pub train: Spanned<Vec<Spanned<u32>>>,
     pub test: Spanned<Vec<Spanned<u32>>>,
@@ -91,7 +91,7 @@ pub struct AgentsSpec {
 /// A disturbance by name: robots lost after a step, links cut, or both.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct DisturbanceSpec {
+pub(crate) struct DisturbanceSpec {
     pub name: Spanned<String>,
     #[serde(default)]
     pub lose: Option<Spanned<LoseSpec>>,
@@ -102,7 +102,7 @@ pub struct DisturbanceSpec {
 /// `robots` (how many, drawn per episode) or `which` (by index), lost after step `at`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct LoseSpec {
+pub(crate) struct LoseSpec {
     #[serde(default)]
     pub robots: Option<Spanned<u32>>,
     #[serde(default)]
@@ -114,7 +114,7 @@ pub struct LoseSpec {
 /// step.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct LinksSpec {
+pub(crate) struct LinksSpec {
     #[serde(default)]
     pub radius: Option<Spanned<f64>>,
     #[serde(default)]
@@ -132,7 +132,7 @@ pub struct LinksSpec {
     rename_all = "kebab-case",
     bound(deserialize = "P: Deserialize<'de> + Default")
 )]
-pub enum PolicySpec<P = Profile> {
+pub(crate) enum PolicySpec<P = Profile> {
     Baseline(BaselineSpec),
     #[serde(rename = "ma-g-ppo")]
     MaGPpo(LearnedSpec<P>),
@@ -141,7 +141,7 @@ pub enum PolicySpec<P = Profile> {
 
 /// A profile as a scenario file names it: `paper` (the default), `fast`, `fast-v1` or `fast-v2`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ProfileName(pub Profile);
+pub(crate) struct ProfileName(pub Profile);
 
 impl<'de> Deserialize<'de> for ProfileName {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
@@ -174,13 +174,13 @@ impl PolicySpec<ProfileName> {
 
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct BaselineSpec {
+pub(crate) struct BaselineSpec {
     pub name: String,
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct LearnedSpec<P = Profile> {
+pub(crate) struct LearnedSpec<P = Profile> {
     /// The policy's name in tables, when the default (the architecture with its non-default
     /// channels and profile) does not tell two of a scenario's policies apart.
     #[serde(default)]
@@ -213,7 +213,7 @@ pub struct LearnedSpec<P = Profile> {
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
-pub enum TestActions {
+pub(crate) enum TestActions {
     #[default]
     Sampled,
     Greedy,
@@ -221,7 +221,7 @@ pub enum TestActions {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
-pub enum Channel {
+pub(crate) enum Channel {
     Local,
     Mini,
 }

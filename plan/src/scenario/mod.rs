@@ -18,7 +18,7 @@ use world::{Map, WorldParams};
 
 pub use error::ScenarioError;
 pub use format::Output;
-pub use policy::{Learned, PolicyError, ScenarioPolicy};
+pub use policy::{Learned, ScenarioPolicy};
 pub use size::{Limits, Size};
 
 /// The largest scenario file read. A scenario may hold its maps inline, each up to a text
@@ -183,10 +183,6 @@ impl Scenario {
     pub fn parse_within(text: &str, file: &Path, limits: &Limits) -> Result<Self, ScenarioError> {
         let spec: format::ScenarioFile = yaml::from_yaml(text, file)?;
         check::check(spec, file, limits)
-    }
-
-    pub fn has_learned_policies(&self) -> bool {
-        self.policies.iter().any(|p| p.learned().is_some())
     }
 }
 

@@ -42,7 +42,7 @@ pub struct Learned {
 }
 
 #[derive(Debug, thiserror::Error)]
-pub enum PolicyError {
+pub(crate) enum PolicyError {
     #[error(transparent)]
     UnknownBaseline(#[from] UnknownBaseline),
     #[error("episodes must be at least 1")]

@@ -10,7 +10,7 @@ use serde_path_to_error::Segment;
 use super::error::{ScenarioError, line_of};
 
 /// `text` read as `T`; an error names `file`, the line and the field.
-pub fn from_yaml<'de, T: Deserialize<'de>>(
+pub(crate) fn from_yaml<'de, T: Deserialize<'de>>(
     text: &'de str,
     file: &Path,
 ) -> Result<T, ScenarioError> {

@@ -13,7 +13,7 @@ use crate::scenario::ScenarioError;
 use policies::ppo::Profile;
 
 /// What a scenario offers claims to name.
-pub struct ClaimContext {
+pub(crate) struct ClaimContext {
     /// Every policy's table label, and whether it is learned.
     pub policies: Vec<(String, bool)>,
     pub maps: Vec<String>,
@@ -27,7 +27,7 @@ pub struct ClaimContext {
 /// A failed check: the value it is about, its field, the problem.
 type Failure = (Option<serde_saphyr::Location>, String, String);
 
-pub fn check_claims(
+pub(crate) fn check_claims(
     specs: &[Spanned<ClaimSpec>],
     context: Option<&ClaimContext>,
     file: &Path,

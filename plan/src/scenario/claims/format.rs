@@ -7,7 +7,7 @@ use serde_saphyr::Spanned;
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ClaimSpec {
+pub(crate) struct ClaimSpec {
     /// Names the claim in verdict tables.
     pub id: String,
     /// The paper's words (and numbers) that the claim tests, shown beside the verdict.
@@ -49,7 +49,7 @@ pub struct ClaimSpec {
 /// N_train = `n_train` when given, else at N_train = N_test.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct PairSpec {
+pub(crate) struct PairSpec {
     pub a: Spanned<String>,
     pub b: Spanned<String>,
     pub maps: Spanned<Vec<Spanned<String>>>,
@@ -85,7 +85,7 @@ pub struct PairSpec {
 /// a learned one, the same training runs) playing undisturbed with N - k; lower is better.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct AdaptationSpec {
+pub(crate) struct AdaptationSpec {
     pub a: Spanned<String>,
     pub b: Spanned<String>,
     pub disturbance: Spanned<String>,
@@ -99,7 +99,7 @@ pub struct AdaptationSpec {
 /// and their curves play N_test = N.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct FasterSpec {
+pub(crate) struct FasterSpec {
     pub a: Spanned<String>,
     pub b: Spanned<String>,
     #[serde(default)]
@@ -113,7 +113,7 @@ pub struct FasterSpec {
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct DiagonalSpec {
+pub(crate) struct DiagonalSpec {
     pub policy: Spanned<String>,
     pub map: Spanned<String>,
     pub n: Spanned<Vec<Spanned<u32>>>,
@@ -121,7 +121,7 @@ pub struct DiagonalSpec {
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct CurveSpec {
+pub(crate) struct CurveSpec {
     pub a: Spanned<String>,
     pub b: Spanned<String>,
     pub map: Spanned<String>,
@@ -136,7 +136,7 @@ pub struct CurveSpec {
 /// the touring agents share a period with stable phases.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct BehaviourSpec {
+pub(crate) struct BehaviourSpec {
     pub policy: Spanned<String>,
     pub map: Spanned<String>,
     pub n_test: Spanned<u32>,
@@ -152,7 +152,7 @@ pub struct BehaviourSpec {
 
 /// A scenario file read for its claims alone (the store's copy, whose maps may not resolve).
 #[derive(Debug, Deserialize)]
-pub struct ClaimsOnly {
+pub(crate) struct ClaimsOnly {
     #[serde(default)]
     pub claims: Vec<Spanned<ClaimSpec>>,
 }

@@ -14,7 +14,7 @@ pub mod format;
 
 use std::path::Path;
 
-pub use check::{ClaimContext, check_claims};
+pub(crate) use check::{ClaimContext, check_claims};
 
 use crate::scenario::ScenarioError;
 

@@ -22,7 +22,7 @@ pub enum AggregateError {
 /// Builds the sweep-level tables from the finished cells among `keys`, in that order,
 /// writes them with their hashes, and returns the records included. A damaged cell among
 /// `keys` is an error naming it: its numbers are not read.
-pub fn build_tables(
+pub(crate) fn build_tables(
     store: &Store,
     keys: &[String],
     outputs: &[Output],
@@ -37,7 +37,7 @@ pub fn build_tables(
 
 /// The sweep-level tables of `outputs` that `records`' cells make, by name; a table no cell
 /// has a file for is left out.
-pub fn tables_of(
+pub(crate) fn tables_of(
     store: &Store,
     records: &[CellRecord],
     outputs: &[Output],

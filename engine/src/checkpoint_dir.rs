@@ -14,7 +14,7 @@ use world::World;
 use store::atomic_file::write_atomic;
 
 /// The prefix that names a checkpoint folder where a policy name is expected.
-pub const POLICY_PREFIX: &str = "checkpoint:";
+pub(crate) const POLICY_PREFIX: &str = "checkpoint:";
 
 #[derive(Debug, thiserror::Error)]
 pub enum CheckpointDirError {
@@ -80,7 +80,7 @@ pub fn read_metadata(dir: &Path) -> Result<CheckpointMetadata, CheckpointDirErro
 }
 
 /// The state to resume training from.
-pub fn read_state(dir: &Path) -> Result<TrainingState, CheckpointDirError> {
+pub(crate) fn read_state(dir: &Path) -> Result<TrainingState, CheckpointDirError> {
     let metadata = read_metadata(dir)?;
     let (weights, optimizer) = (read(dir, WEIGHTS_FILE)?, read(dir, OPTIMIZER_FILE)?);
     checkpoint::load_state(&metadata, &weights, &optimizer).map_err(in_checkpoint(dir))

@@ -53,12 +53,12 @@ pub fn run_episode(
 
 /// What sees every step of an episode: the episode after the step, the actions taken (`None`
 /// at the start) and the step's penalty (0 at the start).
-pub type StepObserver<'a> = dyn FnMut(&Episode, Option<&[Action]>, f64) + 'a;
+pub(crate) type StepObserver<'a> = dyn FnMut(&Episode, Option<&[Action]>, f64) + 'a;
 
 /// [`run_episode`] under `disturbance` (links from the start, robots lost after a step), with
 /// `on_step` also given the step's penalty (0 at the start).
 #[allow(clippy::too_many_arguments)]
-pub fn run_disturbed_episode(
+pub(crate) fn run_disturbed_episode(
     world: &Arc<World>,
     agents: usize,
     policy: &mut dyn Policy,

@@ -48,7 +48,7 @@ pub enum CellError {
 }
 
 /// Where a cell comes from, for its record.
-pub struct CellOrigin<'a> {
+pub(crate) struct CellOrigin<'a> {
     pub scenario: &'a str,
     pub map_source: &'a str,
 }
@@ -59,7 +59,7 @@ const SAVE_EVERY: u64 = 100;
 /// Runs `cell` in `world` and saves it; `advance` hears of every finished episode's steps. A
 /// learned cell takes the training run of a finished cell with the same training identity in
 /// `store` or `cache` when there is one, else trains.
-pub fn run_cell(
+pub(crate) fn run_cell(
     store: &Store,
     cache: Option<&Store>,
     origin: &CellOrigin,
@@ -334,7 +334,7 @@ fn learned_policy(
 
 /// Test episode `episode` with `agents` agents: a pure function of the cell's config, so the
 /// audit can play it again.
-pub fn test_episode(
+pub(crate) fn test_episode(
     world: &Arc<World>,
     policy: &mut dyn Policy,
     config: &CellConfig,
@@ -406,7 +406,7 @@ fn undisturbed_row(row: &EpisodeRow, penalties: &[f64]) -> DisturbedRow {
 /// The disturbed table's row of test episode `episode` with `agents` agents played under
 /// `disturbance` (undisturbed for `None`), from the same start and seed as the episodes
 /// table's; `penalties` is scratch space for its per-step penalties.
-pub fn disturbed_test_episode(
+pub(crate) fn disturbed_test_episode(
     world: &Arc<World>,
     policy: &mut dyn Policy,
     config: &CellConfig,

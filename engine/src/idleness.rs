@@ -28,7 +28,7 @@ pub struct Idleness {
     pub worst: u32,
 }
 
-pub struct IdlenessTracker {
+pub(crate) struct IdlenessTracker {
     /// Steps since each cell was last seen, row by row (0 on obstacles). Rows are rounded
     /// up to whole vectors of cells, reading the penalty grid's obstacle border beyond the
     /// map's last column, so the loop has no remainder.

@@ -19,7 +19,7 @@ use store::tables::{self, EpisodeRow};
 use store::{EPISODES_FILE, Store, StoreError};
 
 /// The environment's name in the export.
-pub const ENVIRONMENT: &str = "vpm";
+pub(crate) const ENVIRONMENT: &str = "vpm";
 
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {

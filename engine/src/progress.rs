@@ -5,7 +5,7 @@
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 /// `total_steps` counts only the cells to run, so the ETA is not fooled by finished ones.
-pub struct Progress {
+pub(crate) struct Progress {
     bars: MultiProgress,
     overall: ProgressBar,
 }
@@ -21,7 +21,7 @@ impl Progress {
     }
 
     /// A bar for a cell that starts now.
-    pub fn start_cell(&self, label: String, steps: u64) -> CellProgress<'_> {
+    pub(crate) fn start_cell(&self, label: String, steps: u64) -> CellProgress<'_> {
         let bar = self.bars.add(ProgressBar::new(steps));
         bar.set_style(style("  [{bar:20}] {percent:>3}% {msg}"));
         bar.set_message(label);
@@ -37,7 +37,7 @@ impl Progress {
 }
 
 /// A running cell's bar; it leaves the screen when dropped.
-pub struct CellProgress<'a> {
+pub(crate) struct CellProgress<'a> {
     progress: &'a Progress,
     bar: ProgressBar,
 }

@@ -26,7 +26,7 @@ pub enum ActionsError {
 /// steps of eight agents, and its parsed rows take at most some 16 times the file (one agent's
 /// row is 2 bytes on disk and a vector in memory); a wrong path (a device, a huge file) is
 /// refused before it fills memory.
-pub const MAX_ACTIONS_BYTES: u64 = 16 << 20;
+pub(crate) const MAX_ACTIONS_BYTES: u64 = 16 << 20;
 
 /// The text of the actions file `path`: a regular file of at most [`MAX_ACTIONS_BYTES`].
 pub fn read_actions_text(path: &Path) -> Result<String, world::InputError> {

@@ -70,7 +70,10 @@ pub fn compute_for(
 
 /// blake3, over the cells in order, of each cell's config and its result files with what is
 /// not a result taken out; 32 hex digits.
-pub fn store_fingerprint(store: &Store, records: &[CellRecord]) -> Result<String, StoreError> {
+pub(crate) fn store_fingerprint(
+    store: &Store,
+    records: &[CellRecord],
+) -> Result<String, StoreError> {
     let mut hasher = blake3::Hasher::new();
     for record in records {
         let config = serde_json::to_string(&record.config).expect("a cell config serialises");

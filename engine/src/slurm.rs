@@ -23,7 +23,7 @@ use store::atomic_file::write_atomic;
 use store::status::SHARDS_FOLDER;
 
 /// Where the job scripts and their logs go, inside the output folder.
-pub const SLURM_FOLDER: &str = "slurm";
+pub(crate) const SLURM_FOLDER: &str = "slurm";
 
 /// sbatch options for both jobs (`cpus_per_task` only for the array's tasks).
 #[derive(Clone, Debug, Default)]
@@ -137,7 +137,7 @@ impl ArrayJob {
 
     /// The job array: task i runs shard i/N into `OUT/shards/i`, with one sweep thread per CPU
     /// that Slurm gave it.
-    pub fn array_script(&self) -> String {
+    pub(crate) fn array_script(&self) -> String {
         let (out, tasks) = (&self.out, self.tasks);
         let mut script = format!(
             "#!/bin/bash\n\
@@ -172,7 +172,7 @@ impl ArrayJob {
 
     /// The merge job: joins every task's store into OUT, and fails naming a missing cell if a
     /// task did not finish.
-    pub fn merge_script(&self) -> String {
+    pub(crate) fn merge_script(&self) -> String {
         let (out, tasks) = (&self.out, self.tasks);
         let mut script = format!(
             "#!/bin/bash\n\

@@ -26,7 +26,7 @@ pub fn catch_termination() {
 }
 
 /// The signal that asked for a stop, if one did.
-pub fn requested() -> Option<i32> {
+pub(crate) fn requested() -> Option<i32> {
     match REQUESTED.load(Ordering::SeqCst) {
         0 => None,
         signal => Some(signal),
@@ -34,7 +34,7 @@ pub fn requested() -> Option<i32> {
 }
 
 /// The name of a signal, for the message a stopped sweep prints.
-pub fn signal_name(signal: i32) -> &'static str {
+pub(crate) fn signal_name(signal: i32) -> &'static str {
     match signal {
         libc::SIGTERM => "SIGTERM",
         libc::SIGINT => "SIGINT",

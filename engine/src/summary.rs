@@ -68,7 +68,7 @@ struct MeanWithInterval {
 }
 
 /// The summary of an `episodes` table, groups in order of first appearance.
-pub fn summary_frame(episodes: &DataFrame) -> Result<DataFrame, SummaryError> {
+pub(crate) fn summary_frame(episodes: &DataFrame) -> Result<DataFrame, SummaryError> {
     let groups = groups(episodes)?;
     let stats: Vec<GroupSummary> = groups.iter().map(summarise).collect::<Result<_, _>>()?;
     let text =

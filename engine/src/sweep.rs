@@ -412,12 +412,12 @@ pub fn exit_if_asked() {
 }
 
 /// How a cell is named on screen and in messages.
-pub fn cell_label(cell: &SweepCell) -> String {
+pub(crate) fn cell_label(cell: &SweepCell) -> String {
     format!("{} ({})", cell_title(&cell.config), cell.key)
 }
 
 /// What a cell is, without its key: map, policy, N_train and repetition.
-pub fn cell_title(c: &CellConfig) -> String {
+pub(crate) fn cell_title(c: &CellConfig) -> String {
     let n_train = c.n_train.map_or(String::new(), |n| format!(" N_train={n}"));
     format!(
         "{} {}{} rep {}",

@@ -77,7 +77,7 @@ impl TestCurve {
 
     /// Whether the policy after `done` of `total` training episodes is due a play: before
     /// training, at the end, and at the first stop at or after each multiple of K.
-    pub fn due(&self, done: u64, total: u64) -> bool {
+    pub(crate) fn due(&self, done: u64, total: u64) -> bool {
         let last = self.points.last().map(|p| p.training_episode);
         let since = done / self.every * self.every;
         match last {
@@ -89,13 +89,13 @@ impl TestCurve {
 
     /// Where training should stop next after `done` episodes: the next multiple of K, or
     /// `total`.
-    pub fn next_stop(&self, done: u64, total: u64) -> u64 {
+    pub(crate) fn next_stop(&self, done: u64, total: u64) -> u64 {
         ((done / self.every + 1) * self.every).min(total)
     }
 
     /// The training CPU-seconds of a run resumed with `wall_seconds` of training: the last
     /// point's, plus the wall time trained after it.
-    pub fn cpu_at_resume(&self, wall_seconds: f64) -> f64 {
+    pub(crate) fn cpu_at_resume(&self, wall_seconds: f64) -> f64 {
         match self.points.last() {
             Some(p) => p.cpu_seconds + (wall_seconds - p.wall_seconds).max(0.0),
             None => wall_seconds,
@@ -146,7 +146,7 @@ impl TestCurve {
 /// The CPU of the code that runs between [`CpuMeter::start`] and [`CpuMeter::seconds`] on
 /// the current rayon pool: its thread's clock on a pool of one thread, else wall time times
 /// the pool's threads.
-pub struct CpuMeter {
+pub(crate) struct CpuMeter {
     threads: usize,
     thread: Duration,
     wall: Instant,

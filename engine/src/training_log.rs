@@ -7,7 +7,7 @@ use polars::prelude::*;
 use policies::ppo::EpisodeRecord;
 
 /// One row per record.
-pub fn to_frame(records: &[EpisodeRecord]) -> PolarsResult<DataFrame> {
+pub(crate) fn to_frame(records: &[EpisodeRecord]) -> PolarsResult<DataFrame> {
     let f64s = |name: &str, read: fn(&EpisodeRecord) -> f64| {
         Column::new(name.into(), records.iter().map(read).collect::<Vec<f64>>())
     };
@@ -42,7 +42,7 @@ pub fn to_frame(records: &[EpisodeRecord]) -> PolarsResult<DataFrame> {
 }
 
 /// Columns that measure time, which differ between two runs of the same training.
-pub const TIMING_COLUMNS: [&str; 4] = [
+pub(crate) const TIMING_COLUMNS: [&str; 4] = [
     "steps_per_second",
     "rollout_seconds",
     "update_seconds",
@@ -60,7 +60,7 @@ pub fn reproducible_columns() -> Vec<PlSmallStr> {
         .collect()
 }
 
-pub fn to_parquet(frame: &mut DataFrame) -> PolarsResult<Vec<u8>> {
+pub(crate) fn to_parquet(frame: &mut DataFrame) -> PolarsResult<Vec<u8>> {
     let mut bytes = Vec::new();
     ParquetWriter::new(&mut bytes).finish(frame)?;
     Ok(bytes)

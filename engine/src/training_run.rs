@@ -84,7 +84,7 @@ impl TrainingRun {
 
     /// The run saved in `folder` if it is this very run (same configuration and seed), else a
     /// fresh one: a folder left by other code or another config is never continued.
-    pub fn resume_or_start(
+    pub(crate) fn resume_or_start(
         folder: &Path,
         world: Arc<World>,
         config: TrainingConfig,

@@ -17,7 +17,7 @@ use store::{SNAPSHOTS_FILE, StoreError, TRAJECTORIES_FILE, tables};
 
 /// The recorded steps and snapshots of a cell's chosen test episodes.
 #[derive(Default)]
-pub struct CellRecording {
+pub(crate) struct CellRecording {
     enabled: bool,
     steps: StepColumns,
     snapshot: SnapshotColumns,
@@ -46,7 +46,7 @@ struct SnapshotColumns {
 }
 
 impl CellRecording {
-    pub fn for_cell(config: &CellConfig) -> Self {
+    pub(crate) fn for_cell(config: &CellConfig) -> Self {
         Self {
             enabled: config.repetition == 0,
             ..Self::default()

@@ -706,3 +706,66 @@ fn a_curve_ends_at_the_final_tests_and_the_report_reads_time_to_quality_from_it(
         again.lines().skip(1).collect::<Vec<_>>()
     );
 }
+
+/// A committed report as the test compares it: its README without what says which code wrote
+/// it (the line naming the commit, and the warning of a tree with uncommitted changes, which
+/// a working tree under development has), and its Markdown tables by name.
+fn committed_text(report: &Path) -> (String, Vec<(String, Vec<u8>)>) {
+    let readme = std::fs::read_to_string(report.join("README.md")).unwrap();
+    let mut kept = Vec::new();
+    let mut after_dirty = false;
+    for line in readme.lines() {
+        let skip = line.contains("this report written at")
+            || line.starts_with("**DIRTY**")
+            || (after_dirty && line.is_empty());
+        after_dirty = line.starts_with("**DIRTY**");
+        if !skip {
+            kept.push(line);
+        }
+    }
+    let readme = kept.join("\n");
+    let tables = files_in(&report.join("tables"), "md")
+        .into_iter()
+        .map(|path| {
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            (name, std::fs::read(&path).unwrap())
+        })
+        .collect();
+    (readme, tables)
+}
+
+/// Every committed report with a `store/` is what today's code makes of that store: its
+/// numbers, verdicts and text, byte for byte. A change of what a report says rebuilds the
+/// committed reports in the same commit (`harness report reports/NAME/store`).
+#[test]
+fn every_committed_report_is_what_its_store_gives_today() {
+    let reports = PathBuf::from(crate::common::repo_file("reports"));
+    let out = scratch("committed-reports");
+    let mut checked = Vec::new();
+    for entry in std::fs::read_dir(&reports).unwrap().flatten() {
+        let store = entry.path().join("store");
+        if !store.is_dir() {
+            continue;
+        }
+        let args = [
+            "report",
+            store.to_str().unwrap(),
+            "--to",
+            out.to_str().unwrap(),
+        ];
+        succeed(harness(&args));
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let (committed, rebuilt) = (
+            committed_text(&entry.path()),
+            committed_text(&out.join(&name)),
+        );
+        assert!(
+            committed == rebuilt,
+            "reports/{name} is not what its store/ gives today: rebuild it with `harness \
+             report reports/{name}/store`"
+        );
+        checked.push(name);
+    }
+    assert!(checked.len() >= 4, "{checked:?}");
+    std::fs::remove_dir_all(&out).unwrap();
+}

@@ -11,6 +11,7 @@ use super::columns::{
 };
 use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
+use plan::cell::CellConfig;
 use stats::{least_squares_slope, summarize};
 
 /// The paper's training budget per learned policy, in episodes.
@@ -194,10 +195,25 @@ fn testing_line(episodes: &DataFrame) -> Result<String, ReportError> {
     ))
 }
 
+/// What the cells cost, measured, beside what `harness check`'s model estimated for the same
+/// cells (each with its training, from its stored configuration), so that a reader sees how
+/// far the estimate that budgeted the sweep was from the bill.
 fn compute_line(cells: &DataFrame) -> PolarsResult<String> {
     let seconds: f64 = f64s(cells, "wall_seconds")?.iter().sum();
+    let estimated = strings(cells, "config")?
+        .iter()
+        .map(|config| serde_json::from_str::<CellConfig>(config).map(|c| c.cost().cpu_seconds()))
+        .sum::<Result<f64, _>>();
+    let estimate = match estimated {
+        Ok(estimated) => format!(
+            "; `harness check` estimated {:.2} for them, each with its training",
+            estimated / 3600.0
+        ),
+        Err(_) => String::new(),
+    };
     Ok(format!(
-        "- **Compute**: {:.2} CPU hours ({seconds:.0} s), the wall time of the {} cells summed.",
+        "- **Compute**: {:.2} CPU hours ({seconds:.0} s), the wall time of the {} cells \
+         summed{estimate}.",
         seconds / 3600.0,
         cells.height()
     ))

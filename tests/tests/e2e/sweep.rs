@@ -108,7 +108,7 @@ fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
 fn a_killed_sweep_resumes_to_the_same_tables() {
     let out = scratch("kill").join("store");
     let mut child = start_tiny_sweep(&out, Stdio::null());
-    wait_for_a_cell_in_flight(&mut child, &out);
+    freeze_with_a_cell_in_flight(&mut child, &out);
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
     let done = finished_cells(&out);
@@ -173,6 +173,27 @@ fn wait_for_a_cell_in_flight(child: &mut std::process::Child, out: &Path) {
             "the sweep ended before it could be stopped"
         );
         std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+/// Stops the sweep `child` (SIGSTOP) at a moment when it has finished a cell and has another
+/// in flight, so that a kill then certainly interrupts a cell: a tiny cell can finish between
+/// a look at the folder and the kill.
+fn freeze_with_a_cell_in_flight(child: &mut std::process::Child, out: &Path) {
+    let pid = child.id() as libc::pid_t;
+    let signal = |signal| {
+        // SAFETY: a signal to our own child process, which has not been waited for.
+        let sent = unsafe { libc::kill(pid, signal) };
+        assert_eq!(sent, 0, "signal {signal} to the sweep");
+    };
+    loop {
+        wait_for_a_cell_in_flight(child, out);
+        signal(libc::SIGSTOP);
+        std::thread::sleep(Duration::from_millis(20));
+        if cells_in_flight(out) > 0 {
+            return;
+        }
+        signal(libc::SIGCONT);
     }
 }
 

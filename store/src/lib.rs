@@ -259,8 +259,7 @@ impl Store {
         if self.is_table_store() {
             return Ok(self.record_from_cells_table(key).ok());
         }
-        let path = self.cell_folder(key).join(RECORD_FILE);
-        if std::fs::symlink_metadata(&path).is_err() {
+        if !self.has_record(key) {
             return Ok(None);
         }
         let record = self.record(key)?;

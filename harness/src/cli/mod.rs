@@ -68,7 +68,18 @@ enum Command {
 /// Parses the process's arguments and runs the command.
 pub fn main() -> anyhow::Result<()> {
     ignore_file_size_signal();
+    end_quietly_on_a_closed_pipe();
     Cli::parse().run()
+}
+
+/// Rust ignores SIGPIPE, so `println!` into a closed pipe (`harness check rq6.yaml | head`)
+/// panics with a backtrace. With the default action back the process ends quietly, as other
+/// Unix tools do; a sweep so ended leaves only whole files and resumes like any stopped sweep.
+fn end_quietly_on_a_closed_pipe() {
+    // SAFETY: called first in `main`, before any thread starts; SIG_DFL installs no handler.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
 }
 
 /// A write past the file-size limit (`ulimit -f`) raises SIGXFSZ, whose default action kills

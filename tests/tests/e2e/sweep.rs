@@ -589,6 +589,26 @@ fn check_prints_every_cell_and_the_cost() {
     );
 }
 
+/// `harness check rq6.yaml | head -1`: the reader is gone before the harness writes (it
+/// closes its end at once; the harness must first start and read the scenario), and the
+/// harness must end as Unix tools do, by SIGPIPE, without a panic's message (it used to print
+/// a backtrace).
+#[test]
+fn check_into_a_closed_pipe_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
+        .args(["check", &crate::common::repo_file("scenarios/rq6.yaml")])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(output.status.signal(), Some(libc::SIGPIPE), "{stderr}");
+}
+
 /// A scenario with one thing wrong, and the message it must give.
 struct BadCase {
     what: &'static str,

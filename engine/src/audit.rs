@@ -18,6 +18,7 @@ use crate::training_log;
 use plan::cell::CellConfig;
 use store::columns::{strings, u32s};
 use store::disturbance;
+use store::schema::{cell, disturbed, episodes};
 use store::tables::{self, EpisodeRow};
 use store::{CellRecord, Store, StoreError, TRAINING_FILE};
 
@@ -124,7 +125,7 @@ pub fn audit_tables(store: &Store) -> Result<Vec<TableAuditLine>, AggregateError
 /// Plays `sample` rows of the store's `episodes` table (all of them if there are fewer),
 /// chosen by `seed`, and returns one line per row in table order.
 pub fn audit(store: &Store, sample: usize, seed: u64) -> Result<Vec<AuditLine>, StoreError> {
-    let (keys, rows) = stored_episodes(&store.table("episodes")?)?;
+    let (keys, rows) = stored_episodes(&store.table(episodes::TABLE)?)?;
     let chosen = Seed::new(seed).choose(rows.len(), sample);
     let worlds = Mutex::new(HashMap::new());
     Ok(chosen
@@ -175,14 +176,17 @@ pub fn audit_disturbed(
     sample: usize,
     seed: u64,
 ) -> Result<Vec<DisturbedAuditLine>, StoreError> {
-    let Some(table) = store.optional_table("disturbed")? else {
+    let Some(table) = store.optional_table(disturbed::TABLE)? else {
         return Ok(Vec::new());
     };
     let (keys, names) = (
-        strings(&table, "cell_key")?,
-        strings(&table, "disturbance")?,
+        strings(&table, cell::KEY)?,
+        strings(&table, disturbed::DISTURBANCE)?,
     );
-    let (n_tests, episodes) = (u32s(&table, "n_test")?, u32s(&table, "episode")?);
+    let (n_tests, episodes) = (
+        u32s(&table, episodes::N_TEST)?,
+        u32s(&table, episodes::EPISODE)?,
+    );
     let chosen = Seed::new(seed).child(2).choose(table.height(), sample);
     let worlds = Mutex::new(HashMap::new());
     Ok(chosen
@@ -338,5 +342,5 @@ fn world_of(
 
 /// The episodes table as (cell key, row) pairs.
 fn stored_episodes(frame: &DataFrame) -> Result<(Vec<String>, Vec<EpisodeRow>), StoreError> {
-    Ok((strings(frame, "cell_key")?, tables::episode_rows(frame)?))
+    Ok((strings(frame, cell::KEY)?, tables::episode_rows(frame)?))
 }

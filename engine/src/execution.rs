@@ -198,12 +198,12 @@ fn shared_training(
     let model = checkpoint::load_model(&metadata, &weights)?;
     let log = source.cell_table(&record, TRAINING_FILE)?;
     let log = log.ok_or_else(|| StoreError::corrupt(source.root(), "a training log is gone"))?;
-    let log = log.drop_many(tables::CELL_COLUMNS);
+    let log = log.drop_many(store::schema::cell::COLUMNS);
     let log = tables::training_frame(&cell.key, &cell.config, &log)?;
     files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
     // The same identity plays the same test curve (`CellConfig::training_identity`).
     if let Some(curve) = source.cell_table(&record, TEST_CURVE_FILE)? {
-        let curve = curve.drop_many(tables::CELL_COLUMNS);
+        let curve = curve.drop_many(store::schema::cell::COLUMNS);
         let curve = tables::training_frame(&cell.key, &cell.config, &curve)?;
         files.push((TEST_CURVE_FILE, tables::parquet_bytes(&curve)?));
     }

@@ -15,8 +15,8 @@ use std::path::Path;
 use polars::prelude::DataFrame;
 
 use crate::sweep::{SweepError, SweepOptions, run_sweep};
-use crate::training_log::TIMING_COLUMNS;
 use plan::scenario::Scenario;
+use store::schema::{cell, training};
 use store::{CellRecord, Store, StoreError, tables};
 
 /// The scenario whose results are fingerprinted.
@@ -94,7 +94,7 @@ fn result_content(name: &str, bytes: Vec<u8>) -> Result<Vec<u8>, StoreError> {
     if name.ends_with(".parquet") {
         let frame: DataFrame = tables::read_parquet(bytes)?;
         // The key contains the fingerprint; the training log's times differ run to run.
-        let not_results = std::iter::once("cell_key").chain(TIMING_COLUMNS);
+        let not_results = std::iter::once(cell::KEY).chain(training::TIMING_COLUMNS);
         return tables::csv_bytes(&frame.drop_many(not_results));
     }
     if name == policies::checkpoint::METADATA_FILE {

@@ -19,6 +19,7 @@ use stats::{
     Block, RESAMPLES, Sample, StatsError, Unit, bootstrap, iqm, mean, median, named_seed,
     standard_deviation,
 };
+use store::schema::{cell, episodes, summary};
 
 const CONFIDENCE: f64 = 0.95;
 
@@ -75,50 +76,64 @@ pub(crate) fn summary_frame(episodes: &DataFrame) -> Result<DataFrame, SummaryEr
         |f: fn(&Group) -> &String| -> Vec<&str> { groups.iter().map(|g| f(g).as_str()).collect() };
     let number = |f: fn(&GroupSummary) -> f64| -> Vec<f64> { stats.iter().map(f).collect() };
     let mut columns = vec![
-        Column::new("map".into(), text(|g| &g.map)),
-        Column::new("policy".into(), text(|g| &g.policy)),
+        Column::new(cell::MAP.into(), text(|g| &g.map)),
+        Column::new(cell::POLICY.into(), text(|g| &g.policy)),
         Column::new(
-            "n_train".into(),
+            cell::N_TRAIN.into(),
             groups.iter().map(|g| g.n_train).collect::<Vec<_>>(),
         ),
         Column::new(
-            "n_test".into(),
+            episodes::N_TEST.into(),
             groups.iter().map(|g| g.n_test).collect::<Vec<_>>(),
         ),
         Column::new(
-            "cells".into(),
+            summary::CELLS.into(),
             stats.iter().map(|s| s.cells).collect::<Vec<_>>(),
         ),
         Column::new(
-            "episodes".into(),
+            summary::EPISODES.into(),
             stats.iter().map(|s| s.episodes).collect::<Vec<_>>(),
         ),
-        Column::new("mean".into(), number(|s| s.mean)),
-        Column::new("std".into(), number(|s| s.std)),
-        Column::new("median".into(), number(|s| s.median)),
-        Column::new("iqm".into(), number(|s| s.iqm)),
-        Column::new("mean_ci_low".into(), number(|s| s.mean_ci.0)),
-        Column::new("mean_ci_high".into(), number(|s| s.mean_ci.1)),
-        Column::new("iqm_ci_low".into(), number(|s| s.iqm_ci.0)),
-        Column::new("iqm_ci_high".into(), number(|s| s.iqm_ci.1)),
+        Column::new(summary::MEAN.into(), number(|s| s.mean)),
+        Column::new(summary::STD.into(), number(|s| s.std)),
+        Column::new(summary::MEDIAN.into(), number(|s| s.median)),
+        Column::new(summary::IQM.into(), number(|s| s.iqm)),
+        Column::new(summary::MEAN_CI_LOW.into(), number(|s| s.mean_ci.0)),
+        Column::new(summary::MEAN_CI_HIGH.into(), number(|s| s.mean_ci.1)),
+        Column::new(summary::IQM_CI_LOW.into(), number(|s| s.iqm_ci.0)),
+        Column::new(summary::IQM_CI_HIGH.into(), number(|s| s.iqm_ci.1)),
     ];
     let average: Vec<&MeanWithInterval> = stats.iter().map(|s| &s.average_idleness).collect();
     let worst: Vec<&MeanWithInterval> = stats.iter().map(|s| &s.worst_idleness).collect();
-    columns.extend(mean_with_interval_columns("average_idleness", &average));
-    columns.extend(mean_with_interval_columns("worst_idleness", &worst));
+    columns.extend(mean_with_interval_columns(
+        [
+            summary::AVERAGE_IDLENESS_MEAN,
+            summary::AVERAGE_IDLENESS_CI_LOW,
+            summary::AVERAGE_IDLENESS_CI_HIGH,
+        ],
+        &average,
+    ));
+    columns.extend(mean_with_interval_columns(
+        [
+            summary::WORST_IDLENESS_MEAN,
+            summary::WORST_IDLENESS_CI_LOW,
+            summary::WORST_IDLENESS_CI_HIGH,
+        ],
+        &worst,
+    ));
     Ok(DataFrame::new(groups.len(), columns)?)
 }
 
-/// The columns `NAME_mean`, `NAME_ci_low` and `NAME_ci_high` of one figure.
-fn mean_with_interval_columns(name: &str, figures: &[&MeanWithInterval]) -> [Column; 3] {
-    let column = |part: &str, value: fn(&MeanWithInterval) -> f64| {
+/// One figure's mean and interval, under the names `[mean, low, high]`.
+fn mean_with_interval_columns(names: [&str; 3], figures: &[&MeanWithInterval]) -> [Column; 3] {
+    let column = |name: &str, value: fn(&MeanWithInterval) -> f64| {
         let values: Vec<f64> = figures.iter().map(|&f| value(f)).collect();
-        Column::new(format!("{name}_{part}").into(), values)
+        Column::new(name.into(), values)
     };
     [
-        column("mean", |f| f.mean),
-        column("ci_low", |f| f.low),
-        column("ci_high", |f| f.high),
+        column(names[0], |f| f.mean),
+        column(names[1], |f| f.low),
+        column(names[2], |f| f.high),
     ]
 }
 
@@ -183,14 +198,14 @@ fn group_seed(group: &Group) -> Seed {
 
 fn groups(episodes: &DataFrame) -> Result<Vec<Group>, SummaryError> {
     let column = |name: &str| episodes.column(name);
-    let map = column("map")?.str()?;
-    let policy = column("policy")?.str()?;
-    let n_train = column("n_train")?.u32()?;
-    let n_test = column("n_test")?.u32()?;
-    let cell = column("cell_key")?.str()?;
-    let penalty = column("cumulative_penalty")?.f64()?;
-    let average_idleness = column("average_idleness")?.f64()?;
-    let worst_idleness = column("worst_idleness")?.u32()?;
+    let map = column(cell::MAP)?.str()?;
+    let policy = column(cell::POLICY)?.str()?;
+    let n_train = column(cell::N_TRAIN)?.u32()?;
+    let n_test = column(episodes::N_TEST)?.u32()?;
+    let cell = column(cell::KEY)?.str()?;
+    let penalty = column(episodes::CUMULATIVE_PENALTY)?.f64()?;
+    let average_idleness = column(episodes::AVERAGE_IDLENESS)?.f64()?;
+    let worst_idleness = column(episodes::WORST_IDLENESS)?.u32()?;
     let missing = || PolarsError::NoData("a null in the episodes table".into());
     let keys = (0..episodes.height())
         .map(|i| match (map.get(i), policy.get(i), n_test.get(i)) {

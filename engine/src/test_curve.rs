@@ -27,8 +27,9 @@ use polars::prelude::*;
 use crate::cpu_clock::thread_cpu_time;
 use plan::cell::CellConfig;
 use store::atomic_file::write_atomic;
+use store::schema::cell;
 use store::schema::test_curve::{CPU_SECONDS, TRAINING_EPISODE, WALL_SECONDS};
-use store::tables::{self, CELL_COLUMNS, EpisodeRow};
+use store::tables::{self, EpisodeRow};
 use store::{MAX_FILE_BYTES, StoreError, TEST_CURVE_FILE};
 
 /// The test episodes played with the policy of one moment of training.
@@ -123,13 +124,13 @@ impl TestCurve {
             .flat_map(|p| vec![p.training_episode; p.rows.len()])
             .collect();
         frame.insert_column(
-            CELL_COLUMNS.len(),
+            cell::COLUMNS.len(),
             Column::new(TRAINING_EPISODE.into(), episodes),
         )?;
         let seconds = Column::new(CPU_SECONDS.into(), per_row(|p| p.cpu_seconds));
-        frame.insert_column(CELL_COLUMNS.len() + 1, seconds)?;
+        frame.insert_column(cell::COLUMNS.len() + 1, seconds)?;
         let wall = Column::new(WALL_SECONDS.into(), per_row(|p| p.wall_seconds));
-        frame.insert_column(CELL_COLUMNS.len() + 2, wall)?;
+        frame.insert_column(cell::COLUMNS.len() + 2, wall)?;
         Ok(frame)
     }
 

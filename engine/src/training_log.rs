@@ -5,6 +5,7 @@ use std::io::Cursor;
 
 use polars::prelude::*;
 use policies::ppo::EpisodeRecord;
+use store::schema::training;
 
 /// One row per record.
 pub(crate) fn to_frame(records: &[EpisodeRecord]) -> PolarsResult<DataFrame> {
@@ -13,41 +14,35 @@ pub(crate) fn to_frame(records: &[EpisodeRecord]) -> PolarsResult<DataFrame> {
     };
     let columns = vec![
         Column::new(
-            "episode".into(),
+            training::EPISODE.into(),
             records.iter().map(|r| r.episode).collect::<Vec<u64>>(),
         ),
         Column::new(
-            "agents".into(),
+            training::AGENTS.into(),
             records
                 .iter()
                 .map(|r| r.agents as u32)
                 .collect::<Vec<u32>>(),
         ),
-        f64s("penalty", |r| r.penalty),
-        f64s("loss", |r| r.update.loss.total),
-        f64s("policy_loss", |r| r.update.loss.policy),
-        f64s("value_loss", |r| r.update.loss.value),
-        f64s("entropy", |r| r.update.loss.entropy),
-        f64s("attention_entropy", |r| r.update.loss.attention_entropy),
-        f64s("approx_kl", |r| r.update.loss.approx_kl),
-        f64s("clip_fraction", |r| r.update.loss.clip_fraction),
-        f64s("grad_norm", |r| r.update.grad_norm),
-        f64s("learning_rate", |r| r.update.learning_rate),
-        f64s("steps_per_second", |r| r.steps_per_second),
-        f64s("rollout_seconds", |r| r.rollout_seconds),
-        f64s("update_seconds", |r| r.update_seconds),
-        f64s("wall_seconds", |r| r.wall_seconds),
+        f64s(training::PENALTY, |r| r.penalty),
+        f64s(training::LOSS, |r| r.update.loss.total),
+        f64s(training::POLICY_LOSS, |r| r.update.loss.policy),
+        f64s(training::VALUE_LOSS, |r| r.update.loss.value),
+        f64s(training::ENTROPY, |r| r.update.loss.entropy),
+        f64s(training::ATTENTION_ENTROPY, |r| {
+            r.update.loss.attention_entropy
+        }),
+        f64s(training::APPROX_KL, |r| r.update.loss.approx_kl),
+        f64s(training::CLIP_FRACTION, |r| r.update.loss.clip_fraction),
+        f64s(training::GRAD_NORM, |r| r.update.grad_norm),
+        f64s(training::LEARNING_RATE, |r| r.update.learning_rate),
+        f64s(training::STEPS_PER_SECOND, |r| r.steps_per_second),
+        f64s(training::ROLLOUT_SECONDS, |r| r.rollout_seconds),
+        f64s(training::UPDATE_SECONDS, |r| r.update_seconds),
+        f64s(training::WALL_SECONDS, |r| r.wall_seconds),
     ];
     DataFrame::new(records.len(), columns)
 }
-
-/// Columns that measure time, which differ between two runs of the same training.
-pub(crate) const TIMING_COLUMNS: [&str; 4] = [
-    "steps_per_second",
-    "rollout_seconds",
-    "update_seconds",
-    "wall_seconds",
-];
 
 /// The log's columns that a repeated run reproduces bit for bit.
 pub fn reproducible_columns() -> Vec<PlSmallStr> {
@@ -55,7 +50,7 @@ pub fn reproducible_columns() -> Vec<PlSmallStr> {
     empty
         .get_column_names()
         .into_iter()
-        .filter(|name| !TIMING_COLUMNS.contains(&name.as_str()))
+        .filter(|name| !training::TIMING_COLUMNS.contains(&name.as_str()))
         .cloned()
         .collect()
 }
@@ -76,7 +71,7 @@ pub fn append(
     first: u64,
     records: &[EpisodeRecord],
 ) -> PolarsResult<DataFrame> {
-    let kept = earlier.filter(&earlier.column("episode")?.u64()?.lt(first))?;
+    let kept = earlier.filter(&earlier.column(training::EPISODE)?.u64()?.lt(first))?;
     kept.vstack(&to_frame(records)?)
 }
 

@@ -11,7 +11,7 @@ use polars::prelude::*;
 use world::{Episode, ObservationConfig, Observer};
 
 use plan::cell::CellConfig;
-use store::schema::layer;
+use store::schema::{episodes, layer, snapshots, trajectories};
 use store::tables::cell_columns;
 use store::{SNAPSHOTS_FILE, StoreError, TRAJECTORIES_FILE, tables};
 
@@ -134,13 +134,13 @@ impl CellRecording {
         let s = &self.steps;
         let mut columns = cell_columns(key, config, s.step.len());
         columns.extend([
-            Column::new("n_test".into(), &s.n_test),
-            Column::new("episode".into(), &s.episode),
-            Column::new("step".into(), &s.step),
-            Column::new("agent".into(), &s.agent),
-            Column::new("x".into(), &s.x),
-            Column::new("y".into(), &s.y),
-            Column::new("penalty".into(), &s.penalty),
+            Column::new(episodes::N_TEST.into(), &s.n_test),
+            Column::new(episodes::EPISODE.into(), &s.episode),
+            Column::new(trajectories::STEP.into(), &s.step),
+            Column::new(trajectories::AGENT.into(), &s.agent),
+            Column::new(trajectories::X.into(), &s.x),
+            Column::new(trajectories::Y.into(), &s.y),
+            Column::new(trajectories::PENALTY.into(), &s.penalty),
         ]);
         DataFrame::new(s.step.len(), columns)
     }
@@ -149,13 +149,13 @@ impl CellRecording {
         let s = &self.snapshot;
         let mut columns = cell_columns(key, config, s.step.len());
         columns.extend([
-            Column::new("n_test".into(), &s.n_test),
-            Column::new("episode".into(), &s.episode),
-            Column::new("step".into(), &s.step),
-            Column::new("layer".into(), &s.layer),
-            Column::new("x".into(), &s.x),
-            Column::new("y".into(), &s.y),
-            Column::new("value".into(), &s.value),
+            Column::new(episodes::N_TEST.into(), &s.n_test),
+            Column::new(episodes::EPISODE.into(), &s.episode),
+            Column::new(snapshots::STEP.into(), &s.step),
+            Column::new(snapshots::LAYER.into(), &s.layer),
+            Column::new(snapshots::X.into(), &s.x),
+            Column::new(snapshots::Y.into(), &s.y),
+            Column::new(snapshots::VALUE.into(), &s.value),
         ]);
         DataFrame::new(s.step.len(), columns)
     }

@@ -13,6 +13,7 @@
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::PathBuf;
 use std::sync::Arc;
+use store::schema::{behaviour_episodes, cell, cells, episodes};
 
 use polars::prelude::*;
 use rayon::prelude::*;
@@ -46,7 +47,7 @@ pub trait Replay: Sync {
 pub type ReplayError = Box<dyn std::error::Error + Send + Sync>;
 
 /// The store table of measured episodes (`NAME.parquet` and `NAME.csv` in the store's root).
-pub const TABLE: &str = "behaviour_episodes";
+pub const TABLE: &str = behaviour_episodes::TABLE;
 
 /// One test episode's measured behaviour: a row of [`TABLE`].
 #[derive(Clone, Debug, PartialEq)]
@@ -168,8 +169,8 @@ impl EpisodeIndex {
     fn of(episodes: &DataFrame) -> PolarsResult<Self> {
         Ok(Self {
             groups: GroupKey::of_rows(episodes)?,
-            cells: strings(episodes, "cell_key")?,
-            episodes: u32s(episodes, "episode")?,
+            cells: strings(episodes, cell::KEY)?,
+            episodes: u32s(episodes, episodes::EPISODE)?,
         })
     }
 
@@ -373,13 +374,13 @@ fn read_table(store: &Store) -> Result<Vec<EpisodeMeasure>, BehaviourError> {
 
 fn rows(frame: &DataFrame) -> PolarsResult<Vec<EpisodeMeasure>> {
     let groups = GroupKey::of_rows(frame)?;
-    let cells = strings(frame, "cell_key")?;
-    let repetitions = u32s(frame, "repetition")?;
-    let episodes = u32s(frame, "episode")?;
-    let stationary = u32s(frame, "stationary")?;
-    let touring = u32s(frame, "touring")?;
-    let periodic = bools(frame, "periodic")?;
-    let pools = strings(frame, "pool")?;
+    let cells = strings(frame, cell::KEY)?;
+    let repetitions = u32s(frame, cells::REPETITION)?;
+    let episodes = u32s(frame, episodes::EPISODE)?;
+    let stationary = u32s(frame, behaviour_episodes::STATIONARY)?;
+    let touring = u32s(frame, behaviour_episodes::TOURING)?;
+    let periodic = bools(frame, behaviour_episodes::PERIODIC)?;
+    let pools = strings(frame, behaviour_episodes::POOL)?;
     Ok((0..frame.height())
         .map(|i| EpisodeMeasure {
             group: groups[i].clone(),
@@ -401,23 +402,22 @@ fn bools(frame: &DataFrame, name: &str) -> PolarsResult<Vec<bool>> {
         .collect()
 }
 
-/// The rows as the store's table: map, policy, n_train, n_test, cell_key, repetition,
-/// episode, stationary, touring, periodic, pool.
+/// The rows as the store's table ([`behaviour_episodes::columns`]).
 pub fn frame(rows: &[EpisodeMeasure]) -> PolarsResult<DataFrame> {
     let column = |f: fn(&EpisodeMeasure) -> u32| -> Vec<u32> { rows.iter().map(f).collect() };
     let text = |f: fn(&EpisodeMeasure) -> &str| -> Vec<&str> { rows.iter().map(f).collect() };
     df!(
-        "map" => text(|m| m.group.map.as_str()),
-        "policy" => text(|m| m.group.policy.policy.as_str()),
-        "n_train" => rows.iter().map(|m| m.group.policy.n_train).collect::<Vec<_>>(),
-        "n_test" => column(|m| m.group.n_test),
-        "cell_key" => text(|m| m.cell_key.as_str()),
-        "repetition" => column(|m| m.repetition),
-        "episode" => column(|m| m.episode),
-        "stationary" => column(|m| m.stationary),
-        "touring" => column(|m| m.touring),
-        "periodic" => rows.iter().map(|m| m.periodic).collect::<Vec<_>>(),
-        "pool" => text(|m| m.pool.as_str()),
+        cell::MAP => text(|m| m.group.map.as_str()),
+        cell::POLICY => text(|m| m.group.policy.policy.as_str()),
+        cell::N_TRAIN => rows.iter().map(|m| m.group.policy.n_train).collect::<Vec<_>>(),
+        episodes::N_TEST => column(|m| m.group.n_test),
+        cell::KEY => text(|m| m.cell_key.as_str()),
+        cells::REPETITION => column(|m| m.repetition),
+        episodes::EPISODE => column(|m| m.episode),
+        behaviour_episodes::STATIONARY => column(|m| m.stationary),
+        behaviour_episodes::TOURING => column(|m| m.touring),
+        behaviour_episodes::PERIODIC => rows.iter().map(|m| m.periodic).collect::<Vec<_>>(),
+        behaviour_episodes::POOL => text(|m| m.pool.as_str()),
     )
 }
 

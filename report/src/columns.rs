@@ -1,6 +1,7 @@
 //! Reading the store's tables column by column, and the key every report groups by.
 
 use polars::prelude::*;
+use store::schema::{cell, episodes};
 
 pub use store::columns::{f64s, optional_u32s, strings, u32s};
 
@@ -23,9 +24,9 @@ impl PolicyKey {
 /// Every row's map and policy (with its N_train), in row order: what the tables of training
 /// runs (the training log, the test curve) group by, and the first part of a `GroupKey`.
 pub fn trained_keys(frame: &DataFrame) -> PolarsResult<Vec<(String, PolicyKey)>> {
-    let maps = strings(frame, "map")?;
-    let policies = strings(frame, "policy")?;
-    let n_trains = optional_u32s(frame, "n_train")?;
+    let maps = strings(frame, cell::MAP)?;
+    let policies = strings(frame, cell::POLICY)?;
+    let n_trains = optional_u32s(frame, cell::N_TRAIN)?;
     Ok(maps
         .into_iter()
         .zip(policies)
@@ -45,7 +46,7 @@ pub struct GroupKey {
 impl GroupKey {
     /// Every row's group, in row order.
     pub fn of_rows(frame: &DataFrame) -> PolarsResult<Vec<GroupKey>> {
-        let n_tests = u32s(frame, "n_test")?;
+        let n_tests = u32s(frame, episodes::N_TEST)?;
         Ok(trained_keys(frame)?
             .into_iter()
             .zip(n_tests)

@@ -5,6 +5,7 @@
 
 use polars::prelude::*;
 use rayon::prelude::*;
+use store::schema::{cell, episodes};
 
 use super::columns::{GroupKey, PolicyKey, f64s, group_rows, named_seed, strings, u32s};
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
@@ -140,14 +141,14 @@ pub fn comparisons(episodes: &DataFrame) -> Result<Vec<Comparison>, ReportError>
 
 /// Every (map, policy, N_train, N_test) of the episodes table, in table order.
 pub fn samples(episodes: &DataFrame) -> Result<Vec<Sample>, ReportError> {
-    samples_of(episodes, "cumulative_penalty", PENALTY_UNIT)
+    samples_of(episodes, episodes::CUMULATIVE_PENALTY, PENALTY_UNIT)
 }
 
 /// [`samples`] of any column of a per-episode table, divided by `unit`.
 pub fn samples_of(frame: &DataFrame, column: &str, unit: f64) -> Result<Vec<Sample>, ReportError> {
     let groups = GroupKey::of_rows(frame)?;
-    let cells = strings(frame, "cell_key")?;
-    let numbers = u32s(frame, "episode")?;
+    let cells = strings(frame, cell::KEY)?;
+    let numbers = u32s(frame, episodes::EPISODE)?;
     let values: Vec<f64> = f64s(frame, column)?.iter().map(|v| v / unit).collect();
     Ok(group_rows(&groups)
         .into_iter()

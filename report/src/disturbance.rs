@@ -6,6 +6,7 @@
 //! runs, trained for the whole team).
 
 use std::collections::{BTreeMap, HashMap};
+use store::schema::{cell, disturbed, disturbed_steps, episodes};
 
 use polars::prelude::*;
 
@@ -41,12 +42,12 @@ impl DisturbedSamples {
         let Some(disturbed) = disturbed else {
             return Ok(found);
         };
-        for name in distinct(strings(disturbed, "disturbance")?) {
+        for name in distinct(strings(disturbed, disturbed::DISTURBANCE)?) {
             let frame = of_disturbance(disturbed, &name)?;
-            let lost = strings(&frame, "lost")?;
+            let lost = strings(&frame, disturbed::LOST)?;
             let count = lost.first().map_or(0, |l| l.split_whitespace().count());
             found.lost.insert(name.clone(), count as u32);
-            let quarters = samples_of(&frame, "last_quarter", PER_STEP_UNIT)?;
+            let quarters = samples_of(&frame, disturbed::LAST_QUARTER, PER_STEP_UNIT)?;
             found.penalties.insert(name.clone(), samples(&frame)?);
             found.last_quarters.insert(name, quarters);
         }
@@ -103,7 +104,7 @@ impl DisturbedSamples {
 
 /// The disturbed table's rows of one disturbance.
 fn of_disturbance(disturbed: &DataFrame, name: &str) -> PolarsResult<DataFrame> {
-    disturbed.filter(&disturbed.column("disturbance")?.str()?.equal(name))
+    disturbed.filter(&disturbed.column(disturbed::DISTURBANCE)?.str()?.equal(name))
 }
 
 /// The adaptation ratio of replicates `[disturbed, reference]`: ratio of their means.
@@ -213,7 +214,7 @@ fn on_diagonal(group: &GroupKey) -> bool {
 /// step penalties in 10^3.
 fn means_of(disturbed: &DataFrame, column: &str) -> PolarsResult<HashMap<(GroupKey, String), f64>> {
     let groups = GroupKey::of_rows(disturbed)?;
-    let names = strings(disturbed, "disturbance")?;
+    let names = strings(disturbed, disturbed::DISTURBANCE)?;
     let unit = if column == "settle_steps" {
         1.0
     } else {
@@ -297,9 +298,9 @@ struct CurvePoint {
 /// (on its diagonal), disturbance, map and N_test.
 fn curve_frame(steps: &DataFrame) -> Result<DataFrame, ReportError> {
     let groups = GroupKey::of_rows(steps)?;
-    let names = strings(steps, "disturbance")?;
-    let bins = u32s(steps, "step")?;
-    let values = f64s(steps, "penalty")?;
+    let names = strings(steps, disturbed::DISTURBANCE)?;
+    let bins = u32s(steps, disturbed_steps::STEP)?;
+    let values = f64s(steps, disturbed_steps::PENALTY)?;
     let mut points: BTreeMap<CurvePoint, Vec<f64>> = BTreeMap::new();
     for row in (0..steps.height()).filter(|&r| on_diagonal(&groups[r])) {
         let point = CurvePoint {
@@ -430,13 +431,13 @@ fn positions(
     maps: &HashMap<String, Map>,
 ) -> Result<(), ReportError> {
     let rows = first_losses(disturbed)?;
-    let policies = strings(disturbed, "policy")?;
-    let ns = u32s(disturbed, "n_test")?;
-    let events = optional_u32s(disturbed, "event")?;
-    let lost = strings(disturbed, "lost")?;
+    let policies = strings(disturbed, cell::POLICY)?;
+    let ns = u32s(disturbed, episodes::N_TEST)?;
+    let events = optional_u32s(disturbed, disturbed::EVENT)?;
+    let lost = strings(disturbed, disturbed::LOST)?;
     let (at_event, at_end) = (
-        strings(disturbed, "at_event")?,
-        strings(disturbed, "at_end")?,
+        strings(disturbed, disturbed::AT_EVENT)?,
+        strings(disturbed, disturbed::AT_END)?,
     );
     for (map_name, rows) in rows {
         let Some(map) = maps.get(&map_name) else {
@@ -484,8 +485,8 @@ fn positions(
 /// of each policy at the map's largest N_test with a loss, on the diagonal.
 fn first_losses(disturbed: &DataFrame) -> PolarsResult<BTreeMap<String, Vec<usize>>> {
     let groups = GroupKey::of_rows(disturbed)?;
-    let events = optional_u32s(disturbed, "event")?;
-    let episodes = u32s(disturbed, "episode")?;
+    let events = optional_u32s(disturbed, disturbed::EVENT)?;
+    let episodes = u32s(disturbed, episodes::EPISODE)?;
     let lossy = |r: usize| events[r].is_some() && episodes[r] == 0 && on_diagonal(&groups[r]);
     let mut largest: BTreeMap<&str, u32> = BTreeMap::new();
     for r in (0..groups.len()).filter(|&r| lossy(r)) {

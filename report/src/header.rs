@@ -5,6 +5,7 @@
 //! or on runs still learning, says little about the paper's 30,000.
 
 use polars::prelude::*;
+use store::schema::{cell, cells, episodes, training};
 
 use super::columns::{
     PolicyKey, distinct, f64s, group_rows, named_seed, optional_u32s, strings, trained_keys,
@@ -31,7 +32,7 @@ pub struct HeaderTables<'a> {
 pub fn section(report: &mut ReportWriter, tables: &HeaderTables) -> Result<(), ReportError> {
     report.heading(2, "How were the policies trained and tested?");
     let commits = match tables.cells {
-        Some(cells) => distinct(strings(cells, "git_commit")?),
+        Some(cells) => distinct(strings(cells, cells::GIT_COMMIT)?),
         None => Vec::new(),
     };
     let writer = store::provenance::git_commit().to_owned();
@@ -107,7 +108,7 @@ fn commit_list(commits: &[String]) -> String {
 
 /// Episodes per training run (against the paper's) and runs per learned setting.
 fn training_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResult<String> {
-    let n_trains = optional_u32s(cells, "n_train")?;
+    let n_trains = optional_u32s(cells, cell::N_TRAIN)?;
     let learned: Vec<usize> = (0..n_trains.len())
         .filter(|&r| n_trains[r].is_some())
         .collect();
@@ -134,8 +135,8 @@ fn training_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResul
 
 /// The cells table's learned rows grouped by (map, policy, N_train).
 fn learned_settings(cells: &DataFrame) -> PolarsResult<Vec<(Setting, Vec<usize>)>> {
-    let (maps, policies) = (strings(cells, "map")?, strings(cells, "policy")?);
-    let n_trains = optional_u32s(cells, "n_train")?;
+    let (maps, policies) = (strings(cells, cell::MAP)?, strings(cells, cell::POLICY)?);
+    let n_trains = optional_u32s(cells, cell::N_TRAIN)?;
     let keys: Vec<Option<Setting>> = (0..cells.height())
         .map(|r| {
             n_trains[r].map(|n| {
@@ -177,14 +178,14 @@ fn episodes_per_policy(training: &DataFrame) -> PolarsResult<String> {
 
 /// Test episodes per cell and N_test, and T, from the episodes table.
 fn testing_line(episodes: &DataFrame) -> Result<String, ReportError> {
-    let keys = strings(episodes, "cell_key")?;
-    let n_tests = optional_u32s(episodes, "n_test")?;
+    let keys = strings(episodes, cell::KEY)?;
+    let n_tests = optional_u32s(episodes, episodes::N_TEST)?;
     let plays: Vec<(&String, Option<u32>)> = keys.iter().zip(n_tests).collect();
     let counts: Vec<usize> = group_rows(&plays)
         .into_iter()
         .map(|(_, rows)| rows.len())
         .collect();
-    let steps: Vec<usize> = f64s(episodes, "steps")?
+    let steps: Vec<usize> = f64s(episodes, episodes::STEPS)?
         .into_iter()
         .map(|s| s as usize)
         .collect();
@@ -199,8 +200,8 @@ fn testing_line(episodes: &DataFrame) -> Result<String, ReportError> {
 /// cells (each with its training, from its stored configuration), so that a reader sees how
 /// far the estimate that budgeted the sweep was from the bill.
 fn compute_line(cells: &DataFrame) -> PolarsResult<String> {
-    let seconds: f64 = f64s(cells, "wall_seconds")?.iter().sum();
-    let estimated = strings(cells, "config")?
+    let seconds: f64 = f64s(cells, cells::WALL_SECONDS)?.iter().sum();
+    let estimated = strings(cells, cells::CONFIG)?
         .iter()
         .map(|config| serde_json::from_str::<CellConfig>(config).map(|c| c.cost().cpu_seconds()))
         .sum::<Result<f64, _>>();
@@ -222,7 +223,7 @@ fn compute_line(cells: &DataFrame) -> PolarsResult<String> {
 /// Each CPU and kernel build with its count of cells: equal bits on every machine are the
 /// claim, and the report names the machines.
 fn platforms(cells: &DataFrame) -> PolarsResult<String> {
-    let (cpus, kernels) = (strings(cells, "cpu")?, strings(cells, "kernels")?);
+    let (cpus, kernels) = (strings(cells, cells::CPU)?, strings(cells, cells::KERNELS)?);
     let platforms: Vec<String> = cpus
         .iter()
         .zip(&kernels)
@@ -301,8 +302,11 @@ type Setting = (String, PolicyKey);
 
 /// The training table's runs, grouped by learned setting in order.
 fn runs_by_setting(training: &DataFrame) -> PolarsResult<Vec<(Setting, Vec<Run>)>> {
-    let keys = strings(training, "cell_key")?;
-    let (episodes, penalties) = (f64s(training, "episode")?, f64s(training, "penalty")?);
+    let keys = strings(training, cell::KEY)?;
+    let (episodes, penalties) = (
+        f64s(training, training::EPISODE)?,
+        f64s(training, training::PENALTY)?,
+    );
     let settings: Vec<Setting> = trained_keys(training)?;
     let run = |rows: &[usize]| {
         let mut points: Vec<(f64, f64)> =

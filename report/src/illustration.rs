@@ -3,13 +3,13 @@
 //! test episode (the first one of each map in the `snapshots` table).
 
 use polars::prelude::*;
+use store::schema::{cell, episodes, layer, snapshots, trajectories};
 
 use super::chart::grid::{GridFigure, GridPanel, Shade};
 use super::columns::{f64s, strings, u32s};
 use super::motion::maps;
 use super::{ReportError, ReportWriter, file_stem};
 use store::Store;
-use store::schema::layer;
 
 /// The layer of the illustration table holding the agents (value: the agent's index).
 const AGENTS: &str = "agents";
@@ -24,9 +24,9 @@ pub fn section(
 ) -> Result<(), ReportError> {
     report.heading(2, "Map illustration: what does an agent see?");
     let maps = maps(store)?;
-    let keys = strings(snapshots, "cell_key")?;
-    let names = strings(snapshots, "map")?;
-    let n_tests = u32s(snapshots, "n_test")?;
+    let keys = strings(snapshots, cell::KEY)?;
+    let names = strings(snapshots, cell::MAP)?;
+    let n_tests = u32s(snapshots, episodes::N_TEST)?;
     let mut done: Vec<&String> = Vec::new();
     for row in 0..snapshots.height() {
         if done.contains(&&names[row]) {
@@ -65,31 +65,41 @@ fn illustration_frame(
     n_test: u32,
 ) -> PolarsResult<DataFrame> {
     let of_episode = |frame: &DataFrame| {
-        let mask = frame.column("cell_key")?.str()?.equal(key)
-            & frame.column("n_test")?.u32()?.equal(n_test)
-            & frame.column("episode")?.u32()?.equal(0);
+        let mask = frame.column(cell::KEY)?.str()?.equal(key)
+            & frame.column(episodes::N_TEST)?.u32()?.equal(n_test)
+            & frame.column(episodes::EPISODE)?.u32()?.equal(0);
         frame.filter(&mask)
     };
     let snapshot = of_episode(snapshots)?;
-    let step = u32s(&snapshot, "step")?.first().copied().unwrap_or(0);
-    let mut cells = snapshot.select(["layer", "x", "y", "value"])?;
-    let values = cells.column("value")?.cast(&DataType::Float64)?;
+    let step = u32s(&snapshot, snapshots::STEP)?
+        .first()
+        .copied()
+        .unwrap_or(0);
+    let mut cells = snapshot.select([
+        snapshots::LAYER,
+        snapshots::X,
+        snapshots::Y,
+        snapshots::VALUE,
+    ])?;
+    let values = cells.column(snapshots::VALUE)?.cast(&DataType::Float64)?;
     cells.with_column(values)?;
     let episode = of_episode(trajectories)?;
-    let at_step = episode.filter(&episode.column("step")?.u32()?.equal(step))?;
-    let mut agents = at_step.select(["x", "y"])?;
-    let layer = Column::new("layer".into(), vec![AGENTS; agents.height()]);
-    let value = at_step.column("agent")?.cast(&DataType::Float64)?;
-    agents.with_column(value.with_name("value".into()))?;
+    let at_step = episode.filter(&episode.column(trajectories::STEP)?.u32()?.equal(step))?;
+    let mut agents = at_step.select([trajectories::X, trajectories::Y])?;
+    let layer = Column::new(snapshots::LAYER.into(), vec![AGENTS; agents.height()]);
+    let value = at_step
+        .column(trajectories::AGENT)?
+        .cast(&DataType::Float64)?;
+    agents.with_column(value.with_name(snapshots::VALUE.into()))?;
     agents.insert_column(0, layer)?;
     cells.vstack(&agents)
 }
 
 fn figure(frame: &DataFrame, width: usize, height: usize, rmax: f64) -> PolarsResult<GridFigure> {
-    let layers = strings(frame, "layer")?;
-    let xs = u32s(frame, "x")?;
-    let ys = u32s(frame, "y")?;
-    let values = f64s(frame, "value")?;
+    let layers = strings(frame, snapshots::LAYER)?;
+    let xs = u32s(frame, snapshots::X)?;
+    let ys = u32s(frame, snapshots::Y)?;
+    let values = f64s(frame, snapshots::VALUE)?;
     let panel = |name: &str, title: &str| -> GridPanel {
         let rows: Vec<usize> = (0..layers.len()).filter(|&i| layers[i] == name).collect();
         let side_x = rows

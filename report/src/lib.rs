@@ -31,6 +31,7 @@ use polars::prelude::*;
 
 use chart::{ChartError, Figure, render};
 use store::atomic_file::write_atomic;
+use store::schema;
 use store::status::CellState;
 use store::{MissingCell, Store, StoreError, tables};
 use world::Map;
@@ -100,7 +101,7 @@ pub fn write_report(
         &manifest.scenario_hash[..16.min(manifest.scenario_hash.len())],
     ));
     let loaded = StoreTables::load(store)?;
-    let cells = store.optional_table("cells")?;
+    let cells = store.optional_table(schema::cells::TABLE)?;
     let header = header::HeaderTables {
         cells: cells.as_ref(),
         episodes: &loaded.episodes,
@@ -126,12 +127,15 @@ pub fn write_report(
         test_curve,
         ..
     } = loaded;
-    let summary = store.table("summary")?;
+    let summary = store.table(schema::summary::TABLE)?;
     let comparisons = comparison::comparisons(&episodes)?;
     penalty::section(&mut report, &summary, &episodes, &comparisons)?;
     comparison::section(&mut report, &comparisons)?;
     transfer::section(&mut report, &summary)?;
-    if let (Some(disturbed), Some(steps)) = (&disturbed, store.optional_table("disturbed_steps")?) {
+    if let (Some(disturbed), Some(steps)) = (
+        &disturbed,
+        store.optional_table(schema::disturbed_steps::TABLE)?,
+    ) {
         disturbance::section(&mut report, disturbed, &steps, &motion::maps(store)?)?;
     }
     if let Some(training) = &training {
@@ -147,8 +151,8 @@ pub fn write_report(
         behaviour::section(&mut report, motions)?;
     }
     if let (Some(snapshots), Some(trajectories)) = (
-        store.optional_table("snapshots")?,
-        store.optional_table("trajectories")?,
+        store.optional_table(schema::snapshots::TABLE)?,
+        store.optional_table(schema::trajectories::TABLE)?,
     ) {
         illustration::section(&mut report, &snapshots, &trajectories, store)?;
     }
@@ -225,16 +229,16 @@ impl StoreTables {
     /// marker first).
     pub fn load(store: &Store) -> Result<Self, ReportError> {
         store.table_store()?;
-        let motions = match store.optional_table("trajectories")? {
+        let motions = match store.optional_table(schema::trajectories::TABLE)? {
             Some(trajectories) => Some(motion::load(&trajectories, store)?),
             None => None,
         };
         Ok(Self {
-            episodes: store.table("episodes")?,
-            training: store.optional_table("training")?,
+            episodes: store.table(schema::episodes::TABLE)?,
+            training: store.optional_table(schema::training::TABLE)?,
             motions,
-            disturbed: store.optional_table("disturbed")?,
-            test_curve: store.optional_table("test_curve")?,
+            disturbed: store.optional_table(schema::disturbed::TABLE)?,
+            test_curve: store.optional_table(schema::test_curve::TABLE)?,
             store: store.clone(),
         })
     }

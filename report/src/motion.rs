@@ -3,6 +3,7 @@
 //! about the map centre (the open map's tours) and the team's penalty per step.
 
 use std::collections::HashMap;
+use store::schema::{cell, cells, trajectories};
 
 use polars::prelude::*;
 use world::Map;
@@ -17,9 +18,9 @@ use store::Store;
 
 /// The maps of a store by name, from its `cells` table and map files.
 pub fn maps(store: &Store) -> Result<HashMap<String, Map>, ReportError> {
-    let cells = store.table("cells")?;
-    let names = strings(&cells, "map")?;
-    let hashes = strings(&cells, "map_hash")?;
+    let cells = store.table(cells::TABLE)?;
+    let names = strings(&cells, cell::MAP)?;
+    let hashes = strings(&cells, cells::MAP_HASH)?;
     let mut maps = HashMap::new();
     for (name, hash) in names.into_iter().zip(hashes) {
         if maps.contains_key(&name) {
@@ -120,11 +121,11 @@ fn motions(
     maps: &HashMap<String, Map>,
 ) -> Result<Vec<Motion>, ReportError> {
     let groups = GroupKey::of_rows(trajectories)?;
-    let steps = u32s(trajectories, "step")?;
-    let agents = u32s(trajectories, "agent")?;
-    let xs = f64s(trajectories, "x")?;
-    let ys = f64s(trajectories, "y")?;
-    let penalties = f64s(trajectories, "penalty")?;
+    let steps = u32s(trajectories, trajectories::STEP)?;
+    let agents = u32s(trajectories, trajectories::AGENT)?;
+    let xs = f64s(trajectories, trajectories::X)?;
+    let ys = f64s(trajectories, trajectories::Y)?;
+    let penalties = f64s(trajectories, trajectories::PENALTY)?;
     let mut motions = Vec::new();
     for (group, rows) in group_rows(&groups) {
         let Some(map) = maps.get(&group.map) else {

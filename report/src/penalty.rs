@@ -6,6 +6,7 @@
 //! averages one collapsed run with two good ones reads as such.
 
 use polars::prelude::*;
+use store::schema::{cell, episodes, summary};
 
 use super::chart::bars::{BarSeries, GroupedBars, Interval};
 use super::columns::{GroupKey, PolicyKey, distinct, f64s, group_rows, strings, u32s};
@@ -64,7 +65,7 @@ pub fn section(
 
 fn map_rows(summary: &DataFrame) -> Result<Vec<MapRows>, ReportError> {
     let groups = GroupKey::of_rows(summary)?;
-    let episodes = u32s(summary, "episodes")?;
+    let episodes = u32s(summary, summary::EPISODES)?;
     let scaled = |name| -> PolarsResult<Vec<f64>> {
         Ok(f64s(summary, name)?
             .into_iter()
@@ -78,8 +79,8 @@ fn map_rows(summary: &DataFrame) -> Result<Vec<MapRows>, ReportError> {
         scaled("iqm")?,
     );
     let (average_idleness, worst_idleness) = (
-        f64s(summary, "average_idleness_mean")?,
-        f64s(summary, "worst_idleness_mean")?,
+        f64s(summary, summary::AVERAGE_IDLENESS_MEAN)?,
+        f64s(summary, summary::WORST_IDLENESS_MEAN)?,
     );
     let maps: Vec<String> = groups.iter().map(|g| g.map.clone()).collect();
     Ok(group_rows(&maps)
@@ -166,10 +167,12 @@ fn bars_caption(map: &str, log: bool) -> String {
 /// cell's training seed, episodes and mean cumulative penalty (10^6).
 fn runs_frame(episodes: &DataFrame) -> Result<DataFrame, ReportError> {
     let groups = GroupKey::of_rows(episodes)?;
-    let cells = strings(episodes, "cell_key")?;
-    let seeds = episodes.column("training_seed")?.cast(&DataType::UInt64)?;
+    let cells = strings(episodes, cell::KEY)?;
+    let seeds = episodes
+        .column(cell::TRAINING_SEED)?
+        .cast(&DataType::UInt64)?;
     let seeds: Vec<Option<u64>> = seeds.u64()?.iter().collect();
-    let penalties = f64s(episodes, "cumulative_penalty")?;
+    let penalties = f64s(episodes, episodes::CUMULATIVE_PENALTY)?;
     let keys: Vec<(GroupKey, String)> = groups.into_iter().zip(cells).collect();
     let runs = group_rows(&keys);
     let group = |f: fn(&GroupKey) -> String| -> Vec<String> {
@@ -220,8 +223,8 @@ impl RunMeans {
 /// 1.000] from three runs says less than the same from ten.
 fn best_frame(summary: &DataFrame, comparisons: &[Comparison]) -> Result<DataFrame, ReportError> {
     let groups = GroupKey::of_rows(summary)?;
-    let means = f64s(summary, "mean")?;
-    let cells = u32s(summary, "cells")?;
+    let means = f64s(summary, summary::MEAN)?;
+    let cells = u32s(summary, summary::CELLS)?;
     let settings: Vec<(String, u32)> = groups.iter().map(|g| (g.map.clone(), g.n_test)).collect();
     let mut columns = BestColumns::default();
     for ((map, n_test), rows) in group_rows(&settings) {

@@ -9,6 +9,7 @@
 //! points sit at the runs' median CPU of each point, each run's own at its own.
 
 use std::collections::BTreeMap;
+use store::schema::{cell, episodes};
 
 use polars::prelude::*;
 
@@ -62,10 +63,10 @@ pub struct Across {
 
 /// The curves of the `test_curve` table by (map, policy), runs by cell.
 pub fn trained_curves(table: &DataFrame) -> Result<Vec<Trained>, ReportError> {
-    let cells = strings(table, "cell_key")?;
+    let cells = strings(table, cell::KEY)?;
     let episodes = f64s(table, TRAINING_EPISODE)?;
     let cpu = f64s(table, CPU_SECONDS)?;
-    let penalties = f64s(table, "cumulative_penalty")?;
+    let penalties = f64s(table, episodes::CUMULATIVE_PENALTY)?;
     let keys = trained_keys(table)?;
     Ok(group_rows(&keys)
         .into_iter()
@@ -106,7 +107,7 @@ pub fn samples_at(
     at: u64,
     samples: &[Sample],
 ) -> Result<Vec<Sample>, ReportError> {
-    let cells = strings(table, "cell_key")?;
+    let cells = strings(table, cell::KEY)?;
     let episodes = f64s(table, TRAINING_EPISODE)?;
     let mut first: BTreeMap<&str, u64> = BTreeMap::new();
     for (cell, &episode) in cells.iter().zip(&episodes) {

@@ -8,6 +8,7 @@
 //! holds them all (RQ1's open against eight_room).
 
 use std::collections::BTreeMap;
+use store::schema::{cell, training};
 
 use polars::prelude::*;
 
@@ -174,7 +175,10 @@ fn spread(curve: &Curve, label: String) -> Spread {
 /// Each training run's learned policy and its episodes (rows of the training table), runs in
 /// order of first appearance: what the header and a claim's budget read.
 pub(crate) fn episodes_per_run(training: &DataFrame) -> PolarsResult<Vec<(String, usize)>> {
-    let (keys, policies) = (strings(training, "cell_key")?, strings(training, "policy")?);
+    let (keys, policies) = (
+        strings(training, cell::KEY)?,
+        strings(training, cell::POLICY)?,
+    );
     Ok(group_rows(&keys)
         .into_iter()
         .map(|(_, rows)| (policies[rows[0]].clone(), rows.len()))
@@ -184,12 +188,12 @@ pub(crate) fn episodes_per_run(training: &DataFrame) -> PolarsResult<Vec<(String
 /// The training table's penalties (10^6) by (map, policy) and, within, by run (cell), each
 /// run sorted by episode.
 fn runs_of(training: &DataFrame) -> Result<Vec<(Trained, RunsByCell)>, ReportError> {
-    let cells = strings(training, "cell_key")?;
-    let episodes: Vec<u64> = f64s(training, "episode")?
+    let cells = strings(training, cell::KEY)?;
+    let episodes: Vec<u64> = f64s(training, training::EPISODE)?
         .into_iter()
         .map(|e| e as u64)
         .collect();
-    let penalties = f64s(training, "penalty")?;
+    let penalties = f64s(training, training::PENALTY)?;
     let keys: Vec<Trained> = trained_keys(training)?;
     Ok(group_rows(&keys)
         .into_iter()

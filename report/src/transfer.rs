@@ -2,6 +2,7 @@
 //! N_train x N_test matrix of mean penalty, MA-G-PPO and MA-PPO side by side.
 
 use polars::prelude::*;
+use store::schema::summary;
 
 use super::chart::heatmap::{HeatMaps, HeatPanel};
 use super::columns::{GroupKey, distinct, f64s};
@@ -10,7 +11,7 @@ use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 pub fn section(report: &mut ReportWriter, summary: &DataFrame) -> Result<(), ReportError> {
     report.heading(2, "Trained with N_train agents, tested with N_test: does a policy carry over to other team sizes?");
     let groups = GroupKey::of_rows(summary)?;
-    let means = f64s(summary, "mean")?;
+    let means = f64s(summary, summary::MEAN)?;
     let learned: Vec<(GroupKey, f64)> = groups
         .into_iter()
         .zip(means)

@@ -7,6 +7,7 @@
 //! under two conditions are drawn as pairs (`comparison::blocks`).
 
 use std::collections::{BTreeMap, HashMap};
+use store::schema::{cell, training};
 
 use polars::prelude::*;
 
@@ -610,12 +611,12 @@ fn curve_samples(
     n_train: u32,
     (first, last): (u64, u64),
 ) -> Result<CurveSamples, ReportError> {
-    let maps = strings(training, "map")?;
-    let policies = strings(training, "policy")?;
-    let n_trains = optional_u32s(training, "n_train")?;
-    let cells = strings(training, "cell_key")?;
+    let maps = strings(training, cell::MAP)?;
+    let policies = strings(training, cell::POLICY)?;
+    let n_trains = optional_u32s(training, cell::N_TRAIN)?;
+    let cells = strings(training, cell::KEY)?;
     let episodes = episode_numbers(training)?;
-    let penalties = f64s(training, "penalty")?;
+    let penalties = f64s(training, training::PENALTY)?;
     let mut by_policy: BTreeMap<String, Vec<usize>> = BTreeMap::new();
     for row in 0..training.height() {
         if maps[row] == map
@@ -651,7 +652,9 @@ fn curve_samples(
 }
 
 fn episode_numbers(training: &DataFrame) -> PolarsResult<Vec<u64>> {
-    let column = training.column("episode")?.cast(&DataType::UInt64)?;
+    let column = training
+        .column(training::EPISODE)?
+        .cast(&DataType::UInt64)?;
     Ok(column
         .u64()?
         .iter()

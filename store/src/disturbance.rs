@@ -7,6 +7,7 @@ use polars::prelude::*;
 use super::StoreError;
 use super::tables::{cell_columns, column};
 use crate::adaptation::Adaptation;
+use crate::schema::{disturbed, disturbed_steps, episodes};
 use plan::cell::CellConfig;
 
 /// One test episode played undisturbed or under one disturbance.
@@ -41,25 +42,28 @@ pub fn disturbed_frame(
     };
     let mut columns = cell_columns(key, config, rows.len());
     columns.extend([
-        Column::new("n_test".into(), column(rows, |r| r.n_test)),
-        Column::new("episode".into(), column(rows, |r| r.episode)),
-        Column::new("test_seed".into(), column(rows, |r| r.test_seed)),
-        Column::new("disturbance".into(), text(|r| &r.disturbance)),
-        Column::new("event".into(), column(rows, |r| r.event)),
-        Column::new("lost".into(), text(|r| &r.lost)),
+        Column::new(episodes::N_TEST.into(), column(rows, |r| r.n_test)),
+        Column::new(episodes::EPISODE.into(), column(rows, |r| r.episode)),
+        Column::new(episodes::TEST_SEED.into(), column(rows, |r| r.test_seed)),
+        Column::new(disturbed::DISTURBANCE.into(), text(|r| &r.disturbance)),
+        Column::new(disturbed::EVENT.into(), column(rows, |r| r.event)),
+        Column::new(disturbed::LOST.into(), text(|r| &r.lost)),
         Column::new(
-            "cumulative_penalty".into(),
+            episodes::CUMULATIVE_PENALTY.into(),
             column(rows, |r| r.cumulative_penalty),
         ),
-        Column::new("penalty_before".into(), measure(|a| a.before)),
-        Column::new("penalty_after".into(), measure(|a| a.after)),
-        Column::new("last_quarter".into(), measure(|a| Some(a.last_quarter))),
+        Column::new(disturbed::PENALTY_BEFORE.into(), measure(|a| a.before)),
+        Column::new(disturbed::PENALTY_AFTER.into(), measure(|a| a.after)),
         Column::new(
-            "settle_steps".into(),
+            disturbed::LAST_QUARTER.into(),
+            measure(|a| Some(a.last_quarter)),
+        ),
+        Column::new(
+            disturbed::SETTLE_STEPS.into(),
             column(rows, |r| r.adaptation.settle_steps),
         ),
-        Column::new("at_event".into(), text(|r| &r.at_event)),
-        Column::new("at_end".into(), text(|r| &r.at_end)),
+        Column::new(disturbed::AT_EVENT.into(), text(|r| &r.at_event)),
+        Column::new(disturbed::AT_END.into(), text(|r| &r.at_end)),
     ]);
     Ok(DataFrame::new(rows.len(), columns)?)
 }
@@ -80,14 +84,14 @@ pub fn disturbed_steps_frame(
         .collect();
     let mut columns = cell_columns(key, config, points.len());
     columns.extend([
-        Column::new("n_test".into(), column(&points, |p| p.0.n_test)),
+        Column::new(episodes::N_TEST.into(), column(&points, |p| p.0.n_test)),
         Column::new(
-            "disturbance".into(),
+            disturbed::DISTURBANCE.into(),
             column(&points, |p| p.0.disturbance.as_str()),
         ),
-        Column::new("episode".into(), column(&points, |p| p.0.episode)),
-        Column::new("step".into(), column(&points, |p| p.1)),
-        Column::new("penalty".into(), column(&points, |p| p.2)),
+        Column::new(episodes::EPISODE.into(), column(&points, |p| p.0.episode)),
+        Column::new(disturbed_steps::STEP.into(), column(&points, |p| p.1)),
+        Column::new(disturbed_steps::PENALTY.into(), column(&points, |p| p.2)),
     ]);
     Ok(DataFrame::new(points.len(), columns)?)
 }

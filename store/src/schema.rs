@@ -1,11 +1,285 @@
-//! Names that the tables' writers (the engine) and their readers (the report, the tests) share
-//! beyond a table's own columns, so that renaming one is a compile error on both sides.
+//! The column names of every store table, in one place: the writers (the store, the engine,
+//! the report's behaviour replay) and the readers (the report, the audit, the marl-eval export,
+//! the tests) name columns only through these constants, so a column renamed here is renamed
+//! everywhere, and a constant removed is a compile error wherever a table still uses it.
+//!
+//! Each module is one table or one group of columns that several tables share, and its
+//! `columns()` is the table's whole header in order (an end-to-end test holds every table a
+//! sweep writes to it).
 
-/// The columns a test curve adds to an episodes table's (`test_curve` table).
+/// The columns that name a cell, first in every per-cell table; the summary keeps the map,
+/// the policy and `n_train`.
+pub mod cell {
+    pub const KEY: &str = "cell_key";
+    pub const MAP: &str = "map";
+    /// The policy's label (`ma-g-ppo@fast-v2`, `gcs`).
+    pub const POLICY: &str = "policy";
+    /// The team size a learned policy trained with; null for a baseline.
+    pub const N_TRAIN: &str = "n_train";
+    pub const TRAINING_SEED: &str = "training_seed";
+
+    pub const COLUMNS: [&str; 5] = [KEY, MAP, POLICY, N_TRAIN, TRAINING_SEED];
+}
+
+/// One test episode's columns: the `episodes` table is [`cell`] then these; the test curve and
+/// the disturbed tables share its names.
+pub mod episodes {
+    pub const TABLE: &str = "episodes";
+    /// The team size the episode was played with.
+    pub const N_TEST: &str = "n_test";
+    pub const EPISODE: &str = "episode";
+    pub const TEST_SEED: &str = "test_seed";
+    pub const CUMULATIVE_PENALTY: &str = "cumulative_penalty";
+    pub const AVERAGE_IDLENESS: &str = "average_idleness";
+    pub const WORST_IDLENESS: &str = "worst_idleness";
+    pub const STEPS: &str = "steps";
+
+    pub const EPISODE_COLUMNS: [&str; 7] = [
+        N_TEST,
+        EPISODE,
+        TEST_SEED,
+        CUMULATIVE_PENALTY,
+        AVERAGE_IDLENESS,
+        WORST_IDLENESS,
+        STEPS,
+    ];
+
+    pub fn columns() -> Vec<&'static str> {
+        [&super::cell::COLUMNS[..], &EPISODE_COLUMNS].concat()
+    }
+}
+
+/// One row per finished cell: its resolved configuration, hashes and provenance.
+pub mod cells {
+    use super::cell;
+
+    pub const TABLE: &str = "cells";
+    pub const SCENARIO: &str = "scenario";
+    pub const MAP_SOURCE: &str = "map_source";
+    pub const MAP_HASH: &str = "map_hash";
+    pub const REPETITION: &str = "repetition";
+    /// The cell's configuration as JSON.
+    pub const CONFIG: &str = "config";
+    /// A learned cell's training configuration, resolved from profile and overrides, as JSON.
+    pub const TRAINING_CONFIG: &str = "training_config";
+    pub const EPISODES_HASH: &str = "episodes_hash";
+    pub const WEIGHTS_HASH: &str = "weights_hash";
+    pub const TRAINING_HASH: &str = "training_hash";
+    pub const CODE_VERSION: &str = "code_version";
+    pub const GIT_COMMIT: &str = "git_commit";
+    pub const HOST: &str = "host";
+    pub const CPU: &str = "cpu";
+    pub const KERNELS: &str = "kernels";
+    pub const STARTED: &str = "started";
+    pub const FINISHED: &str = "finished";
+    pub const WALL_SECONDS: &str = "wall_seconds";
+
+    pub fn columns() -> Vec<&'static str> {
+        vec![
+            cell::KEY,
+            SCENARIO,
+            cell::MAP,
+            MAP_SOURCE,
+            MAP_HASH,
+            cell::POLICY,
+            cell::N_TRAIN,
+            REPETITION,
+            cell::TRAINING_SEED,
+            CONFIG,
+            TRAINING_CONFIG,
+            EPISODES_HASH,
+            WEIGHTS_HASH,
+            TRAINING_HASH,
+            CODE_VERSION,
+            GIT_COMMIT,
+            HOST,
+            CPU,
+            KERNELS,
+            STARTED,
+            FINISHED,
+            WALL_SECONDS,
+        ]
+    }
+}
+
+/// A learned cell's training log, one row per training episode (the `training` table is
+/// [`cell`] then [`training::LOG_COLUMNS`]).
+pub mod training {
+    pub const TABLE: &str = "training";
+    pub const EPISODE: &str = "episode";
+    /// The team size of the episode.
+    pub const AGENTS: &str = "agents";
+    /// The episode's cumulative penalty.
+    pub const PENALTY: &str = "penalty";
+    pub const LOSS: &str = "loss";
+    pub const POLICY_LOSS: &str = "policy_loss";
+    pub const VALUE_LOSS: &str = "value_loss";
+    pub const ENTROPY: &str = "entropy";
+    pub const ATTENTION_ENTROPY: &str = "attention_entropy";
+    pub const APPROX_KL: &str = "approx_kl";
+    pub const CLIP_FRACTION: &str = "clip_fraction";
+    pub const GRAD_NORM: &str = "grad_norm";
+    pub const LEARNING_RATE: &str = "learning_rate";
+    pub const STEPS_PER_SECOND: &str = "steps_per_second";
+    pub const ROLLOUT_SECONDS: &str = "rollout_seconds";
+    pub const UPDATE_SECONDS: &str = "update_seconds";
+    pub const WALL_SECONDS: &str = "wall_seconds";
+
+    /// The columns that measure time: they differ between two runs of the same training,
+    /// every other column is the same bit for bit.
+    pub const TIMING_COLUMNS: [&str; 4] = [
+        STEPS_PER_SECOND,
+        ROLLOUT_SECONDS,
+        UPDATE_SECONDS,
+        WALL_SECONDS,
+    ];
+
+    pub const LOG_COLUMNS: [&str; 16] = [
+        EPISODE,
+        AGENTS,
+        PENALTY,
+        LOSS,
+        POLICY_LOSS,
+        VALUE_LOSS,
+        ENTROPY,
+        ATTENTION_ENTROPY,
+        APPROX_KL,
+        CLIP_FRACTION,
+        GRAD_NORM,
+        LEARNING_RATE,
+        STEPS_PER_SECOND,
+        ROLLOUT_SECONDS,
+        UPDATE_SECONDS,
+        WALL_SECONDS,
+    ];
+
+    pub fn columns() -> Vec<&'static str> {
+        [&super::cell::COLUMNS[..], &LOG_COLUMNS].concat()
+    }
+}
+
+/// The test curve: a learned cell's test episodes at every evaluation point of its training,
+/// [`cell`], these, then [`episodes::EPISODE_COLUMNS`].
+///
+/// [`episodes::EPISODE_COLUMNS`]: super::episodes::EPISODE_COLUMNS
 pub mod test_curve {
+    pub const TABLE: &str = "test_curve";
+    /// Training episodes done when the policy was tested.
     pub const TRAINING_EPISODE: &str = "training_episode";
     pub const CPU_SECONDS: &str = "cpu_seconds";
     pub const WALL_SECONDS: &str = "wall_seconds";
+
+    pub const POINT_COLUMNS: [&str; 3] = [TRAINING_EPISODE, CPU_SECONDS, WALL_SECONDS];
+
+    pub fn columns() -> Vec<&'static str> {
+        [
+            &super::cell::COLUMNS[..],
+            &POINT_COLUMNS,
+            &super::episodes::EPISODE_COLUMNS,
+        ]
+        .concat()
+    }
+}
+
+/// One row per (map, policy, N_train, N_test): the run-level statistics of the test episodes.
+pub mod summary {
+    use super::{cell, episodes};
+
+    pub const TABLE: &str = "summary";
+    /// Cells (training runs) in the group.
+    pub const CELLS: &str = "cells";
+    pub const EPISODES: &str = "episodes";
+    pub const MEAN: &str = "mean";
+    pub const STD: &str = "std";
+    pub const MEDIAN: &str = "median";
+    pub const IQM: &str = "iqm";
+    pub const MEAN_CI_LOW: &str = "mean_ci_low";
+    pub const MEAN_CI_HIGH: &str = "mean_ci_high";
+    pub const IQM_CI_LOW: &str = "iqm_ci_low";
+    pub const IQM_CI_HIGH: &str = "iqm_ci_high";
+    pub const AVERAGE_IDLENESS_MEAN: &str = "average_idleness_mean";
+    pub const AVERAGE_IDLENESS_CI_LOW: &str = "average_idleness_ci_low";
+    pub const AVERAGE_IDLENESS_CI_HIGH: &str = "average_idleness_ci_high";
+    pub const WORST_IDLENESS_MEAN: &str = "worst_idleness_mean";
+    pub const WORST_IDLENESS_CI_LOW: &str = "worst_idleness_ci_low";
+    pub const WORST_IDLENESS_CI_HIGH: &str = "worst_idleness_ci_high";
+
+    pub fn columns() -> Vec<&'static str> {
+        vec![
+            cell::MAP,
+            cell::POLICY,
+            cell::N_TRAIN,
+            episodes::N_TEST,
+            CELLS,
+            EPISODES,
+            MEAN,
+            STD,
+            MEDIAN,
+            IQM,
+            MEAN_CI_LOW,
+            MEAN_CI_HIGH,
+            IQM_CI_LOW,
+            IQM_CI_HIGH,
+            AVERAGE_IDLENESS_MEAN,
+            AVERAGE_IDLENESS_CI_LOW,
+            AVERAGE_IDLENESS_CI_HIGH,
+            WORST_IDLENESS_MEAN,
+            WORST_IDLENESS_CI_LOW,
+            WORST_IDLENESS_CI_HIGH,
+        ]
+    }
+}
+
+/// Every robot's cell at every step of the first test episodes of repetition 0.
+pub mod trajectories {
+    use super::{cell, episodes};
+
+    pub const TABLE: &str = "trajectories";
+    pub const STEP: &str = "step";
+    pub const AGENT: &str = "agent";
+    pub const X: &str = "x";
+    pub const Y: &str = "y";
+    /// The map's total penalty after the step.
+    pub const PENALTY: &str = "penalty";
+
+    pub fn columns() -> Vec<&'static str> {
+        let own = [
+            episodes::N_TEST,
+            episodes::EPISODE,
+            STEP,
+            AGENT,
+            X,
+            Y,
+            PENALTY,
+        ];
+        [&cell::COLUMNS[..], &own].concat()
+    }
+}
+
+/// Maps seen at a few steps of the same episodes, one row per grid cell and layer.
+pub mod snapshots {
+    use super::{cell, episodes};
+
+    pub const TABLE: &str = "snapshots";
+    pub const STEP: &str = "step";
+    /// One of [`layer`](super::layer).
+    pub const LAYER: &str = "layer";
+    pub const X: &str = "x";
+    pub const Y: &str = "y";
+    pub const VALUE: &str = "value";
+
+    pub fn columns() -> Vec<&'static str> {
+        let own = [
+            episodes::N_TEST,
+            episodes::EPISODE,
+            STEP,
+            LAYER,
+            X,
+            Y,
+            VALUE,
+        ];
+        [&cell::COLUMNS[..], &own].concat()
+    }
 }
 
 /// Layer names of the `snapshots` table.
@@ -16,4 +290,95 @@ pub mod layer {
     pub const LOCAL: &str = "local";
     /// Agent 0's mini-map, in the paper's codes.
     pub const MINI: &str = "mini";
+}
+
+/// A scenario with disturbances: one row per test episode, undisturbed (`none`) and under each
+/// disturbance, with the adaptation measures.
+pub mod disturbed {
+    use super::{cell, episodes};
+
+    pub const TABLE: &str = "disturbed";
+    /// The disturbance's name, or `none` ([`plan::disturbance::UNDISTURBED`]).
+    pub const DISTURBANCE: &str = "disturbance";
+    /// The step after which robots were lost; null when none was.
+    pub const EVENT: &str = "event";
+    /// The lost robots' indices, space-separated.
+    pub const LOST: &str = "lost";
+    pub const PENALTY_BEFORE: &str = "penalty_before";
+    pub const PENALTY_AFTER: &str = "penalty_after";
+    pub const LAST_QUARTER: &str = "last_quarter";
+    pub const SETTLE_STEPS: &str = "settle_steps";
+    /// Robot cells `x,y` at the event and at the end, space-separated.
+    pub const AT_EVENT: &str = "at_event";
+    pub const AT_END: &str = "at_end";
+
+    pub fn columns() -> Vec<&'static str> {
+        let own = [
+            episodes::N_TEST,
+            episodes::EPISODE,
+            episodes::TEST_SEED,
+            DISTURBANCE,
+            EVENT,
+            LOST,
+            episodes::CUMULATIVE_PENALTY,
+            PENALTY_BEFORE,
+            PENALTY_AFTER,
+            LAST_QUARTER,
+            SETTLE_STEPS,
+            AT_EVENT,
+            AT_END,
+        ];
+        [&cell::COLUMNS[..], &own].concat()
+    }
+}
+
+/// Each disturbed-table episode's penalty curve, binned: one row per point.
+pub mod disturbed_steps {
+    use super::{cell, disturbed, episodes};
+
+    pub const TABLE: &str = "disturbed_steps";
+    pub const STEP: &str = "step";
+    pub const PENALTY: &str = "penalty";
+
+    pub fn columns() -> Vec<&'static str> {
+        let own = [
+            episodes::N_TEST,
+            disturbed::DISTURBANCE,
+            episodes::EPISODE,
+            STEP,
+            PENALTY,
+        ];
+        [&cell::COLUMNS[..], &own].concat()
+    }
+}
+
+/// The behaviour claims' measures of replayed test episodes (written by the report's replay).
+pub mod behaviour_episodes {
+    use super::{cell, cells, episodes};
+
+    pub const TABLE: &str = "behaviour_episodes";
+    /// The episode's stationary robots.
+    pub const STATIONARY: &str = "stationary";
+    /// The episode's touring robots.
+    pub const TOURING: &str = "touring";
+    /// Whether the team's motion is periodic.
+    pub const PERIODIC: &str = "periodic";
+    /// Which recorded episodes the roles were pooled with.
+    pub const POOL: &str = "pool";
+
+    pub fn columns() -> Vec<&'static str> {
+        vec![
+            cell::MAP,
+            cell::POLICY,
+            cell::N_TRAIN,
+            episodes::N_TEST,
+            cell::KEY,
+            cells::REPETITION,
+            episodes::EPISODE,
+            STATIONARY,
+            TOURING,
+            PERIODIC,
+            POOL,
+        ]
+    }
 }

@@ -29,6 +29,7 @@ use super::{
     CellRecord, MANIFEST_FILE, MAX_FILE_BYTES, SCENARIO_FILE, Store, StoreError, read, read_json,
     write,
 };
+use crate::schema::{cell, cells};
 use plan::scenario::Output;
 
 /// The file that makes a folder a table store.
@@ -194,7 +195,7 @@ pub(super) fn record_of_row(
     key: &str,
 ) -> Result<CellRecord, StoreError> {
     let corrupt = |e: polars::prelude::PolarsError| StoreError::corrupt(path, e);
-    let keys = strings(cells, "cell_key").map_err(corrupt)?;
+    let keys = strings(cells, cell::KEY).map_err(corrupt)?;
     let row = keys
         .iter()
         .position(|k| k == key)
@@ -202,22 +203,22 @@ pub(super) fn record_of_row(
     let text = |name: &str| -> Result<String, StoreError> {
         Ok(strings(cells, name).map_err(corrupt)?.swap_remove(row))
     };
-    let config = serde_json::from_str(&text("config")?)
+    let config = serde_json::from_str(&text(cells::CONFIG)?)
         .map_err(|e| StoreError::corrupt(path, format!("cell {key}'s config: {e}")))?;
     Ok(CellRecord {
         key: key.to_owned(),
-        scenario: text("scenario")?,
-        map_source: text("map_source")?,
+        scenario: text(cells::SCENARIO)?,
+        map_source: text(cells::MAP_SOURCE)?,
         config,
-        code_version: text("code_version")?,
-        git_commit: text("git_commit")?,
+        code_version: text(cells::CODE_VERSION)?,
+        git_commit: text(cells::GIT_COMMIT)?,
         sources: String::new(),
-        host: text("host")?,
-        cpu: text("cpu")?,
-        kernels: text("kernels")?,
-        started: text("started")?,
-        finished: text("finished")?,
-        wall_seconds: f64s(cells, "wall_seconds").map_err(corrupt)?[row],
+        host: text(cells::HOST)?,
+        cpu: text(cells::CPU)?,
+        kernels: text(cells::KERNELS)?,
+        started: text(cells::STARTED)?,
+        finished: text(cells::FINISHED)?,
+        wall_seconds: f64s(cells, cells::WALL_SECONDS).map_err(corrupt)?[row],
         files: BTreeMap::new(),
         sizes: BTreeMap::new(),
         taken_from: None,

@@ -9,6 +9,7 @@ use polars::prelude::*;
 use super::StoreError;
 use super::record::CellRecord;
 use crate::atomic_file::write_atomic;
+use crate::schema::{cell, cells, episodes};
 use plan::cell::CellConfig;
 use policies::checkpoint::WEIGHTS_FILE;
 
@@ -26,17 +27,14 @@ pub struct EpisodeRow {
     pub steps: u32,
 }
 
-/// The names of [`cell_columns`].
-pub const CELL_COLUMNS: [&str; 5] = ["cell_key", "map", "policy", "n_train", "training_seed"];
-
-/// The columns that name a cell in every per-cell table.
+/// The columns that name a cell in every per-cell table ([`cell::COLUMNS`]).
 pub fn cell_columns(key: &str, config: &CellConfig, rows: usize) -> Vec<Column> {
     vec![
-        Column::new(CELL_COLUMNS[0].into(), vec![key; rows]),
-        Column::new(CELL_COLUMNS[1].into(), vec![config.map.name.as_str(); rows]),
-        Column::new(CELL_COLUMNS[2].into(), vec![config.policy.label(); rows]),
-        Column::new(CELL_COLUMNS[3].into(), vec![config.n_train; rows]),
-        Column::new(CELL_COLUMNS[4].into(), vec![config.training_seed; rows]),
+        Column::new(cell::KEY.into(), vec![key; rows]),
+        Column::new(cell::MAP.into(), vec![config.map.name.as_str(); rows]),
+        Column::new(cell::POLICY.into(), vec![config.policy.label(); rows]),
+        Column::new(cell::N_TRAIN.into(), vec![config.n_train; rows]),
+        Column::new(cell::TRAINING_SEED.into(), vec![config.training_seed; rows]),
     ]
 }
 
@@ -48,19 +46,22 @@ pub fn episodes_frame(
 ) -> Result<DataFrame, StoreError> {
     let mut columns = cell_columns(key, config, rows.len());
     columns.extend([
-        Column::new("n_test".into(), column(rows, |r| r.n_test)),
-        Column::new("episode".into(), column(rows, |r| r.episode)),
-        Column::new("test_seed".into(), column(rows, |r| r.test_seed)),
+        Column::new(episodes::N_TEST.into(), column(rows, |r| r.n_test)),
+        Column::new(episodes::EPISODE.into(), column(rows, |r| r.episode)),
+        Column::new(episodes::TEST_SEED.into(), column(rows, |r| r.test_seed)),
         Column::new(
-            "cumulative_penalty".into(),
+            episodes::CUMULATIVE_PENALTY.into(),
             column(rows, |r| r.cumulative_penalty),
         ),
         Column::new(
-            "average_idleness".into(),
+            episodes::AVERAGE_IDLENESS.into(),
             column(rows, |r| r.average_idleness),
         ),
-        Column::new("worst_idleness".into(), column(rows, |r| r.worst_idleness)),
-        Column::new("steps".into(), column(rows, |r| r.steps)),
+        Column::new(
+            episodes::WORST_IDLENESS.into(),
+            column(rows, |r| r.worst_idleness),
+        ),
+        Column::new(episodes::STEPS.into(), column(rows, |r| r.steps)),
     ]);
     Ok(DataFrame::new(rows.len(), columns)?)
 }
@@ -68,13 +69,13 @@ pub fn episodes_frame(
 /// The rows of an episodes table (a cell's or the sweep's) as `episodes_frame` wrote them;
 /// a null anywhere is an error.
 pub fn episode_rows(frame: &DataFrame) -> Result<Vec<EpisodeRow>, StoreError> {
-    let n_test = frame.column("n_test")?.u32()?;
-    let episode = frame.column("episode")?.u32()?;
-    let test_seed = frame.column("test_seed")?.u64()?;
-    let penalty = frame.column("cumulative_penalty")?.f64()?;
-    let average_idleness = frame.column("average_idleness")?.f64()?;
-    let worst_idleness = frame.column("worst_idleness")?.u32()?;
-    let steps = frame.column("steps")?.u32()?;
+    let n_test = frame.column(episodes::N_TEST)?.u32()?;
+    let episode = frame.column(episodes::EPISODE)?.u32()?;
+    let test_seed = frame.column(episodes::TEST_SEED)?.u64()?;
+    let penalty = frame.column(episodes::CUMULATIVE_PENALTY)?.f64()?;
+    let average_idleness = frame.column(episodes::AVERAGE_IDLENESS)?.f64()?;
+    let worst_idleness = frame.column(episodes::WORST_IDLENESS)?.u32()?;
+    let steps = frame.column(episodes::STEPS)?.u32()?;
     let row = |i: usize| -> PolarsResult<EpisodeRow> {
         Ok(EpisodeRow {
             n_test: n_test.get(i).ok_or_else(missing_value)?,
@@ -121,52 +122,70 @@ pub fn cells_frame(records: &[CellRecord]) -> Result<DataFrame, StoreError> {
     let file_hash =
         |name: &str| -> Vec<Option<String>> { column(records, |r| r.files.get(name).cloned()) };
     let columns = vec![
-        Column::new("cell_key".into(), column(records, |r| r.key.clone())),
-        Column::new("scenario".into(), column(records, |r| r.scenario.clone())),
-        Column::new("map".into(), column(records, |r| r.config.map.name.clone())),
+        Column::new(cell::KEY.into(), column(records, |r| r.key.clone())),
         Column::new(
-            "map_source".into(),
+            cells::SCENARIO.into(),
+            column(records, |r| r.scenario.clone()),
+        ),
+        Column::new(
+            cell::MAP.into(),
+            column(records, |r| r.config.map.name.clone()),
+        ),
+        Column::new(
+            cells::MAP_SOURCE.into(),
             column(records, |r| r.map_source.clone()),
         ),
         Column::new(
-            "map_hash".into(),
+            cells::MAP_HASH.into(),
             column(records, |r| r.config.map.hash.clone()),
         ),
         Column::new(
-            "policy".into(),
+            cell::POLICY.into(),
             column(records, |r| r.config.policy.label()),
         ),
-        Column::new("n_train".into(), column(records, |r| r.config.n_train)),
+        Column::new(cell::N_TRAIN.into(), column(records, |r| r.config.n_train)),
         Column::new(
-            "repetition".into(),
+            cells::REPETITION.into(),
             column(records, |r| r.config.repetition),
         ),
         Column::new(
-            "training_seed".into(),
+            cell::TRAINING_SEED.into(),
             column(records, |r| r.config.training_seed),
         ),
-        Column::new("config".into(), configs),
+        Column::new(cells::CONFIG.into(), configs),
         Column::new(
-            "training_config".into(),
+            cells::TRAINING_CONFIG.into(),
             column(records, |r| resolved_training(&r.config)),
         ),
-        Column::new("episodes_hash".into(), file_hash(super::EPISODES_FILE)),
-        Column::new("weights_hash".into(), file_hash(WEIGHTS_FILE)),
-        Column::new("training_hash".into(), file_hash(super::TRAINING_FILE)),
+        Column::new(cells::EPISODES_HASH.into(), file_hash(super::EPISODES_FILE)),
+        Column::new(cells::WEIGHTS_HASH.into(), file_hash(WEIGHTS_FILE)),
+        Column::new(cells::TRAINING_HASH.into(), file_hash(super::TRAINING_FILE)),
         Column::new(
-            "code_version".into(),
+            cells::CODE_VERSION.into(),
             column(records, |r| r.code_version.clone()),
         ),
         Column::new(
-            "git_commit".into(),
+            cells::GIT_COMMIT.into(),
             column(records, |r| r.git_commit.clone()),
         ),
-        Column::new("host".into(), column(records, |r| r.host.clone())),
-        Column::new("cpu".into(), column(records, |r| r.cpu.clone())),
-        Column::new("kernels".into(), column(records, |r| r.kernels.clone())),
-        Column::new("started".into(), column(records, |r| r.started.clone())),
-        Column::new("finished".into(), column(records, |r| r.finished.clone())),
-        Column::new("wall_seconds".into(), column(records, |r| r.wall_seconds)),
+        Column::new(cells::HOST.into(), column(records, |r| r.host.clone())),
+        Column::new(cells::CPU.into(), column(records, |r| r.cpu.clone())),
+        Column::new(
+            cells::KERNELS.into(),
+            column(records, |r| r.kernels.clone()),
+        ),
+        Column::new(
+            cells::STARTED.into(),
+            column(records, |r| r.started.clone()),
+        ),
+        Column::new(
+            cells::FINISHED.into(),
+            column(records, |r| r.finished.clone()),
+        ),
+        Column::new(
+            cells::WALL_SECONDS.into(),
+            column(records, |r| r.wall_seconds),
+        ),
     ];
     Ok(DataFrame::new(records.len(), columns)?)
 }

@@ -16,6 +16,7 @@ use std::path::PathBuf;
 use polars::prelude::{ChunkCompareEq, DataFrame};
 
 use super::columns::{optional_strings, strings};
+use super::schema::{cell, cells};
 use super::table_store::record_of_row;
 use super::tables::parquet_bytes;
 use super::{CellRecord, EPISODES_FILE, Store, StoreError, TRAINING_FILE, per_cell_file};
@@ -23,8 +24,8 @@ use plan::scenario::Output;
 
 /// The files whose hashes the cells table keeps, by its column.
 const HASHED: [(&str, &str); 2] = [
-    (EPISODES_FILE, "episodes_hash"),
-    (TRAINING_FILE, "training_hash"),
+    (EPISODES_FILE, cells::EPISODES_HASH),
+    (TRAINING_FILE, cells::TRAINING_HASH),
 ];
 
 /// A table store opened to take cells from: its files checked against its marker once, its
@@ -54,7 +55,7 @@ impl TakenTables {
             .root()
             .join(format!("{}.parquet", Output::Cells.name()));
         let corrupt = |e| StoreError::corrupt(&cells_path, e);
-        let keys = strings(&cells, "cell_key").map_err(corrupt)?;
+        let keys = strings(&cells, cell::KEY).map_err(corrupt)?;
         let rows = keys
             .into_iter()
             .enumerate()
@@ -93,7 +94,7 @@ impl TakenTables {
         let mut record = record_of_row(&self.cells, &self.cells_path, key)?;
         let mut files = Vec::new();
         for (file, table) in &self.per_cell {
-            let rows = table.filter(&table.column("cell_key")?.str()?.equal(key))?;
+            let rows = table.filter(&table.column(cell::KEY)?.str()?.equal(key))?;
             if rows.height() > 0 {
                 files.push((*file, parquet_bytes(&rows)?));
             }

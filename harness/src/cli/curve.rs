@@ -2,6 +2,7 @@
 //! episodes with the wall time at the bin's end.
 
 use std::path::PathBuf;
+use store::schema::training;
 
 use polars::prelude::*;
 
@@ -28,8 +29,8 @@ pub fn run(args: CurveArgs) -> anyhow::Result<()> {
         let values = log.column(name)?.cast(&DataType::Float64)?;
         Ok(values.f64()?.into_no_null_iter().collect())
     };
-    let (episodes, wall) = (column("episode")?, column("wall_seconds")?);
-    let (penalty, entropy) = (column("penalty")?, column("entropy")?);
+    let (episodes, wall) = (column(training::EPISODE)?, column(training::WALL_SECONDS)?);
+    let (penalty, entropy) = (column(training::PENALTY)?, column(training::ENTROPY)?);
     println!(
         "{:>10} {:>12} {:>22} {:>10}",
         "episodes", "wall_s", "mean_penalty_x1e6", "entropy"

@@ -76,6 +76,11 @@ fn every_policy_meets_the_same_disturbance_and_claims_and_report_read_it() {
         "--report-to",
         dir.join("reports").to_str().unwrap(),
     ]));
+    let checked = crate::schema::assert_tables_follow_the_schema(&store);
+    assert!(
+        checked.contains(&"disturbed_steps".to_owned()),
+        "{checked:?}"
+    );
     let disturbed = read_table(&store, "disturbed");
     // 4 baseline cells and 8 learned ones, 2 N_test x 3 episodes x (none + 2 disturbances).
     assert_eq!(disturbed.height(), 12 * 2 * 3 * 3);

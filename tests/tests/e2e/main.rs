@@ -20,6 +20,7 @@ mod report;
 mod run_command;
 mod run_level_claims;
 mod scale;
+mod schema;
 mod slurm;
 mod sweep;
 mod train_command;

@@ -73,6 +73,7 @@ impl Route {
     }
 
     /// Moves refused in a row, as of the last [`next_move`](Self::next_move).
+    #[cfg(test)]
     pub fn refusals(&self) -> u32 {
         self.refusals
     }

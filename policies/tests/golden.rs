@@ -46,7 +46,7 @@ fn random<T: From<f32>>(
 /// threads, hashed bit by bit.
 fn products_hash<T>(threads: usize, bits: fn(&T) -> Vec<u8>) -> String
 where
-    T: policies::nn::real::Real + From<f32>,
+    T: policies::nn::Real + From<f32>,
 {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use policies::checkpoint::{self, METADATA_FILE, OPTIMIZER_FILE, WEIGHTS_FILE};
 use policies::nn::Real;
 use policies::nn::{ActorCritic, Adam, AgentGraph, ModelWorkspace, Neighbours};
-use policies::ppo::trainer::adam_config;
+use policies::ppo::adam_config;
 use policies::ppo::{Profile, TrainingConfig, TrainingState};
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;

@@ -221,7 +221,7 @@ mod tests {
         let training = cells[2].config.training_config().unwrap().unwrap();
         assert_eq!(training.agents, policies::ppo::AgentCount::fixed(2));
         assert_eq!((training.episodes, training.steps_per_episode), (5, 10));
-        assert_eq!(training.network, policies::ppo::config::Network::Compact);
+        assert_eq!(training.network, policies::ppo::Network::Compact);
         assert!(cells[0].config.training_config().is_none());
         let keys: std::collections::HashSet<_> = cells.iter().map(|c| &c.key).collect();
         assert_eq!(keys.len(), cells.len());

@@ -9,7 +9,7 @@
 use std::collections::BTreeMap;
 
 use policies::ppo::{AgentCount, ArchitectureName, ConfigError, Profile, TrainingConfig};
-use policies::{ActionChoice, Baseline, baseline::UnknownBaseline};
+use policies::{ActionChoice, Baseline, UnknownBaseline};
 use serde::{Deserialize, Serialize};
 use world::Channels;
 

@@ -68,6 +68,7 @@ impl PaperTextGcs {
     }
 
     /// Each agent's current target.
+    #[cfg(test)]
     pub fn targets(&self) -> impl Iterator<Item = Option<Cell>> + '_ {
         self.agents.iter().map(|agent| agent.target)
     }

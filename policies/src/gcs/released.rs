@@ -72,6 +72,7 @@ impl ReleasedGcs {
     }
 
     /// Each agent's current target.
+    #[cfg(test)]
     pub fn targets(&self) -> impl Iterator<Item = Cell> + '_ {
         self.agents.iter().map(|agent| agent.target)
     }

@@ -19,23 +19,23 @@
 //!   threads (every output element is reduced by one thread in a fixed order, in our loops and
 //!   in [`matmul`]'s, which splits only the output among threads, and whatever the CPU).
 
-pub mod activation;
-pub mod adam;
-pub mod attention;
-pub mod buffer;
-pub mod categorical;
-pub mod cnn;
-pub mod conv;
-pub mod error;
-pub mod graph;
-pub mod init;
-pub mod linear;
+pub(crate) mod activation;
+pub(crate) mod adam;
+pub(crate) mod attention;
+pub(crate) mod buffer;
+pub(crate) mod categorical;
+pub(crate) mod cnn;
+pub(crate) mod conv;
+pub(crate) mod error;
+pub(crate) mod graph;
+pub(crate) mod init;
+pub(crate) mod linear;
 pub mod matmul;
-pub mod mlp;
-pub mod model;
-pub mod params;
-pub mod real;
-pub mod softmax;
+pub(crate) mod mlp;
+pub(crate) mod model;
+pub(crate) mod params;
+pub(crate) mod real;
+pub(crate) mod softmax;
 
 #[cfg(test)]
 pub(crate) mod gradient_check;

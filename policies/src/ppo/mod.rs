@@ -8,18 +8,18 @@
 //! - `trainer`: the loop, per-episode records, resumable state.
 //! - `value_norm`: running statistics that normalise the critic's targets (an option).
 
-pub mod advantage;
-pub mod config;
-pub mod loss;
-pub mod rollout;
-pub mod trainer;
-pub mod update;
-pub mod value_norm;
+pub(crate) mod advantage;
+pub(crate) mod config;
+pub(crate) mod loss;
+pub(crate) mod rollout;
+pub(crate) mod trainer;
+pub(crate) mod update;
+pub(crate) mod value_norm;
 
 pub use config::{
-    AgentCount, ArchitectureName, ConfigError, NeighbourRule, Profile, TrainingConfig,
+    AgentCount, ArchitectureName, ConfigError, NeighbourRule, Network, Profile, TrainingConfig,
     TrainingParams,
 };
-pub use trainer::{EpisodeRecord, TrainError, Trainer, TrainingState};
+pub use trainer::{EpisodeRecord, TrainError, Trainer, TrainingState, adam_config};
 pub use update::UpdateStats;
 pub use value_norm::{ValueNorm, ValueNormalisation};

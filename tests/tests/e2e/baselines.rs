@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use engine::episode::run_episode;
-use policies::tspc::Tspc;
+use policies::Tspc;
 use policies::{Baseline, Policy};
 use world::paths::move_between;
 use world::{Map, Seed, World, WorldParams};

@@ -12,6 +12,7 @@ pub mod chart;
 mod columns;
 mod comparison;
 mod disturbance;
+mod earlier;
 pub mod header;
 mod illustration;
 pub mod judgement;
@@ -113,9 +114,11 @@ pub fn write_report(
         report.paragraph(&missing_paragraph(&missing, manifest.cells.len()));
     }
     let claims = store_claims(store)?;
+    let mut results = Vec::new();
     if !claims.is_empty() {
         let measures = loaded.behaviour_measures(&claims, replay)?;
-        verdicts::section(&mut report, &loaded.judge(&claims, &measures)?)?;
+        results = loaded.judge(&claims, &measures)?;
+        verdicts::section(&mut report, &results)?;
         // Under the behaviour claims' verdicts: every run's share and every episode.
         behaviour_claims::section(&mut report, &claims, &measures)?;
     }
@@ -155,6 +158,11 @@ pub fn write_report(
         store.optional_table(schema::trajectories::TABLE)?,
     ) {
         illustration::section(&mut report, &snapshots, &trajectories, store)?;
+    }
+    let earlier =
+        plan::scenario::earlier::earlier_of_text(&store.scenario_text()?, &store.scenario_path())?;
+    if let Some(earlier) = &earlier {
+        earlier::section(&mut report, earlier, &results)?;
     }
     let store_bytes = store.write_table_store(&report.folder.join(STORE_FOLDER), &missing)?;
     report.finish(store_bytes)

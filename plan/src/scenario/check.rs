@@ -8,6 +8,7 @@ use serde_saphyr::Spanned;
 use world::{Map, MapError, WorldParams};
 
 use super::disturbance::check_disturbances;
+use super::earlier::check_earlier;
 use super::error::ScenarioError;
 use super::format::{MapSpec, PolicySpec, ProfileName, ScenarioFile, WorldSpec};
 use super::size::{Limits, check_size};
@@ -53,6 +54,7 @@ pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenari
             .collect(),
     };
     let claims = check_claims(&spec.claims, Some(&context), file)?;
+    let earlier = check_earlier(spec.earlier.as_ref(), file)?;
     let scenario = Scenario {
         name,
         description: spec.description.clone(),
@@ -68,6 +70,7 @@ pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenari
         outputs,
         disturbances,
         claims,
+        earlier,
     };
     check_size(&scenario, &spec, limits, file)?;
     Ok(scenario)

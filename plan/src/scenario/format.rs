@@ -37,6 +37,9 @@ pub(crate) struct ScenarioFile {
     /// The paper's statements this experiment tests (`claims::format::ClaimSpec`).
     #[serde(default)]
     pub claims: Vec<Spanned<crate::scenario::claims::format::ClaimSpec>>,
+    /// The verdicts of an earlier answer to the question (`scenario::earlier`).
+    #[serde(default)]
+    pub earlier: Option<Spanned<crate::scenario::earlier::EarlierSpec>>,
 }
 
 /// A map by file (relative to the scenario file; `FILE#NAME` picks a polygon map) or inline.

@@ -5,6 +5,7 @@ mod check;
 pub mod claims;
 pub mod cost;
 mod disturbance;
+pub mod earlier;
 pub mod error;
 pub mod format;
 mod policy;
@@ -53,6 +54,8 @@ pub struct Scenario {
     pub(crate) disturbances: Vec<crate::disturbance::Disturbance>,
     /// Checked against the scenario's maps, policies and agent counts.
     pub(crate) claims: Vec<crate::scenario::claims::Claim>,
+    /// The verdicts of an earlier answer, for the report's "what changed".
+    pub(crate) earlier: Option<earlier::Earlier>,
 }
 
 /// A checked scenario is read, never changed: its fields are the plan's, its accessors
@@ -117,6 +120,10 @@ impl Scenario {
     }
 
     /// Checked against the scenario's maps, policies and agent counts.
+    pub fn earlier(&self) -> Option<&earlier::Earlier> {
+        self.earlier.as_ref()
+    }
+
     pub fn claims(&self) -> &[crate::scenario::claims::Claim] {
         &self.claims
     }

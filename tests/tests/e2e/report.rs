@@ -44,6 +44,12 @@ claims:
     behaviour: {policy: gcs, map: rooms, n_test: 3, periodic: true}
   - id: no-rhythm
     behaviour: {policy: gcs, map: rooms, n_test: 3, periodic: false}
+earlier:
+  source: an earlier answer with one repetition
+  verdicts:
+    - {claim: gcs-beats-random, verdict: inconclusive, why: [seeds]}
+    - {claim: level, verdict: contradicted}
+    - {claim: gone, verdict: supported, why: [restated], note: split in two}
 ";
 
 const TEST_STEPS: i64 = 60;
@@ -202,6 +208,41 @@ fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
         let name = format!("figures/{}", png.file_name().unwrap().to_str().unwrap());
         assert!(targets.contains(&name), "{name} is not in the README");
     }
+
+    // The last section: each earlier claim's verdict then and now, and why it moved.
+    let changed = readme
+        .split("## What changed since the earlier answer?")
+        .nth(1);
+    let changed = changed.expect("the report ends with what changed");
+    assert!(!changed.contains("\n## "), "a section after what changed");
+    let table = std::fs::read_to_string(report.join("tables/verdicts_before_after.md")).unwrap();
+    let rows = markdown_rows(&table);
+    assert_eq!(rows[0], ["claim", "before", "now", "why", "note"]);
+    let claims = read_parquet(&report.join("tables/claims.parquet"));
+    let now = |id: &str| -> String {
+        let ids = claims.column("claim").unwrap().str().unwrap().clone();
+        let verdicts = claims.column("verdict").unwrap().str().unwrap().clone();
+        let row = ids.iter().position(|c| c == Some(id)).unwrap();
+        verdicts.get(row).unwrap().to_owned()
+    };
+    assert_eq!(
+        rows[1][..4],
+        [
+            "gcs-beats-random",
+            "inconclusive",
+            &now("gcs-beats-random"),
+            "seeds"
+        ]
+    );
+    assert_eq!(rows[2][..3], ["level", "contradicted", &now("level")]);
+    assert_eq!(
+        rows[3],
+        ["gone", "supported", "dropped", "restated", "split in two"]
+    );
+    assert!(
+        changed.contains("New in this answer: `random-beats-gcs`"),
+        "{changed}"
+    );
 
     // The penalty table holds the summary's means and intervals (in 10^6), to its digits.
     let summary = read_parquet(&store.join("summary.parquet"));

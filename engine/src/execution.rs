@@ -71,6 +71,8 @@ pub(crate) fn run_cell(
     let clock = Instant::now();
     let config = &cell.config;
     let mut files = Vec::new();
+    // The training wall time of the processes before this one, when a stopped run resumed.
+    let mut earlier_training_seconds = 0.0;
     let mut policy = match &config.policy {
         ScenarioPolicy::Baseline(baseline) => baseline.build(world)?,
         ScenarioPolicy::Learned(learned) => {
@@ -81,8 +83,13 @@ pub(crate) fn run_cell(
                 }
                 None => {
                     let training = config.training_config_of(learned)?;
-                    let (state, log, curve) =
-                        train_cell(store, cell, world, (training, learned), advance)?;
+                    let Trained {
+                        state,
+                        log,
+                        curve,
+                        earlier_seconds,
+                    } = train_cell(store, cell, world, (training, learned), advance)?;
+                    earlier_training_seconds = earlier_seconds;
                     let checkpoint = checkpoint::save(&state);
                     let log = tables::training_frame(&cell.key, config, &log)?;
                     files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
@@ -161,7 +168,7 @@ pub(crate) fn run_cell(
         kernels: policies::nn::matmul::INSTRUCTIONS.to_owned(),
         started: utc_timestamp(started),
         finished: utc_timestamp(SystemTime::now()),
-        wall_seconds: clock.elapsed().as_secs_f64(),
+        wall_seconds: clock.elapsed().as_secs_f64() + earlier_training_seconds,
         files: Default::default(),
         sizes: Default::default(),
         taken_from: None,
@@ -212,6 +219,16 @@ fn shared_training(
     Ok(Some((model, metadata.config)))
 }
 
+/// A learned cell's finished training run.
+struct Trained {
+    state: TrainingState,
+    log: DataFrame,
+    curve: Option<TestCurve>,
+    /// The training's wall time in the processes before this one (0 unless it resumed), so
+    /// that a cell's record counts what every process spent on it.
+    earlier_seconds: f64,
+}
+
 /// Trains a learned cell's policy, continuing the run an interrupted sweep saved, and plays
 /// its test curve along the way when the policy asks for one.
 fn train_cell(
@@ -220,17 +237,23 @@ fn train_cell(
     world: &Arc<World>,
     (training, learned): (TrainingConfig, &Learned),
     advance: &dyn Fn(u64),
-) -> Result<(TrainingState, DataFrame, Option<TestCurve>), CellError> {
+) -> Result<Trained, CellError> {
     let folder = store.partial_training_folder(&cell.key);
     let seed = cell.config.training_seed;
     let mut run = TrainingRun::resume_or_start(&folder, world.clone(), training, seed)?;
+    let earlier_seconds = run.state().wall_seconds;
     let steps = cell.config.world.train_steps as u64;
     let total = run.state().config.episodes;
     let Some(every) = learned.evaluate_every else {
         advance(run.state().episodes_done * steps);
         run.train(total, SAVE_EVERY, &mut |_| advance(steps))?;
         let (state, log) = run.into_parts();
-        return Ok((state, log, None));
+        return Ok(Trained {
+            state,
+            log,
+            curve: None,
+            earlier_seconds,
+        });
     };
     let done = run.state().episodes_done;
     let mut curve = TestCurve::resume(&folder, u64::from(every), done)?;
@@ -255,7 +278,12 @@ fn train_cell(
         cpu_seconds += meter.seconds();
     }
     let (state, log) = run.into_parts();
-    Ok((state, log, Some(curve)))
+    Ok(Trained {
+        state,
+        log,
+        curve: Some(curve),
+        earlier_seconds,
+    })
 }
 
 /// The cell's test episodes at N_train played with the policy of `state`, whose training
@@ -466,4 +494,55 @@ pub(crate) fn disturbed_test_episode(
 fn cells_text(cells: &[world::Cell]) -> String {
     let cells: Vec<String> = cells.iter().map(|c| format!("{},{}", c.x, c.y)).collect();
     cells.join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use plan::scenario::Scenario;
+
+    use super::*;
+
+    /// A run stopped after its first saves and trained on by another process: the cell's
+    /// record must count the training the first process did, which its checkpoint carries.
+    #[test]
+    fn a_resumed_training_counts_the_training_of_the_processes_before() {
+        let text = "name: resumed\nseed: 1\nmaps:\n  - inline: {name: a, grid: \"......\\n......\\n\
+                    ......\\n\"}\nworld: {fov: 3, train_steps: 8, test_steps: 8}\npolicies:\n  \
+                    - ma-g-ppo: {profile: fast-v2, episodes: 4, evaluate_every: 2, set: \
+                    {network: compact}}\nagents: {train: [2], test: [2]}\ntest_episodes: 1\n";
+        let scenario = Scenario::parse(text, Path::new("resumed.yaml")).unwrap();
+        let cell = &scenario.cells()[0];
+        let world = World::new(
+            scenario.maps()[0].map.clone(),
+            scenario.world().params().unwrap(),
+        );
+        let dir = std::env::temp_dir().join(format!("vpm-resumed-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = Store::new(&dir);
+        let ScenarioPolicy::Learned(learned) = &cell.config.policy else {
+            panic!("a learned cell");
+        };
+        let training = cell.config.training_config_of(learned).unwrap();
+        // The first process: two of four episodes, saved.
+        let folder = store.partial_training_folder(&cell.key);
+        let seed = cell.config.training_seed;
+        let mut first =
+            TrainingRun::resume_or_start(&folder, world.clone(), training.clone(), seed).unwrap();
+        first.train(2, 2, &mut |_| ()).unwrap();
+        let before = first.state().wall_seconds;
+        assert_eq!(first.state().episodes_done, 2);
+        assert!(before > 0.0);
+        // The second process resumes it and finishes.
+        let trained = train_cell(&store, cell, &world, (training, learned), &|_| ()).unwrap();
+        assert_eq!(trained.earlier_seconds, before);
+        assert_eq!(trained.state.episodes_done, 4);
+        assert!(
+            trained.state.wall_seconds > before,
+            "{} {before}",
+            trained.state.wall_seconds
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -31,6 +31,9 @@ pub struct CellRecord {
     /// UTC, ISO 8601.
     pub started: String,
     pub finished: String,
+    /// The cell's wall time: this process's, plus, for a training run resumed after a stop,
+    /// the training's wall time in the processes before (their test-curve plays and the work
+    /// after their last save are not counted).
     pub wall_seconds: f64,
     /// blake3 of each result file beside this record, by file name.
     pub files: BTreeMap<String, String>,

@@ -18,7 +18,7 @@ use plan::scenario::Scenario;
 use plan::shard::Shard;
 use store::lease::exit_giving_back_leases;
 use store::taken::TakenTables;
-use store::{Manifest, Store, StoreError};
+use store::{CellRecord, Manifest, Store, StoreError};
 
 pub struct SweepOptions {
     /// Cells run at once.
@@ -211,15 +211,35 @@ fn exchange_with_cache(
     let mut from_cache = 0;
     let mut still_todo = Vec::with_capacity(todo.len());
     for &cell in todo.iter() {
-        if cache.finished(&cell.key).is_some() {
-            store.import_cell(cache, &cell.key)?;
-            from_cache += 1;
-        } else {
-            still_todo.push(cell);
+        match cache.finished(&cell.key) {
+            Some(record) if map_in_cache(cache, &record, cell) => {
+                store.import_cell(cache, &cell.key)?;
+                from_cache += 1;
+            }
+            _ => still_todo.push(cell),
         }
     }
     *todo = still_todo;
     Ok(from_cache)
+}
+
+/// Whether the cache holds the map of a cell it holds whole. One it lacks or holds damaged (a
+/// cell copied into the cache by hand, say) makes the cell computed instead, with a warning:
+/// the cache is a shortcut, and its damage must not stop a sweep (a damaged cell file already
+/// makes the cell unfinished there).
+fn map_in_cache(cache: &Store, record: &CellRecord, cell: &SweepCell) -> bool {
+    let map = &record.config.map;
+    match cache.map(&map.name, &map.hash) {
+        Ok(_) => true,
+        Err(error) => {
+            eprintln!(
+                "cache: {} (`{}`) is computed instead of copied: {error}",
+                cell_label(cell),
+                cell.key
+            );
+            false
+        }
+    }
 }
 
 /// Takes the cells of `todo` that one of `tables` holds from it instead of computing them;

@@ -488,7 +488,15 @@ impl Store {
     /// Copies a verified cell and its map from `other`, unless this store has it already.
     /// Returns whether it copied.
     pub fn import_cell(&self, other: &Store, key: &str) -> Result<bool, StoreError> {
-        if self.finished(key).is_some() {
+        if let Some(record) = self.finished(key) {
+            // A cell held without its map (copied in by hand) gets it back from a store that
+            // has it, so that a cache heals as the sweeps it serves compute.
+            let map = &record.config.map;
+            if self.map(&map.name, &map.hash).is_err()
+                && let Ok(text) = other.map_text(&map.hash)
+            {
+                write(&self.map_path(&map.hash), text.as_bytes())?;
+            }
             return Ok(false);
         }
         if other.is_table_store() {

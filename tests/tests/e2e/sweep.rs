@@ -77,6 +77,36 @@ fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
     assert!(served.contains(&expected), "{served}");
     assert_same_tables(&other, &reference_run(TINY));
 
+    // A cache that lost its map (cells copied in by hand without it): its cells are
+    // computed instead, each with a warning, and the sweep goes on to the same tables.
+    for map in std::fs::read_dir(cache.join("maps")).unwrap().flatten() {
+        std::fs::remove_file(map.path()).unwrap();
+    }
+    let third = dir.join("third store");
+    let output = harness(&[
+        "sweep",
+        &crate::common::repo_file(TINY),
+        "--out",
+        third.to_str().unwrap(),
+        "--no-report",
+        "--cache",
+        cache.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    let summary = succeed(output);
+    let expected = format!("{cells} cells, 0 already finished, 0 from the cache, {cells} computed");
+    assert!(summary.contains(&expected), "{summary}");
+    assert_eq!(
+        stderr.matches("is computed instead of copied").count(),
+        cells,
+        "{stderr}"
+    );
+    assert_same_tables(&third, &reference_run(TINY));
+    // Those cells gave the cache its map back: it serves the next store again.
+    let fourth = sweep(TINY, &dir.join("fourth store"), &cache_arg);
+    let expected = format!("{cells} cells, 0 already finished, {cells} from the cache, 0 computed");
+    assert!(fourth.contains(&expected), "{fourth}");
+
     // The same scenario with its learned policy as `fast`, which moved since fast-v1: new
     // keys for its two runs, and the sweep says so before it computes them.
     let tiny = std::fs::read_to_string(crate::common::repo_file(TINY)).unwrap();

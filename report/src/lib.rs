@@ -113,7 +113,9 @@ pub fn write_report(
     if !missing.is_empty() {
         report.paragraph(&missing_paragraph(&missing, manifest.cells.len()));
     }
-    let claims = store_claims(store)?;
+    // The scenario as the sweep ran it, read once for its claims and its earlier verdicts.
+    let (scenario, scenario_path) = (store.scenario_text()?, store.scenario_path());
+    let claims = plan::scenario::claims::claims_of_text(&scenario, &scenario_path)?;
     let mut results = Vec::new();
     if !claims.is_empty() {
         let measures = loaded.behaviour_measures(&claims, replay)?;
@@ -159,8 +161,7 @@ pub fn write_report(
     ) {
         illustration::section(&mut report, &snapshots, &trajectories, store)?;
     }
-    let earlier =
-        plan::scenario::earlier::earlier_of_text(&store.scenario_text()?, &store.scenario_path())?;
+    let earlier = plan::scenario::earlier::earlier_of_text(&scenario, &scenario_path)?;
     if let Some(earlier) = &earlier {
         earlier::section(&mut report, earlier, &results)?;
     }

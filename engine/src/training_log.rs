@@ -46,12 +46,10 @@ pub(crate) fn to_frame(records: &[EpisodeRecord]) -> PolarsResult<DataFrame> {
 
 /// The log's columns that a repeated run reproduces bit for bit.
 pub fn reproducible_columns() -> Vec<PlSmallStr> {
-    let empty = to_frame(&[]).expect("an empty log builds");
-    empty
-        .get_column_names()
+    training::LOG_COLUMNS
         .into_iter()
-        .filter(|name| !training::TIMING_COLUMNS.contains(&name.as_str()))
-        .cloned()
+        .filter(|name| !training::TIMING_COLUMNS.contains(name))
+        .map(PlSmallStr::from_static)
         .collect()
 }
 
@@ -110,5 +108,23 @@ mod tests {
             .into_no_null_iter()
             .collect();
         assert_eq!(episodes, vec![0, 1, 2, 3]);
+    }
+
+    #[test]
+    fn the_log_has_the_schema_columns_and_all_but_the_timings_reproduce() {
+        let frame = to_frame(&[record(0)]).unwrap();
+        let names: Vec<&str> = frame
+            .get_column_names()
+            .iter()
+            .map(|n| n.as_str())
+            .collect();
+        assert_eq!(names, training::LOG_COLUMNS);
+        let reproducible = reproducible_columns();
+        assert_eq!(reproducible.len(), 12);
+        assert!(
+            reproducible
+                .iter()
+                .all(|c| !training::TIMING_COLUMNS.contains(&c.as_str()))
+        );
     }
 }

@@ -221,7 +221,9 @@ fn compute_line(cells: &DataFrame) -> PolarsResult<String> {
 }
 
 /// Each CPU and kernel build with its count of cells: equal bits on every machine are the
-/// claim, and the report names the machines.
+/// claim, and the report names the machines. Where cells ran on more than one, each but the
+/// one that ran most says which cells it ran, so a reader can tell whose CPU time (and whose
+/// wall time, run beside how many others) a row's record holds.
 fn platforms(cells: &DataFrame) -> PolarsResult<String> {
     let (cpus, kernels) = (strings(cells, cells::CPU)?, strings(cells, cells::KERNELS)?);
     let platforms: Vec<String> = cpus
@@ -232,11 +234,49 @@ fn platforms(cells: &DataFrame) -> PolarsResult<String> {
             (cpu, kernels) => format!("{cpu} with {kernels} kernels"),
         })
         .collect();
-    let counted: Vec<String> = group_rows(&platforms)
-        .into_iter()
-        .map(|(platform, rows)| format!("{} cells on {platform}", rows.len()))
+    let maps = strings(cells, cell::MAP)?;
+    let policies = strings(cells, cell::POLICY)?;
+    let n_trains = optional_u32s(cells, cell::N_TRAIN)?;
+    let settings: Vec<String> = (0..cells.height())
+        .map(|row| match n_trains[row] {
+            Some(n) => format!("{} {} N_train {n}", maps[row], policies[row]),
+            None => format!("{} {}", maps[row], policies[row]),
+        })
         .collect();
-    Ok(counted.join("; "))
+    Ok(platform_counts(&platforms, &settings))
+}
+
+/// "80 cells on A" for one platform; for several, "75 cells on A (the others); 5 cells on B
+/// (eight_room ma-g-ppo N_train 2: 5)", the platform that ran most cells first.
+fn platform_counts(platforms: &[String], settings: &[String]) -> String {
+    let mut groups = group_rows(platforms);
+    // Stable: platforms with as many cells keep their order of first appearance.
+    groups.sort_by_key(|(_, rows)| std::cmp::Reverse(rows.len()));
+    let several = groups.len() > 1;
+    groups
+        .iter()
+        .enumerate()
+        .map(|(i, (platform, rows))| {
+            let cells = match rows.len() {
+                1 => "1 cell".to_owned(),
+                n => format!("{n} cells"),
+            };
+            let counted = format!("{cells} on {platform}");
+            match (several, i) {
+                (false, _) => counted,
+                (true, 0) => format!("{counted} (the others)"),
+                (true, _) => {
+                    let which: Vec<&String> = rows.iter().map(|&row| &settings[row]).collect();
+                    let listed: Vec<String> = group_rows(&which)
+                        .into_iter()
+                        .map(|(setting, rows)| format!("{setting}: {}", rows.len()))
+                        .collect();
+                    format!("{counted} ({})", listed.join(", "))
+                }
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 /// "3" for equal values, "2 to 3" otherwise.
@@ -444,6 +484,27 @@ mod tests {
         assert_eq!(trend(&[1.0, 2.0], 1.0, 2.0), "worse");
         assert_eq!(trend(&[-1.0], -1.0, -1.0), "one run: no interval");
         assert_eq!(trend(&[], 0.0, 0.0), "too short");
+    }
+
+    #[test]
+    fn the_cells_of_each_lesser_platform_are_named() {
+        let owned = |items: &[&str]| items.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let platforms = owned(&["amd", "xeon", "amd", "xeon", "amd", "arm"]);
+        let settings = owned(&[
+            "a gcs",
+            "a p N_train 2",
+            "a gcs",
+            "a p N_train 2",
+            "b gcs",
+            "b p N_train 4",
+        ]);
+        assert_eq!(
+            platform_counts(&platforms, &settings),
+            "3 cells on amd (the others); 2 cells on xeon (a p N_train 2: 2); \
+             1 cell on arm (b p N_train 4: 1)"
+        );
+        let one = owned(&["amd", "amd"]);
+        assert_eq!(platform_counts(&one, &settings[..2]), "2 cells on amd");
     }
 
     #[test]

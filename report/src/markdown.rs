@@ -50,9 +50,30 @@ pub fn number(value: f64) -> String {
     format!("{value:.decimals$}")
 }
 
+/// A 95 % interval as "[low, high]", each bound written by `show`; "[no interval]" where a
+/// bound is not finite (one training run has no spread to draw from), never "[-inf, inf]".
+pub fn interval(low: f64, high: f64, show: impl Fn(f64) -> String) -> String {
+    if low.is_finite() && high.is_finite() {
+        format!("[{}, {}]", show(low), show(high))
+    } else {
+        "[no interval]".to_owned()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_interval_without_finite_bounds_says_so() {
+        assert_eq!(interval(-1.5, 2.25, number), "[-1.500, 2.250]");
+        assert_eq!(interval(0.1, 0.9, |v| format!("{v:.2}")), "[0.10, 0.90]");
+        assert_eq!(
+            interval(f64::NEG_INFINITY, f64::INFINITY, number),
+            "[no interval]"
+        );
+        assert_eq!(interval(f64::NAN, 1.0, number), "[no interval]");
+    }
 
     #[test]
     fn numbers_keep_four_significant_digits() {

@@ -11,7 +11,7 @@ use store::schema::{cell, episodes, summary};
 use super::chart::bars::{BarSeries, GroupedBars, Interval};
 use super::columns::{GroupKey, PolicyKey, distinct, f64s, group_rows, strings, u32s};
 use super::comparison::Comparison;
-use super::markdown::number;
+use super::markdown::{interval, number};
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 
 /// The summary's rows of one map, penalties in 10^6, idleness in steps.
@@ -365,10 +365,9 @@ fn answer_text(best: &DataFrame) -> Result<String, ReportError> {
             (&runner_ups[i], p[i], low[i], high[i])
         {
             line += &format!(
-                "; against {runner} its probability of improvement is {} [{}, {}]{}",
+                "; against {runner} its probability of improvement is {} {}{}",
                 number(p),
-                number(low),
-                number(high),
+                interval(low, high, number),
                 if low > 0.5 {
                     ""
                 } else {

@@ -17,7 +17,7 @@ use super::columns::{GroupKey, PolicyKey, f64s, named_seed, optional_u32s, strin
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, difference_and_improvement, samples};
 use super::disturbance::{DisturbedSamples, ratio};
 use super::judgement::{PointTest, Verdict, find};
-use super::markdown::number;
+use super::markdown::{interval, number};
 use super::test_curve::{samples_at, trained_curves};
 use super::time_to_quality;
 use super::training::episodes_per_run;
@@ -348,6 +348,7 @@ fn lower(samples: Sides, pair: &Pair, seed: world::Seed) -> Result<(Verdict, Str
 /// How many draws a sample rests on: "3 runs" or "30 episodes".
 fn draws(sample: &Sample) -> String {
     match sample.group.policy.n_train {
+        Some(_) if sample.runs() == 1 => "1 run".to_owned(),
         Some(_) => format!("{} runs", sample.runs()),
         None => format!("{} episodes", sample.values().len()),
     }
@@ -364,18 +365,16 @@ fn compare_lower(
     let (low, high) = difference.interval(CONFIDENCE)?;
     let (p_low, p_high) = improvement.interval(CONFIDENCE)?;
     let text = format!(
-        "{} ({}) vs {} ({}), a - b {} [{}, {}] (detectable {}), P(a < b) {:.2} [{:.2}, {:.2}]",
+        "{} ({}) vs {} ({}), a - b {} {} (detectable {}), P(a < b) {:.2} {}",
         number(mean(&a.units()?)?),
         draws(a),
         number(mean(&b.units()?)?),
         draws(b),
         number(difference.estimate),
-        number(low),
-        number(high),
+        interval(low, high, number),
         number(detectable(low, high)),
         improvement.estimate,
-        p_low,
-        p_high
+        interval(p_low, p_high, |p| format!("{p:.2}"))
     );
     Ok((PointTest::below(&difference, 0.0)?, text))
 }
@@ -406,11 +405,10 @@ fn every_run_lower(
     let above = runs.iter().filter(|&&run| run > high).count();
     let each: Vec<String> = runs.iter().map(|&run| number(run)).collect();
     let text = format!(
-        "runs {} against {} [{}, {}] ({}): {below} of {} below, {above} above",
+        "runs {} against {} {} ({}): {below} of {} below, {above} above",
         each.join(", "),
         number(of_b.estimate),
-        number(low),
-        number(high),
+        interval(low, high, number),
         draws(b),
         runs.len()
     );
@@ -450,7 +448,7 @@ fn tolerated(
         let boot = bootstrap_of(&samples, &statistic, seed)?;
         let (low, high) = boot.interval(CONFIDENCE)?;
         let text = format!(
-            "{} ({}) vs {} ({}), (a - b) / {} {:+.3} [{:+.3}, {:+.3}] (detectable {:.3}, \
+            "{} ({}) vs {} ({}), (a - b) / {} {:+.3} {} (detectable {:.3}, \
              tolerance {})",
             number(mean(&a.units()?)?),
             draws(a),
@@ -458,8 +456,7 @@ fn tolerated(
             draws(b),
             scale_name(tolerance.scale),
             boot.estimate,
-            low,
-            high,
+            interval(low, high, |v| format!("{v:+.3}")),
             detectable(low, high),
             tolerance.value
         );
@@ -513,11 +510,10 @@ fn gap_grows(
         .map(|(p, g)| format!("{}: {}", point_label_trained(p), number(g)))
         .collect();
     let text = format!(
-        "b - a {}; slope {} [{}, {}] per step",
+        "b - a {}; slope {} {} per step",
         along.join(", "),
         number(-boot.estimate),
-        number(-high),
-        number(-low)
+        interval(-high, -low, number)
     );
     Ok((Verdict::combine(&[PointTest::below(&boot, 0.0)?]), text))
 }
@@ -550,15 +546,14 @@ fn adapts_better(
         let (low, high) = boot.interval(CONFIDENCE)?;
         let units: Vec<Vec<f64>> = all.iter().map(|s| s.units()).collect::<Result<_, _>>()?;
         texts.push(format!(
-            "{}: ratio {:.3} ({}) vs {:.3} ({}), a - b {:.3} [{:.3}, {:.3}]",
+            "{}: ratio {:.3} ({}) vs {:.3} ({}), a - b {:.3} {}",
             point_label(point),
             ratio(&units[0..2])?,
             draws(a_hit),
             ratio(&units[2..4])?,
             draws(b_hit),
             boot.estimate,
-            low,
-            high
+            interval(low, high, |v| format!("{v:.3}"))
         ));
         tests.push(PointTest::below(&boot, 0.0)?);
     }

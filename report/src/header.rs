@@ -234,20 +234,15 @@ fn platforms(cells: &DataFrame) -> PolarsResult<String> {
             (cpu, kernels) => format!("{cpu} with {kernels} kernels"),
         })
         .collect();
-    let maps = strings(cells, cell::MAP)?;
-    let policies = strings(cells, cell::POLICY)?;
-    let n_trains = optional_u32s(cells, cell::N_TRAIN)?;
-    let settings: Vec<String> = (0..cells.height())
-        .map(|row| match n_trains[row] {
-            Some(n) => format!("{} {} N_train {n}", maps[row], policies[row]),
-            None => format!("{} {}", maps[row], policies[row]),
-        })
+    let settings: Vec<String> = trained_keys(cells)?
+        .into_iter()
+        .map(|(map, policy)| format!("{map} {}", policy.label()))
         .collect();
     Ok(platform_counts(&platforms, &settings))
 }
 
 /// "80 cells on A" for one platform; for several, "75 cells on A (the others); 5 cells on B
-/// (eight_room ma-g-ppo N_train 2: 5)", the platform that ran most cells first.
+/// (eight_room ma-g-ppo (N_train=2): 5)", the platform that ran most cells first.
 fn platform_counts(platforms: &[String], settings: &[String]) -> String {
     let mut groups = group_rows(platforms);
     // Stable: platforms with as many cells keep their order of first appearance.
@@ -492,16 +487,16 @@ mod tests {
         let platforms = owned(&["amd", "xeon", "amd", "xeon", "amd", "arm"]);
         let settings = owned(&[
             "a gcs",
-            "a p N_train 2",
+            "a p (N_train=2)",
             "a gcs",
-            "a p N_train 2",
+            "a p (N_train=2)",
             "b gcs",
-            "b p N_train 4",
+            "b p (N_train=4)",
         ]);
         assert_eq!(
             platform_counts(&platforms, &settings),
-            "3 cells on amd (the others); 2 cells on xeon (a p N_train 2: 2); \
-             1 cell on arm (b p N_train 4: 1)"
+            "3 cells on amd (the others); 2 cells on xeon (a p (N_train=2): 2); \
+             1 cell on arm (b p (N_train=4): 1)"
         );
         let one = owned(&["amd", "amd"]);
         assert_eq!(platform_counts(&one, &settings[..2]), "2 cells on amd");

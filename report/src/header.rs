@@ -49,7 +49,7 @@ pub fn section(report: &mut ReportWriter, tables: &HeaderTables) -> Result<(), R
         Some(cells) => vec![
             training_line(cells, tables.training)?,
             testing,
-            compute_line(cells)?,
+            compute_line(cells, tables.training)?,
             code,
             format!("- **CPU**: {}.", platforms(cells)?),
         ],
@@ -198,8 +198,10 @@ fn testing_line(episodes: &DataFrame) -> Result<String, ReportError> {
 
 /// What the cells cost, measured, beside what `harness check`'s model estimated for the same
 /// cells (each with its training, from its stored configuration), so that a reader sees how
-/// far the estimate that budgeted the sweep was from the bill.
-fn compute_line(cells: &DataFrame) -> PolarsResult<String> {
+/// far the estimate that budgeted the sweep was from the bill. A cell that took its training
+/// run from the cache records only its tests, so the training runs' own wall time (their logs'
+/// last) is given too: without it a question whose runs another sweep trained looks cheap.
+fn compute_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResult<String> {
     let seconds: f64 = f64s(cells, cells::WALL_SECONDS)?.iter().sum();
     let estimated = strings(cells, cells::CONFIG)?
         .iter()
@@ -207,17 +209,40 @@ fn compute_line(cells: &DataFrame) -> PolarsResult<String> {
         .sum::<Result<f64, _>>();
     let estimate = match estimated {
         Ok(estimated) => format!(
-            "; `harness check` estimated {:.2} for them, each with its training",
+            "; `harness check` estimated {:.2} for the cells, each with its training",
             estimated / 3600.0
         ),
         Err(_) => String::new(),
     };
+    let runs = match training {
+        Some(training) => training_runs_line(training)?,
+        None => String::new(),
+    };
     Ok(format!(
         "- **Compute**: {:.2} CPU hours ({seconds:.0} s), the wall time of the {} cells \
-         summed{estimate}.",
+         summed{runs}{estimate}.",
         seconds / 3600.0,
         cells.height()
     ))
+}
+
+/// "...; the 48 training runs took 7.18 CPU hours by their logs": a run's wall time is its
+/// log's last (the log counts from the run's start, across resumes); one cell holds one run.
+fn training_runs_line(training: &DataFrame) -> PolarsResult<String> {
+    let keys = strings(training, cell::KEY)?;
+    let walls = f64s(training, training::WALL_SECONDS)?;
+    let runs: Vec<f64> = group_rows(&keys)
+        .into_iter()
+        .map(|(_, rows)| rows.iter().map(|&r| walls[r]).fold(0.0, f64::max))
+        .collect();
+    Ok(match runs.len() {
+        0 => String::new(),
+        n => format!(
+            " (a cell whose training run the cache gave, trained by another sweep, counts only \
+             its tests); the {n} training runs took {:.2} CPU hours by their logs",
+            runs.iter().sum::<f64>() / 3600.0
+        ),
+    })
 }
 
 /// Each CPU and kernel build with its count of cells: equal bits on every machine are the
@@ -500,6 +525,24 @@ mod tests {
         );
         let one = owned(&["amd", "amd"]);
         assert_eq!(platform_counts(&one, &settings[..2]), "2 cells on amd");
+    }
+
+    #[test]
+    fn each_training_run_costs_its_logs_last_wall_time() {
+        let training = df!(
+            cell::KEY => ["a", "a", "b", "b", "b"],
+            training::WALL_SECONDS => [1.0, 3600.0, 2.0, 5000.0, 7200.0],
+        )
+        .unwrap();
+        let line = training_runs_line(&training).unwrap();
+        assert!(
+            line.ends_with("the 2 training runs took 3.00 CPU hours by their logs"),
+            "{line}"
+        );
+        let none =
+            df!(cell::KEY => Vec::<String>::new(), training::WALL_SECONDS => Vec::<f64>::new())
+                .unwrap();
+        assert_eq!(training_runs_line(&none).unwrap(), "");
     }
 
     #[test]

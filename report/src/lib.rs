@@ -93,6 +93,13 @@ pub fn write_report(
         .ok_or_else(|| ReportError::NoSweep(store.root().to_owned()))?;
     let mut report = ReportWriter::new(reports_root.join(&manifest.scenario))?;
     report.heading(1, &format!("Report: {}", manifest.scenario));
+    // The scenario as the sweep ran it, read once for what the experiment is, its claims and
+    // its earlier verdicts.
+    let (scenario, scenario_path) = (store.scenario_text()?, store.scenario_path());
+    let description = plan::scenario::description_of_text(&scenario, &scenario_path)?;
+    if !description.is_empty() {
+        report.paragraph(&description);
+    }
     report.paragraph(&format!(
         "The sweep `{}` ({} cells, code version `{}`, scenario blake3 `{}`). Cumulative \
          penalties are per test episode, in units of 10^6.",
@@ -113,8 +120,6 @@ pub fn write_report(
     if !missing.is_empty() {
         report.paragraph(&missing_paragraph(&missing, manifest.cells.len()));
     }
-    // The scenario as the sweep ran it, read once for its claims and its earlier verdicts.
-    let (scenario, scenario_path) = (store.scenario_text()?, store.scenario_path());
     let claims = plan::scenario::claims::claims_of_text(&scenario, &scenario_path)?;
     let mut results = Vec::new();
     if !claims.is_empty() {

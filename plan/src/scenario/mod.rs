@@ -34,6 +34,19 @@ pub fn read_scenario_text(path: &Path) -> Result<String, ScenarioError> {
         .map_err(|e| ScenarioError::new(&e.path, None, "", e.problem))
 }
 
+/// The `description` of a scenario's text (empty when it has none): the store's copy of a
+/// scenario, whose report opens with what the experiment is.
+pub fn description_of_text(text: &str, file: &Path) -> Result<String, ScenarioError> {
+    /// A scenario file read for its description alone.
+    #[derive(Deserialize)]
+    struct DescriptionOnly {
+        #[serde(default)]
+        description: String,
+    }
+    let spec: DescriptionOnly = yaml::from_yaml(text, file)?;
+    Ok(spec.description)
+}
+
 /// A checked scenario: every map loaded, every value possible.
 #[derive(Debug)]
 pub struct Scenario {
@@ -213,6 +226,24 @@ mod tests {
 
     fn parse(text: &str) -> Result<Scenario, ScenarioError> {
         Scenario::parse(text, Path::new("unit.yaml"))
+    }
+
+    #[test]
+    fn the_description_is_read_from_the_text_alone() {
+        let file = Path::new("unit.yaml");
+        let text = format!(
+            "description: Random on one map.\n{}",
+            scenario("", &inline("a"))
+        );
+        assert_eq!(parse(&text).unwrap().description(), "Random on one map.");
+        assert_eq!(
+            description_of_text(&text, file).unwrap(),
+            "Random on one map."
+        );
+        // The store's copy is read for its description even where its maps would not resolve.
+        let unresolved = "name: x\nmaps:\n  - file: gone.txt\n";
+        assert_eq!(description_of_text(unresolved, file).unwrap(), "");
+        assert!(description_of_text("description: [a, b]\n", file).is_err());
     }
 
     #[test]

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 const SCENARIO: &str = "name: tiny
+description: Random and GCS on two rooms, to see a report whole.
 seed: 11
 maps:
   - inline:
@@ -159,6 +160,14 @@ fn read_parquet(path: &Path) -> DataFrame {
 fn the_report_of_a_sweep_renders_and_holds_the_store_numbers() {
     let (store, report) = sweep_and_report("report");
     let readme = std::fs::read_to_string(report.join("README.md")).unwrap();
+    // What the experiment is comes first, under the title.
+    assert!(
+        readme.starts_with(
+            "# Report: tiny\n\nRandom and GCS on two rooms, to see a report whole.\n\nThe sweep"
+        ),
+        "{}",
+        &readme[..200]
+    );
 
     let pngs = files_in(&report.join("figures"), "png");
     let svgs = files_in(&report.join("figures"), "svg");

@@ -215,7 +215,7 @@ fn compute_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResult
         Err(_) => String::new(),
     };
     let runs = match training {
-        Some(training) => training_runs_line(training)?,
+        Some(training) => training_runs_clause(training)?,
         None => String::new(),
     };
     Ok(format!(
@@ -228,7 +228,7 @@ fn compute_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResult
 
 /// "...; the 48 training runs took 7.18 CPU hours by their logs": a run's wall time is its
 /// log's last (the log counts from the run's start, across resumes); one cell holds one run.
-fn training_runs_line(training: &DataFrame) -> PolarsResult<String> {
+fn training_runs_clause(training: &DataFrame) -> PolarsResult<String> {
     let keys = strings(training, cell::KEY)?;
     let walls = f64s(training, training::WALL_SECONDS)?;
     let runs: Vec<f64> = group_rows(&keys)
@@ -534,7 +534,7 @@ mod tests {
             training::WALL_SECONDS => [1.0, 3600.0, 2.0, 5000.0, 7200.0],
         )
         .unwrap();
-        let line = training_runs_line(&training).unwrap();
+        let line = training_runs_clause(&training).unwrap();
         assert!(
             line.ends_with("the 2 training runs took 3.00 CPU hours by their logs"),
             "{line}"
@@ -542,7 +542,7 @@ mod tests {
         let none =
             df!(cell::KEY => Vec::<String>::new(), training::WALL_SECONDS => Vec::<f64>::new())
                 .unwrap();
-        assert_eq!(training_runs_line(&none).unwrap(), "");
+        assert_eq!(training_runs_clause(&none).unwrap(), "");
     }
 
     #[test]

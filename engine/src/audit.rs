@@ -20,7 +20,7 @@ use store::columns::{strings, u32s};
 use store::disturbance;
 use store::schema::{cell, disturbed, episodes};
 use store::tables::{self, EpisodeRow};
-use store::{CellRecord, Store, StoreError, TRAINING_FILE};
+use store::{CONVERGENCE_FILE, CellRecord, Store, StoreError, TRAINING_FILE};
 
 /// Why a stored episode or training run could not be repeated, or came back different.
 #[derive(Debug, thiserror::Error)]
@@ -294,7 +294,7 @@ fn train_again(
     let training = config.training_config().ok_or(AuditError::NotTrained)??;
     let world = world_of(store, worlds, config)?;
     let mut trainer = Trainer::new(world, training, config.training_seed)?;
-    let records = trainer.train(u64::MAX, &mut |_| ())?;
+    let records = trainer.train(stop_episode(store, record)?, &mut |_| ())?;
     let compared = match &record.taken_from {
         Some(_) => "log (its weights were not kept: taken from tables)",
         None => {
@@ -318,6 +318,18 @@ fn train_again(
         episodes: records.len() as u64,
         compared,
     })
+}
+
+/// The training episodes a stored run trained: where a run until converged stopped (its
+/// updates do not depend on the stop, so training that many gives its weights), else all.
+fn stop_episode(store: &Store, record: &CellRecord) -> Result<u64, AuditError> {
+    let Some(table) = store.cell_table(record, CONVERGENCE_FILE)? else {
+        return Ok(u64::MAX);
+    };
+    let stops = table
+        .column(store::schema::convergence::STOP_EPISODE)?
+        .u64()?;
+    Ok(stops.get(0).unwrap_or(u64::MAX))
 }
 
 /// The world of a stored map, built once per map and checked against the map's hash.

@@ -1,32 +1,39 @@
 //! Runs one cell: builds or trains its policy, plays its test episodes at every N_test and
 //! saves the result in the store.
 
+use std::path::Path;
 use std::sync::Arc;
 use std::time::{Instant, SystemTime};
 
-use polars::prelude::DataFrame;
-use policies::checkpoint::{self, CheckpointError, METADATA_FILE, WEIGHTS_FILE};
+use polars::prelude::{Column, DataFrame};
+use policies::checkpoint::{
+    self, CheckpointError, CheckpointMetadata, METADATA_FILE, WEIGHTS_FILE,
+};
 use policies::nn::ActorCritic;
 use policies::ppo::{ConfigError, TrainError, Trainer, TrainingConfig, TrainingState};
 use policies::{LearnedPolicy, PlanError, Policy};
 use world::{StartError, World};
 
 use crate::episode::{StepObserver, run_disturbed_episode};
-use crate::test_curve::{CpuMeter, CurvePoint, TestCurve};
+use crate::test_curve::{self, CpuMeter, CurvePoint, TestCurve};
 use crate::training_run::{TrainingRun, TrainingRunError};
 use crate::trajectory::CellRecording;
+use crate::validation::{BestPolicy, Stop, Validation, ValidationPoint};
 use plan::cell::{CellConfig, SweepCell};
 use plan::code_version::code_version;
 use plan::disturbance::{Disturbance, UNDISTURBED};
+use plan::scenario::stopping::Checkpoint;
 use plan::scenario::{Learned, ScenarioPolicy};
 use store::adaptation::{self, Adaptation};
 use store::disturbance::{self, DisturbedRow};
 use store::provenance::{cpu_description, host_name, utc_timestamp};
 use store::provenance::{git_commit, sources};
+use store::schema;
 use store::tables::{self, EpisodeRow};
 use store::{
-    CellRecord, DISTURBED_FILE, DISTURBED_STEPS_FILE, EPISODES_FILE, Store, StoreError,
-    TEST_CURVE_FILE, TRAINING_FILE,
+    BEST_METADATA_FILE, BEST_WEIGHTS_FILE, CHECKPOINTS_FILE, CONVERGENCE_FILE, CellRecord,
+    DISTURBED_FILE, DISTURBED_STEPS_FILE, EPISODES_FILE, Store, StoreError, TEST_CURVE_FILE,
+    TRAINING_FILE, VALIDATION_FILE,
 };
 
 #[derive(Debug, thiserror::Error)]
@@ -45,6 +52,8 @@ pub enum CellError {
     Training(#[from] TrainingRunError),
     #[error("{0}")]
     Table(#[from] polars::prelude::PolarsError),
+    #[error("a learned cell trained until converged has no validation seed")]
+    NoValidationSeed,
 }
 
 /// Where a cell comes from, for its record.
@@ -73,36 +82,24 @@ pub(crate) fn run_cell(
     let mut files = Vec::new();
     // The training wall time of the processes before this one, when a stopped run resumed.
     let mut earlier_training_seconds = 0.0;
-    let mut policy = match &config.policy {
-        ScenarioPolicy::Baseline(baseline) => baseline.build(world)?,
+    let (mut policy, trained) = match &config.policy {
+        ScenarioPolicy::Baseline(baseline) => (baseline.build(world)?, None),
         ScenarioPolicy::Learned(learned) => {
-            let (model, training) = match shared_training(store, cache, cell, &mut files)? {
+            let models = match shared_training(store, cache, cell, &mut files)? {
                 Some(shared) => {
                     advance(config.training_cost().env_steps);
                     shared
                 }
                 None => {
                     let training = config.training_config_of(learned)?;
-                    let Trained {
-                        state,
-                        log,
-                        curve,
-                        earlier_seconds,
-                    } = train_cell(store, cell, world, (training, learned), advance)?;
-                    earlier_training_seconds = earlier_seconds;
-                    let checkpoint = checkpoint::save(&state);
-                    let log = tables::training_frame(&cell.key, config, &log)?;
-                    files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
-                    if let Some(curve) = curve {
-                        let frame = curve.frame(&cell.key, config)?;
-                        files.push((TEST_CURVE_FILE, tables::parquet_bytes(&frame)?));
-                    }
-                    files.push((WEIGHTS_FILE, checkpoint.weights));
-                    files.push((METADATA_FILE, checkpoint.metadata.into_bytes()));
-                    (state.model, state.config)
+                    let folder = store.partial_training_folder(&cell.key);
+                    let trained = train_cell(&folder, cell, world, (training, learned), advance)?;
+                    earlier_training_seconds = trained.earlier_seconds;
+                    trained.into_files(cell, &mut files)?
                 }
             };
-            learned_policy(world, model, &training, learned)?
+            let tested = models.policy(world, learned, models.tested(learned))?;
+            (tested, Some((learned, models)))
         }
     };
     let mut rows = Vec::new();
@@ -153,6 +150,11 @@ pub(crate) fn run_cell(
         let frame = disturbance::disturbed_steps_frame(&cell.key, config, &disturbed)?;
         files.push((DISTURBED_STEPS_FILE, tables::parquet_bytes(&frame)?));
     }
+    if let Some((learned, models)) = &trained
+        && let Some(frame) = models.checkpoints_frame(world, (&cell.key, config), learned, &rows)?
+    {
+        files.push((CHECKPOINTS_FILE, tables::parquet_bytes(&frame)?));
+    }
     let episodes = tables::episodes_frame(&cell.key, config, &rows)?;
     files.push((EPISODES_FILE, tables::parquet_bytes(&episodes)?));
     let record = CellRecord {
@@ -180,15 +182,86 @@ pub(crate) fn run_cell(
     Ok(record)
 }
 
-/// The model and training configuration of a finished cell in `store` or `cache` whose
-/// training run is `cell`'s (`CellConfig::training_identity`), its files pushed onto `files`
-/// (the training log under `cell`'s own columns); `None` when there is none.
+/// The policies of a learned cell: the final one and, for a run until converged, the best.
+struct TrainedModels {
+    config: TrainingConfig,
+    final_model: ActorCritic<f32>,
+    best: Option<ActorCritic<f32>>,
+}
+
+impl TrainedModels {
+    /// The checkpoint the cell's tests and claims use: the rule's choice for a run until
+    /// converged, else the final one.
+    fn tested(&self, learned: &Learned) -> Checkpoint {
+        match (learned.stopping, &self.best) {
+            (Some(rule), Some(_)) => rule.tested,
+            _ => Checkpoint::Final,
+        }
+    }
+
+    fn model(&self, checkpoint: Checkpoint) -> &ActorCritic<f32> {
+        match (checkpoint, &self.best) {
+            (Checkpoint::Best, Some(best)) => best,
+            _ => &self.final_model,
+        }
+    }
+
+    fn policy(
+        &self,
+        world: &Arc<World>,
+        learned: &Learned,
+        checkpoint: Checkpoint,
+    ) -> Result<Box<dyn Policy>, CellError> {
+        let model = self.model(checkpoint).clone();
+        learned_policy(world, model, &self.config, learned)
+    }
+
+    /// Both checkpoints of a run until converged on the cell's test episodes (`tested_rows`
+    /// are the tested one's, played already); `None` for a run of fixed length.
+    fn checkpoints_frame(
+        &self,
+        world: &Arc<World>,
+        (key, config): (&str, &CellConfig),
+        learned: &Learned,
+        tested_rows: &[EpisodeRow],
+    ) -> Result<Option<DataFrame>, CellError> {
+        if self.best.is_none() {
+            return Ok(None);
+        }
+        let tested = self.tested(learned);
+        let mut frames = Vec::new();
+        for checkpoint in Checkpoint::ALL {
+            let rows = if checkpoint == tested {
+                tested_rows.to_vec()
+            } else {
+                let mut policy = self.policy(world, learned, checkpoint)?;
+                let plays = config
+                    .n_test
+                    .iter()
+                    .flat_map(|&n| (0..config.test_episodes).map(move |e| (n, e)));
+                plays
+                    .map(|(n, e)| test_episode(world, policy.as_mut(), config, n, e))
+                    .collect::<Result<Vec<_>, _>>()?
+            };
+            let mut frame = tables::episodes_frame(key, config, &rows)?;
+            let names = vec![checkpoint.name(); rows.len()];
+            let column = Column::new(schema::checkpoints::CHECKPOINT.into(), names);
+            frame.insert_column(schema::cell::COLUMNS.len(), column)?;
+            frames.push(frame);
+        }
+        Ok(tables::stack(frames)?)
+    }
+}
+
+/// The policies of a finished cell in `store` or `cache` whose training run is `cell`'s
+/// (`CellConfig::training_identity`), its files pushed onto `files` (its tables under
+/// `cell`'s own columns); `None` when there is none.
 fn shared_training(
     store: &Store,
     cache: Option<&Store>,
     cell: &SweepCell,
     files: &mut Vec<(&'static str, Vec<u8>)>,
-) -> Result<Option<(ActorCritic<f32>, TrainingConfig)>, CellError> {
+) -> Result<Option<TrainedModels>, CellError> {
     let Some(identity) = cell.config.training_identity() else {
         return Ok(None);
     };
@@ -199,24 +272,48 @@ fn shared_training(
     let Some((source, record)) = found else {
         return Ok(None);
     };
-    let weights = source.cell_file(&record, WEIGHTS_FILE)?;
-    let metadata_bytes = source.cell_file(&record, METADATA_FILE)?;
-    let metadata = checkpoint::read_metadata(&String::from_utf8_lossy(&metadata_bytes))?;
-    let model = checkpoint::load_model(&metadata, &weights)?;
+    let (final_model, metadata) = stored_model(source, &record, (WEIGHTS_FILE, METADATA_FILE))?;
     let log = source.cell_table(&record, TRAINING_FILE)?;
     let log = log.ok_or_else(|| StoreError::corrupt(source.root(), "a training log is gone"))?;
     let log = log.drop_many(store::schema::cell::COLUMNS);
     let log = tables::training_frame(&cell.key, &cell.config, &log)?;
     files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
-    // The same identity plays the same test curve (`CellConfig::training_identity`).
-    if let Some(curve) = source.cell_table(&record, TEST_CURVE_FILE)? {
-        let curve = curve.drop_many(store::schema::cell::COLUMNS);
-        let curve = tables::training_frame(&cell.key, &cell.config, &curve)?;
-        files.push((TEST_CURVE_FILE, tables::parquet_bytes(&curve)?));
+    // The same identity plays the same test curve and validations
+    // (`CellConfig::training_identity`).
+    for name in [TEST_CURVE_FILE, VALIDATION_FILE, CONVERGENCE_FILE] {
+        if let Some(table) = source.cell_table(&record, name)? {
+            let table = table.drop_many(store::schema::cell::COLUMNS);
+            let table = tables::training_frame(&cell.key, &cell.config, &table)?;
+            files.push((name, tables::parquet_bytes(&table)?));
+        }
     }
-    files.push((WEIGHTS_FILE, weights));
-    files.push((METADATA_FILE, metadata_bytes));
-    Ok(Some((model, metadata.config)))
+    let mut best = None;
+    if record.files.contains_key(BEST_WEIGHTS_FILE) {
+        let names = (BEST_WEIGHTS_FILE, BEST_METADATA_FILE);
+        best = Some(stored_model(source, &record, names)?.0);
+        for name in [BEST_WEIGHTS_FILE, BEST_METADATA_FILE] {
+            files.push((name, source.cell_file(&record, name)?));
+        }
+    }
+    files.push((WEIGHTS_FILE, source.cell_file(&record, WEIGHTS_FILE)?));
+    files.push((METADATA_FILE, source.cell_file(&record, METADATA_FILE)?));
+    Ok(Some(TrainedModels {
+        config: metadata.config,
+        final_model,
+        best,
+    }))
+}
+
+/// The model of a finished cell's checkpoint files (weights, metadata), with its metadata.
+fn stored_model(
+    source: &Store,
+    record: &CellRecord,
+    (weights, metadata): (&str, &str),
+) -> Result<(ActorCritic<f32>, CheckpointMetadata), CellError> {
+    let metadata_bytes = source.cell_file(record, metadata)?;
+    let metadata = checkpoint::read_metadata(&String::from_utf8_lossy(&metadata_bytes))?;
+    let model = checkpoint::load_model(&metadata, &source.cell_file(record, weights)?)?;
+    Ok((model, metadata))
 }
 
 /// A learned cell's finished training run.
@@ -224,65 +321,269 @@ struct Trained {
     state: TrainingState,
     log: DataFrame,
     curve: Option<TestCurve>,
+    /// The validations, best policy and stop of a run until converged.
+    converged: Option<Converged>,
     /// The training's wall time in the processes before this one (0 unless it resumed), so
     /// that a cell's record counts what every process spent on it.
     earlier_seconds: f64,
 }
 
-/// Trains a learned cell's policy, continuing the run an interrupted sweep saved, and plays
-/// its test curve along the way when the policy asks for one.
+/// How a run until converged ended.
+struct Converged {
+    validation: Validation,
+    best: BestPolicy,
+    stop: Stop,
+    cpu_seconds: f64,
+}
+
+impl Trained {
+    /// The run's files pushed onto `files`, and its policies.
+    fn into_files(
+        self,
+        cell: &SweepCell,
+        files: &mut Vec<(&'static str, Vec<u8>)>,
+    ) -> Result<TrainedModels, CellError> {
+        let (key, config) = (cell.key.as_str(), &cell.config);
+        let log = tables::training_frame(key, config, &self.log)?;
+        files.push((TRAINING_FILE, tables::parquet_bytes(&log)?));
+        if let Some(curve) = self.curve {
+            let frame = curve.frame(key, config)?;
+            files.push((TEST_CURVE_FILE, tables::parquet_bytes(&frame)?));
+        }
+        let mut best = None;
+        if let Some(run) = self.converged {
+            let frame = run.validation.frame(key, config)?;
+            files.push((VALIDATION_FILE, tables::parquet_bytes(&frame)?));
+            let stopped = (key, config);
+            let frame = run
+                .validation
+                .convergence_frame(stopped, run.stop, run.cpu_seconds)?;
+            files.push((CONVERGENCE_FILE, tables::parquet_bytes(&frame)?));
+            let metadata = checkpoint::read_metadata(&run.best.metadata)?;
+            best = Some(checkpoint::load_model(&metadata, &run.best.weights)?);
+            files.push((BEST_WEIGHTS_FILE, run.best.weights));
+            files.push((BEST_METADATA_FILE, run.best.metadata.into_bytes()));
+        }
+        let checkpoint = checkpoint::save(&self.state);
+        files.push((WEIGHTS_FILE, checkpoint.weights));
+        files.push((METADATA_FILE, checkpoint.metadata.into_bytes()));
+        Ok(TrainedModels {
+            config: self.state.config,
+            final_model: self.state.model,
+            best,
+        })
+    }
+}
+
+/// Trains a learned cell's policy in `folder`, continuing the run an interrupted sweep saved
+/// there; plays its test curve along the way when the policy asks for one, and its
+/// validations when it trains until converged (`validation`).
 fn train_cell(
-    store: &Store,
+    folder: &Path,
     cell: &SweepCell,
     world: &Arc<World>,
     (training, learned): (TrainingConfig, &Learned),
     advance: &dyn Fn(u64),
 ) -> Result<Trained, CellError> {
-    let folder = store.partial_training_folder(&cell.key);
-    let seed = cell.config.training_seed;
-    let mut run = TrainingRun::resume_or_start(&folder, world.clone(), training, seed)?;
+    let config = &cell.config;
+    let seed = config.training_seed;
+    let mut run = TrainingRun::resume_or_start(folder, world.clone(), training.clone(), seed)?;
+    let mut evaluations = Evaluations::resume(folder, learned, run.state().episodes_done)?;
+    if evaluations.lost_its_best() {
+        // The best policy of the validations saved is gone: only training again finds it.
+        std::fs::remove_dir_all(folder).map_err(|e| StoreError::io(folder, e))?;
+        run = TrainingRun::start(folder, world.clone(), training, seed)?;
+        evaluations = Evaluations::resume(folder, learned, 0)?;
+    }
     let earlier_seconds = run.state().wall_seconds;
-    let steps = cell.config.world.train_steps as u64;
-    let total = run.state().config.episodes;
-    let Some(every) = learned.evaluate_every else {
-        advance(run.state().episodes_done * steps);
-        run.train(total, SAVE_EVERY, &mut |_| advance(steps))?;
-        let (state, log) = run.into_parts();
-        return Ok(Trained {
-            state,
-            log,
-            curve: None,
-            earlier_seconds,
-        });
-    };
-    let done = run.state().episodes_done;
-    let mut curve = TestCurve::resume(&folder, u64::from(every), done)?;
-    let mut cpu_seconds = curve.cpu_at_resume(run.state().wall_seconds);
-    let play_steps = u64::from(cell.config.test_episodes) * u64::from(cell.config.world.test_steps);
-    advance(done * steps + curve.points().len() as u64 * play_steps);
-    loop {
+    let steps = config.world.train_steps as u64;
+    let cap = run.state().config.episodes;
+    let mut cpu_seconds = evaluations.cpu_at_resume(run.state().wall_seconds);
+    advance(run.state().episodes_done * steps + evaluations.steps_played(config));
+    let stop = loop {
         let done = run.state().episodes_done;
-        if curve.due(done, total) {
-            let point = curve_point(world, &cell.config, learned, run.state(), cpu_seconds)?;
-            curve.push(point);
-            curve.save(&folder, &cell.key, &cell.config)?;
-            advance(play_steps);
-        }
-        if done >= total {
-            break;
+        let stop =
+            evaluations.play_due(world, cell, learned, (run.state(), cpu_seconds), folder)?;
+        advance(evaluations.steps_played(config) - evaluations.steps_before);
+        if stop.is_some() || done >= cap {
+            break stop;
         }
         let meter = CpuMeter::start();
-        run.train(curve.next_stop(done, total), SAVE_EVERY, &mut |_| {
-            advance(steps)
-        })?;
+        let next = evaluations.next_stop(done, cap);
+        run.train(next, SAVE_EVERY, &mut |_| advance(steps))?;
         cpu_seconds += meter.seconds();
-    }
+    };
     let (state, log) = run.into_parts();
+    let converged = match (evaluations.validation, evaluations.best, stop) {
+        (Some(validation), Some(best), Some(stop)) => Some(Converged {
+            validation,
+            best,
+            stop,
+            cpu_seconds,
+        }),
+        _ => None,
+    };
     Ok(Trained {
         state,
         log,
-        curve: Some(curve),
+        curve: evaluations.curve,
+        converged,
         earlier_seconds,
+    })
+}
+
+/// What a learned cell plays along its training: its test curve, its validations and the
+/// best policy they found.
+struct Evaluations {
+    curve: Option<TestCurve>,
+    validation: Option<Validation>,
+    best: Option<BestPolicy>,
+    /// Environment steps played before the last call to `play_due`, for progress.
+    steps_before: u64,
+}
+
+impl Evaluations {
+    /// The evaluations saved in `folder` by a run resumed after `done` episodes.
+    fn resume(folder: &Path, learned: &Learned, done: u64) -> Result<Self, CellError> {
+        let curve = (learned.evaluate_every)
+            .map(|every| TestCurve::resume(folder, u64::from(every), done))
+            .transpose()?;
+        let validation = (learned.stopping)
+            .map(|rule| Validation::resume(folder, rule, done))
+            .transpose()?;
+        let best = validation
+            .as_ref()
+            .and_then(|v| BestPolicy::resume(folder, v, done));
+        Ok(Evaluations {
+            curve,
+            validation,
+            best,
+            steps_before: 0,
+        })
+    }
+
+    /// Whether validations were saved but not the best policy among them.
+    fn lost_its_best(&self) -> bool {
+        let validated = self
+            .validation
+            .as_ref()
+            .is_some_and(|v| !v.points().is_empty());
+        validated && self.best.is_none()
+    }
+
+    /// The training CPU-seconds of a run resumed with `wall_seconds` of training.
+    fn cpu_at_resume(&self, wall_seconds: f64) -> f64 {
+        let clocks = [
+            self.curve.as_ref().and_then(TestCurve::last_clock),
+            self.validation.as_ref().and_then(Validation::last_clock),
+        ];
+        let last = clocks
+            .into_iter()
+            .flatten()
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        test_curve::cpu_at_resume(last, wall_seconds)
+    }
+
+    /// Environment steps played so far by the curve and the validations.
+    fn steps_played(&self, config: &CellConfig) -> u64 {
+        let test_steps = u64::from(config.world.test_steps);
+        let curve = self.curve.as_ref().map_or(0, |c| {
+            c.points().len() as u64 * u64::from(config.test_episodes)
+        });
+        let validation = self.validation.as_ref().map_or(0, |v| {
+            v.points().len() as u64 * u64::from(v.rule().validation_episodes)
+        });
+        (curve + validation) * test_steps
+    }
+
+    /// Where training should stop next after `done` of at most `cap` episodes.
+    fn next_stop(&self, done: u64, cap: u64) -> u64 {
+        let curve = self.curve.as_ref().map(|c| c.next_stop(done, cap));
+        let validation = self.validation.as_ref().map(|v| v.next_stop(done, cap));
+        [curve, validation]
+            .into_iter()
+            .flatten()
+            .min()
+            .unwrap_or(cap)
+    }
+
+    /// Plays what is due for the policy of `state` (whose training took `cpu_seconds`),
+    /// saving each in `folder`: the validation first, since it decides whether the run stops
+    /// here, then the test curve, which always plays the run's last policy. Returns the
+    /// stop of a run until converged that ends here.
+    fn play_due(
+        &mut self,
+        world: &Arc<World>,
+        cell: &SweepCell,
+        learned: &Learned,
+        (state, cpu_seconds): (&TrainingState, f64),
+        folder: &Path,
+    ) -> Result<Option<Stop>, CellError> {
+        let (key, config) = (cell.key.as_str(), &cell.config);
+        self.steps_before = self.steps_played(config);
+        let done = state.episodes_done;
+        let cap = state.config.episodes;
+        if let Some(validation) = self.validation.as_mut()
+            && validation.due(done, cap)
+        {
+            let point = validation_point(world, config, learned, state, cpu_seconds)?;
+            if validation
+                .best()
+                .is_none_or(|best| point.penalty < best.penalty)
+            {
+                let best = BestPolicy::of(state);
+                best.save(folder)?;
+                self.best = Some(best);
+            }
+            validation.push(point);
+            validation.save(folder, key, config)?;
+        }
+        let stop = self.validation.as_ref().and_then(|v| v.stop(done, cap));
+        let end = if stop.is_some() { done } else { cap };
+        if let Some(curve) = self.curve.as_mut()
+            && curve.due(done, end)
+        {
+            curve.push(curve_point(world, config, learned, state, cpu_seconds)?);
+            curve.save(folder, key, config)?;
+        }
+        Ok(stop)
+    }
+}
+
+/// The validation episodes of a run until converged, played with the policy of `state`.
+fn validation_point(
+    world: &Arc<World>,
+    config: &CellConfig,
+    learned: &Learned,
+    state: &TrainingState,
+    cpu_seconds: f64,
+) -> Result<ValidationPoint, CellError> {
+    let agents = config.learned_n_train()?;
+    let episodes = learned.stopping.map_or(0, |rule| rule.validation_episodes);
+    let mut policy = learned_policy(world, state.model.clone(), &state.config, learned)?;
+    let mut total = 0.0;
+    for episode in 0..episodes {
+        let seed = config
+            .validation_episode_seed(agents, episode)
+            .ok_or(CellError::NoValidationSeed)?;
+        let steps = config.world.test_steps as usize;
+        let outcome = run_disturbed_episode(
+            world,
+            agents as usize,
+            policy.as_mut(),
+            seed,
+            None,
+            steps,
+            None,
+            &mut |_, _, _| {},
+        )?;
+        total += outcome.cumulative_penalty;
+    }
+    Ok(ValidationPoint {
+        training_episode: state.episodes_done,
+        cpu_seconds,
+        wall_seconds: state.wall_seconds,
+        penalty: total / f64::from(episodes.max(1)),
     })
 }
 
@@ -309,7 +610,7 @@ fn curve_point(
 }
 
 /// The policy a finished cell tests, from the store alone: a baseline is built again, a
-/// learned policy is read from the cell's checkpoint.
+/// learned policy is read from the cell's checkpoint (its best one where the cell tests that).
 pub fn stored_policy(
     store: &Store,
     record: &CellRecord,
@@ -322,21 +623,38 @@ pub fn stored_policy(
     if record.taken_from.is_some() {
         return trained_again(record, world, learned);
     }
-    let metadata = String::from_utf8_lossy(&store.cell_file(record, METADATA_FILE)?).into_owned();
-    let metadata = checkpoint::read_metadata(&metadata)?;
-    let model = checkpoint::load_model(&metadata, &store.cell_file(record, WEIGHTS_FILE)?)?;
+    let names = match learned.stopping.map(|rule| rule.tested) {
+        Some(Checkpoint::Best) => (BEST_WEIGHTS_FILE, BEST_METADATA_FILE),
+        _ => (WEIGHTS_FILE, METADATA_FILE),
+    };
+    let (model, metadata) = stored_model(store, record, names)?;
     learned_policy(world, model, &metadata.config, learned)
 }
 
 /// The policy of a cell taken from tables, which keep no checkpoint: its run trained again
 /// from its config and seed, which gives the weights it was tested with (the training audit
-/// checks that a run trained again gives its bits). It costs the run's training time.
+/// checks that a run trained again gives its bits). It costs the run's training time; a run
+/// until converged trains in a temporary folder, as a sweep's cell does.
 fn trained_again(
     record: &CellRecord,
     world: &Arc<World>,
     learned: &Learned,
 ) -> Result<Box<dyn Policy>, CellError> {
     let training = record.config.training_config_of(learned)?;
+    if learned.stopping.is_some() {
+        let name = format!("vpm-trained-again-{}-{}", std::process::id(), record.key);
+        let folder = std::env::temp_dir().join(name);
+        let cell = SweepCell {
+            index: 0,
+            map_index: 0,
+            key: record.key.clone(),
+            config: record.config.clone(),
+        };
+        let trained = train_cell(&folder, &cell, world, (training, learned), &|_| ());
+        let _ = std::fs::remove_dir_all(&folder);
+        let models = trained?.into_files(&cell, &mut Vec::new())?;
+        return models.policy(world, learned, models.tested(learned));
+    }
     let seed = record.config.training_seed;
     let mut trainer = Trainer::new(world.clone(), training.clone(), seed).map_err(retrain)?;
     trainer.train(u64::MAX, &mut |_| ()).map_err(retrain)?;
@@ -535,7 +853,7 @@ mod tests {
         assert_eq!(first.state().episodes_done, 2);
         assert!(before > 0.0);
         // The second process resumes it and finishes.
-        let trained = train_cell(&store, cell, &world, (training, learned), &|_| ()).unwrap();
+        let trained = train_cell(&folder, cell, &world, (training, learned), &|_| ()).unwrap();
         // Through the checkpoint's JSON: equal to the microsecond, not always to the bit.
         assert!(
             (trained.earlier_seconds - before).abs() < 1e-6,
@@ -548,6 +866,104 @@ mod tests {
             "{} {before}",
             trained.state.wall_seconds
         );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    fn converged_scenario(cap: u32) -> Scenario {
+        let text = format!(
+            "name: converged\nseed: 2\nmaps:\n  - inline: {{name: a, grid: \"......\\n..#...\\n\
+             ......\\n\"}}\nworld: {{fov: 3, train_steps: 8, test_steps: 8}}\npolicies:\n  \
+             - ma-g-ppo: {{profile: fast-v2, episodes: {cap}, evaluate_every: 3, until: converged, \
+             stopping: {{validate_every: 2, validation_episodes: 2, patience: 3, \
+             min_improvement: 0.3}}, set: {{network: compact}}}}\n\
+             agents: {{train: [2], test: [2]}}\ntest_episodes: 2\n"
+        );
+        Scenario::parse(&text, Path::new("converged.yaml")).unwrap()
+    }
+
+    /// Everything a run until converged gives that must not depend on how it was run.
+    fn outcome_of(trained: Trained) -> (u64, Vec<u8>, BestPolicy, Vec<ValidationPoint>, usize) {
+        let converged = trained.converged.expect("a run until converged");
+        let weights = checkpoint::save(&trained.state).weights;
+        let points = converged.validation.points().to_vec();
+        let points = points
+            .into_iter()
+            .map(|p| ValidationPoint {
+                cpu_seconds: 0.0,
+                wall_seconds: 0.0,
+                ..p
+            })
+            .collect();
+        let curve = trained.curve.map_or(0, |c| c.points().len());
+        let best = BestPolicy {
+            metadata: String::new(),
+            ..converged.best
+        };
+        (trained.state.episodes_done, weights, best, points, curve)
+    }
+
+    fn train_converged(cap: u32, folder: &Path, stop_after: Option<u64>) -> Option<Trained> {
+        let scenario = converged_scenario(cap);
+        let cell = &scenario.cells()[0];
+        let world = World::new(
+            scenario.maps()[0].map.clone(),
+            scenario.world().params().unwrap(),
+        );
+        let ScenarioPolicy::Learned(learned) = &cell.config.policy else {
+            panic!("a learned cell");
+        };
+        let training = cell.config.training_config_of(learned).unwrap();
+        let steps = std::sync::atomic::AtomicU64::new(0);
+        let advance = |n: u64| {
+            let so_far = steps.fetch_add(n, std::sync::atomic::Ordering::Relaxed) + n;
+            // A kill in the middle of training, as a lost machine would.
+            assert!(stop_after.is_none_or(|limit| so_far < limit), "killed");
+        };
+        let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            train_cell(folder, cell, &world, (training, learned), &advance).unwrap()
+        }));
+        run.ok()
+    }
+
+    /// The rule stops the run before its cap; killed part way and resumed, or given a larger
+    /// cap, it stops at the same episode with the same final and best weights and the same
+    /// validations.
+    #[test]
+    fn a_run_until_converged_resumes_bit_for_bit() {
+        let dir = std::env::temp_dir().join(format!("vpm-converged-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let straight = train_converged(60, &dir.join("straight"), None).unwrap();
+        let converged = straight.converged.as_ref().unwrap();
+        assert_eq!(converged.stop, Stop::Converged);
+        let stopped = straight.state.episodes_done;
+        assert!(stopped < 60 && stopped.is_multiple_of(2), "{stopped}");
+        assert!(converged.best.episode <= stopped);
+        let points = converged.validation.points().len() as u64;
+        assert_eq!(points, stopped / 2 + 1);
+        let straight = outcome_of(straight);
+        // The test curve played its last point at the stop, not at the cap.
+        assert_eq!(straight.4 as u64, stopped.div_ceil(3) + 1);
+
+        let cut = dir.join("cut");
+        // Killed after a few validations' worth of environment steps, then resumed.
+        let killed_at = 8 * (stopped / 2) + 8 * 2 * 2;
+        assert!(train_converged(60, &cut, Some(killed_at)).is_none());
+        assert!(cut.join(store::VALIDATION_FILE).exists());
+        let resumed = train_converged(60, &cut, None).unwrap();
+        assert_eq!(outcome_of(resumed), straight);
+        // Resumed after its stop: nothing more is trained.
+        let again = train_converged(60, &cut, None).unwrap();
+        assert_eq!(outcome_of(again), straight);
+
+        // Another cap, above the stop: the same run.
+        let other_cap = train_converged(90, &dir.join("other-cap"), None).unwrap();
+        assert_eq!(outcome_of(other_cap), straight);
+        // A cap below the stop: capped there, its validations the first ones.
+        let capped = train_converged(4, &dir.join("capped"), None).unwrap();
+        assert_eq!(capped.converged.as_ref().unwrap().stop, Stop::Capped);
+        let capped = outcome_of(capped);
+        assert_eq!(capped.0, 4);
+        assert_eq!(capped.3[..], straight.3[..3]);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

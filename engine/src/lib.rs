@@ -23,3 +23,4 @@ pub mod trace;
 pub mod training_log;
 pub mod training_run;
 pub mod trajectory;
+pub mod validation;

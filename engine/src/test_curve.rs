@@ -79,28 +79,23 @@ impl TestCurve {
     /// Whether the policy after `done` of `total` training episodes is due a play: before
     /// training, at the end, and at the first stop at or after each multiple of K.
     pub(crate) fn due(&self, done: u64, total: u64) -> bool {
-        let last = self.points.last().map(|p| p.training_episode);
-        let since = done / self.every * self.every;
-        match last {
-            Some(last) if last == done => false,
-            Some(last) => done == total || last < since,
-            None => true,
-        }
+        due(
+            self.points.last().map(|p| p.training_episode),
+            self.every,
+            done,
+            total,
+        )
     }
 
     /// Where training should stop next after `done` episodes: the next multiple of K, or
     /// `total`.
     pub(crate) fn next_stop(&self, done: u64, total: u64) -> u64 {
-        ((done / self.every + 1) * self.every).min(total)
+        next_stop(self.every, done, total)
     }
 
-    /// The training CPU-seconds of a run resumed with `wall_seconds` of training: the last
-    /// point's, plus the wall time trained after it.
-    pub(crate) fn cpu_at_resume(&self, wall_seconds: f64) -> f64 {
-        match self.points.last() {
-            Some(p) => p.cpu_seconds + (wall_seconds - p.wall_seconds).max(0.0),
-            None => wall_seconds,
-        }
+    /// The training CPU-seconds and wall seconds of the last point, if any.
+    pub(crate) fn last_clock(&self) -> Option<(f64, f64)> {
+        self.points.last().map(|p| (p.cpu_seconds, p.wall_seconds))
     }
 
     pub fn push(&mut self, point: CurvePoint) {
@@ -141,6 +136,34 @@ impl TestCurve {
         std::fs::create_dir_all(folder).map_err(|e| StoreError::io(folder, e))?;
         let path = folder.join(TEST_CURVE_FILE);
         write_atomic(&path, &bytes).map_err(|e| StoreError::io(&path, e))
+    }
+}
+
+/// Whether the policy after `done` of `total` training episodes is due a play every `every`
+/// episodes, the last play being after `last`: before training, at the end, and at the first
+/// stop at or after each multiple of `every`.
+pub(crate) fn due(last: Option<u64>, every: u64, done: u64, total: u64) -> bool {
+    let since = done / every * every;
+    match last {
+        Some(last) if last == done => false,
+        Some(last) => done == total || last < since,
+        None => true,
+    }
+}
+
+/// Where training should stop next after `done` episodes for plays every `every`: the next
+/// multiple, or `total`.
+pub(crate) fn next_stop(every: u64, done: u64, total: u64) -> u64 {
+    ((done / every + 1) * every).min(total)
+}
+
+/// The training CPU-seconds of a run resumed with `wall_seconds` of training, whose latest
+/// saved point (of a test or validation curve) had `last` (CPU-seconds, wall seconds): the
+/// point's CPU, plus the wall time trained after it.
+pub(crate) fn cpu_at_resume(last: Option<(f64, f64)>, wall_seconds: f64) -> f64 {
+    match last {
+        Some((cpu, wall)) => cpu + (wall_seconds - wall).max(0.0),
+        None => wall_seconds,
     }
 }
 
@@ -281,7 +304,7 @@ mod tests {
         assert_eq!(resumed.points(), &curve.points()[..2]);
         // The point at 40 took 10 CPU-seconds and 20 wall; 5 more wall seconds to the
         // checkpoint count as 5 CPU-seconds.
-        assert_eq!(resumed.cpu_at_resume(25.0), 15.0);
+        assert_eq!(cpu_at_resume(resumed.last_clock(), 25.0), 15.0);
         let fresh = TestCurve::resume(&folder.join("none"), 40, 60).unwrap();
         assert!(fresh.points().is_empty());
         std::fs::remove_dir_all(folder).unwrap();

@@ -15,6 +15,7 @@ use crate::scenario::{Learned, Scenario, ScenarioPolicy, WorldConfig};
 mod branch {
     pub(crate) const TRAINING: u64 = 1;
     pub(crate) const TESTING: u64 = 2;
+    pub(crate) const VALIDATION: u64 = 3;
 }
 
 /// Everything that determines a cell's result, and nothing else (not the scenario's name, not
@@ -35,6 +36,11 @@ pub struct CellConfig {
     /// so scenarios without disturbances keep their cells.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub disturbances: Vec<Disturbance>,
+    /// Root of the validation episodes' seeds (a learned policy `until: converged`): episode
+    /// e uses `descend([N_train, e])`, a branch of the seed tree apart from the tests'.
+    /// Absent from the key otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub validation_seed: Option<u64>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -83,6 +89,10 @@ impl CellConfig {
             hasher.update(b"\ntest curve\n");
             hasher.update(curve.as_bytes());
         }
+        if let Some(validation) = self.validation_identity() {
+            hasher.update(b"\nvalidation\n");
+            hasher.update(validation.as_bytes());
+        }
         Some(hasher.finalize().to_hex()[..20].to_owned())
     }
 
@@ -93,6 +103,23 @@ impl CellConfig {
         let every = learned.evaluate_every?;
         let tests = (self.test_seed, self.test_episodes, self.world.test_steps);
         Some(format!("{every} {:?} {tests:?}", learned.test_actions))
+    }
+
+    /// What a run until converged depends on besides its training configuration: where it
+    /// stops and which weights are best come from its validation episodes. `None` for a run
+    /// of fixed length, so that those keep their identity.
+    fn validation_identity(&self) -> Option<String> {
+        let learned = self.policy.learned()?;
+        let rule = serde_json::to_string(&learned.stopping?).expect("a rule serialises");
+        let validation = (self.validation_seed, self.world.test_steps);
+        Some(format!("{rule} {:?} {validation:?}", learned.test_actions))
+    }
+
+    /// The seed of validation episode `episode` with `agents` agents, for a run until
+    /// converged.
+    pub fn validation_episode_seed(&self, agents: u32, episode: u32) -> Option<Seed> {
+        let root = Seed::new(self.validation_seed?);
+        Some(root.descend(&[agents as u64, episode as u64]))
     }
 
     /// The disturbance called `name` (`none`, the undisturbed play, is `Ok(None)`), or the
@@ -162,6 +189,10 @@ impl Scenario {
                     test_seed: root.descend(&[branch::TESTING, repetition as u64]).value(),
                     test_episodes: self.test_episodes,
                     disturbances: self.disturbances.clone(),
+                    validation_seed: policy.learned().and_then(|l| l.stopping).map(|_| {
+                        root.descend(&[branch::VALIDATION, repetition as u64])
+                            .value()
+                    }),
                 };
                 cells.push(SweepCell {
                     index: cells.len(),
@@ -212,5 +243,88 @@ impl CellConfig {
     pub fn test_cost(&self) -> Cost {
         let plays = test_plays(self.test_episodes, self.disturbances.len());
         Cost::of_tests(&self.world, self.policy.learned(), &self.n_test, plays)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::HashSet;
+    use std::path::Path;
+
+    use super::*;
+
+    fn scenario(until: &str) -> Scenario {
+        let text = format!(
+            "name: seeds\nseed: 11\nmaps:\n  - inline: {{name: a, grid: \"......\\n......\\n\"}}\n\
+             world: {{fov: 3, train_steps: 4, test_steps: 4}}\npolicies:\n  \
+             - ma-g-ppo: {{profile: fast-v2, episodes: 10, {until}set: {{network: compact}}}}\n  \
+             - baseline: {{name: random}}\n\
+             agents: {{train: [2, 3], test: [2, 3]}}\nrepetitions: 12\ntest_episodes: 16\n"
+        );
+        Scenario::parse(&text, Path::new("seeds.yaml")).unwrap()
+    }
+
+    /// The stopping rule picks the best policy on validation episodes; were one of them a
+    /// test episode, the test would judge a policy chosen on it.
+    #[test]
+    fn validation_seeds_never_equal_test_seeds() {
+        let converged = scenario("until: converged, stopping: {validation_episodes: 16}, ");
+        let cells = converged.cells();
+        let mut tests = HashSet::new();
+        let mut validations = HashSet::new();
+        for cell in &cells {
+            for &n in &[2, 3] {
+                for e in 0..16 {
+                    tests.insert(cell.config.episode_seed(n, e).value());
+                    if let Some(seed) = cell.config.validation_episode_seed(n, e) {
+                        validations.insert(seed.value());
+                    }
+                }
+            }
+        }
+        let learned = cells.iter().filter(|c| c.config.n_train.is_some()).count();
+        assert_eq!(learned, 24);
+        assert_eq!(
+            validations.len(),
+            12 * 2 * 16,
+            "one validation set per repetition"
+        );
+        assert!(tests.is_disjoint(&validations));
+        // A run of fixed length has no validation seed, and keeps its key.
+        let fixed = scenario("");
+        assert!(fixed.cells()[0].config.validation_seed.is_none());
+        let key = serde_json::to_string(&fixed.cells()[0].config).unwrap();
+        assert!(
+            !key.contains("validation") && !key.contains("until"),
+            "{key}"
+        );
+        assert_ne!(fixed.cells()[0].key, cells[0].key);
+        // A baseline's cells are the same in both.
+        assert_eq!(fixed.cells().last().unwrap().key, cells.last().unwrap().key);
+    }
+
+    #[test]
+    fn a_run_until_converged_trains_at_a_constant_learning_rate_and_refuses_a_schedule() {
+        let converged = scenario("until: converged, ");
+        let training = converged.cells()[0]
+            .config
+            .training_config()
+            .unwrap()
+            .unwrap();
+        assert!(!training.anneal_learning_rate);
+        let text = "name: x\nseed: 1\nmaps:\n  - inline: {name: a, grid: \"....\\n\"}\n\
+                    world: {fov: 3, train_steps: 4, test_steps: 4}\npolicies:\n  \
+                    - ma-g-ppo: {profile: fast-v2, episodes: 10, until: converged, \
+                    set: {network: compact, anneal_learning_rate: true}}\n\
+                    agents: {train: [2], test: [2]}\ntest_episodes: 1\n";
+        let error = Scenario::parse(text, Path::new("x.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("anneal_learning_rate"), "{error}");
+        let unused = text.replace("until: converged", "stopping: {patience: 2}");
+        let error = Scenario::parse(&unused, Path::new("x.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("until"), "{error}");
     }
 }

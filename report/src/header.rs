@@ -27,6 +27,10 @@ pub struct HeaderTables<'a> {
     pub cells: Option<&'a DataFrame>,
     pub episodes: &'a DataFrame,
     pub training: Option<&'a DataFrame>,
+    /// Where runs trained until converged stopped (`None` for runs of fixed length), and
+    /// both their policies' tests.
+    pub convergence: Option<&'a DataFrame>,
+    pub checkpoints: Option<&'a DataFrame>,
 }
 
 pub fn section(report: &mut ReportWriter, tables: &HeaderTables) -> Result<(), ReportError> {
@@ -62,7 +66,9 @@ pub fn section(report: &mut ReportWriter, tables: &HeaderTables) -> Result<(), R
         ],
     };
     report.paragraph(&lines.join("\n"));
-    if let Some(training) = tables.training {
+    if let Some(convergence) = tables.convergence {
+        super::convergence::section(report, convergence, tables.checkpoints)?;
+    } else if let Some(training) = tables.training {
         improving_section(report, training)?;
     }
     Ok(())

@@ -11,6 +11,7 @@ pub mod behaviour_replay;
 pub mod chart;
 mod columns;
 mod comparison;
+mod convergence;
 mod disturbance;
 mod earlier;
 pub mod header;
@@ -25,7 +26,7 @@ mod training;
 mod transfer;
 pub mod verdicts;
 
-use std::collections::{HashMap, HashSet};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
@@ -114,6 +115,8 @@ pub fn write_report(
         cells: cells.as_ref(),
         episodes: &loaded.episodes,
         training: loaded.training.as_ref(),
+        convergence: loaded.convergence.as_ref(),
+        checkpoints: loaded.checkpoints.as_ref(),
     };
     header::section(&mut report, &header)?;
     let missing = missing_cells(store)?;
@@ -224,6 +227,31 @@ pub fn store_claims(store: &Store) -> Result<Vec<plan::scenario::claims::Claim>,
     )?)
 }
 
+/// A learned setting as the training table names it: map, policy, N_train.
+pub type LearnedSetting = (String, String, u32);
+
+/// Each learned setting's training runs' own wall times in seconds, by their logs: a run's is
+/// its log's last `wall_seconds` (the log counts from the run's start, across resumes; one
+/// cell holds one run). What one more run of the setting costs, whether or not the sweep took
+/// the run from the cache (then the cell's own wall time counts only its tests).
+pub fn training_run_seconds(
+    training: &DataFrame,
+) -> PolarsResult<BTreeMap<LearnedSetting, Vec<f64>>> {
+    let keys = columns::strings(training, schema::cell::KEY)?;
+    let walls = columns::f64s(training, schema::training::WALL_SECONDS)?;
+    let settings = columns::trained_keys(training)?;
+    let mut runs: BTreeMap<LearnedSetting, Vec<f64>> = BTreeMap::new();
+    for (_, rows) in columns::group_rows(&keys) {
+        let (map, policy) = &settings[rows[0]];
+        if let Some(n_train) = policy.n_train {
+            let seconds = rows.iter().map(|&r| walls[r]).fold(0.0, f64::max);
+            let setting = (map.clone(), policy.policy.clone(), n_train);
+            runs.entry(setting).or_default().push(seconds);
+        }
+    }
+    Ok(runs)
+}
+
 /// The store's tables that claims are tested against and the report's sections draw.
 pub struct StoreTables {
     pub episodes: DataFrame,
@@ -234,6 +262,9 @@ pub struct StoreTables {
     pub disturbed: Option<DataFrame>,
     /// The learned runs' test penalty along training, when their policies asked for it.
     pub test_curve: Option<DataFrame>,
+    /// Where runs trained until converged stopped, and both their policies' tests.
+    pub convergence: Option<DataFrame>,
+    pub checkpoints: Option<DataFrame>,
     /// Where behaviour claims' test episodes are replayed from, and their measures kept.
     store: Store,
 }
@@ -253,6 +284,8 @@ impl StoreTables {
             motions,
             disturbed: store.optional_table(schema::disturbed::TABLE)?,
             test_curve: store.optional_table(schema::test_curve::TABLE)?,
+            convergence: store.optional_table(schema::convergence::TABLE)?,
+            checkpoints: store.optional_table(schema::checkpoints::TABLE)?,
             store: store.clone(),
         })
     }

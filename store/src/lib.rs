@@ -70,6 +70,12 @@ pub const SNAPSHOTS_FILE: &str = "snapshots.parquet";
 pub const DISTURBED_FILE: &str = "disturbed.parquet";
 pub const DISTURBED_STEPS_FILE: &str = "disturbed_steps.parquet";
 pub const TEST_CURVE_FILE: &str = "test_curve.parquet";
+pub const VALIDATION_FILE: &str = "validation.parquet";
+pub const CONVERGENCE_FILE: &str = "convergence.parquet";
+pub const CHECKPOINTS_FILE: &str = "checkpoints.parquet";
+/// The best policy of a run until converged, beside the final one (`checkpoint.*`).
+pub const BEST_WEIGHTS_FILE: &str = "best-checkpoint.safetensors";
+pub const BEST_METADATA_FILE: &str = "best-checkpoint.json";
 
 /// The per-cell file a sweep-level table stacks; `None` for the tables made otherwise (the
 /// cells table from records, the summary from the episodes).
@@ -82,6 +88,9 @@ pub fn per_cell_file(output: Output) -> Option<&'static str> {
         Output::Disturbed => Some(DISTURBED_FILE),
         Output::DisturbedSteps => Some(DISTURBED_STEPS_FILE),
         Output::TestCurve => Some(TEST_CURVE_FILE),
+        Output::Validation => Some(VALIDATION_FILE),
+        Output::Convergence => Some(CONVERGENCE_FILE),
+        Output::Checkpoints => Some(CHECKPOINTS_FILE),
         Output::Cells | Output::Summary => None,
     }
 }

@@ -181,6 +181,81 @@ pub mod test_curve {
     }
 }
 
+/// The validation curve of a learned cell trained until converged: the mean penalty of its
+/// validation episodes at every validation, [`cell`] then these.
+pub mod validation {
+    pub const TABLE: &str = "validation";
+    pub use super::test_curve::{CPU_SECONDS, TRAINING_EPISODE, WALL_SECONDS};
+    /// The mean cumulative penalty of the validation episodes.
+    pub const VALIDATION_PENALTY: &str = "validation_penalty";
+
+    pub const POINT_COLUMNS: [&str; 4] = [
+        TRAINING_EPISODE,
+        CPU_SECONDS,
+        WALL_SECONDS,
+        VALIDATION_PENALTY,
+    ];
+
+    pub fn columns() -> Vec<&'static str> {
+        [&super::cell::COLUMNS[..], &POINT_COLUMNS].concat()
+    }
+}
+
+/// Where a learned cell trained until converged stopped, and why: one row per cell,
+/// [`cell`] then these.
+pub mod convergence {
+    pub const TABLE: &str = "convergence";
+    /// Training episodes done at the stop.
+    pub const STOP_EPISODE: &str = "stop_episode";
+    /// `converged` (the rule stopped it) or `capped` (it reached its episodes first).
+    pub const STOP: &str = "stop";
+    pub const BEST_EPISODE: &str = "best_episode";
+    pub const BEST_PENALTY: &str = "best_validation_penalty";
+    pub const FINAL_PENALTY: &str = "final_validation_penalty";
+    pub const VALIDATIONS: &str = "validations";
+    /// Training CPU-seconds to the stop (validations not counted; `engine::test_curve`).
+    pub const CPU_SECONDS: &str = "cpu_seconds";
+    /// The checkpoint the cell's test episodes and claims use: `best` or `final`.
+    pub const TESTED: &str = "tested";
+
+    pub const CONVERGED: &str = "converged";
+    pub const CAPPED: &str = "capped";
+
+    pub const RUN_COLUMNS: [&str; 8] = [
+        STOP_EPISODE,
+        STOP,
+        BEST_EPISODE,
+        BEST_PENALTY,
+        FINAL_PENALTY,
+        VALIDATIONS,
+        CPU_SECONDS,
+        TESTED,
+    ];
+
+    pub fn columns() -> Vec<&'static str> {
+        [&super::cell::COLUMNS[..], &RUN_COLUMNS].concat()
+    }
+}
+
+/// Both policies of a learned cell trained until converged, tested on the cell's test
+/// episodes: [`cell`], the checkpoint (`best` or `final`), then
+/// [`episodes::EPISODE_COLUMNS`]. The tested one's rows are the episodes table's.
+///
+/// [`episodes::EPISODE_COLUMNS`]: super::episodes::EPISODE_COLUMNS
+pub mod checkpoints {
+    pub const TABLE: &str = "checkpoints";
+    pub const CHECKPOINT: &str = "checkpoint";
+
+    pub fn columns() -> Vec<&'static str> {
+        [
+            &super::cell::COLUMNS[..],
+            &[CHECKPOINT],
+            &super::episodes::EPISODE_COLUMNS,
+        ]
+        .concat()
+    }
+}
+
 /// One row per (map, policy, N_train, N_test): the run-level statistics of the test episodes.
 pub mod summary {
     use super::{cell, episodes};

@@ -102,18 +102,29 @@ impl Cost {
                 .saturating_mul(u64::from(n_train.unwrap_or(0)))
                 .saturating_mul(training_step),
         };
-        let Some((every, n_train)) = learned.and_then(|l| l.evaluate_every).zip(n_train) else {
+        let Some(n_train) = n_train else {
             return training;
         };
-        let plays = plays(training_episodes, u64::from(every));
-        let plays = u32::try_from(plays.saturating_mul(u64::from(test_episodes)));
-        let curve = Self::of_tests(world, learned, &[n_train], plays.unwrap_or(u32::MAX));
-        // The curve's episodes are not the cell's test episodes (its tables count those).
-        training
-            + Cost {
-                test_episodes: 0,
-                ..curve
-            }
+        // The test curve's plays, and a run until converged's validations, at its cap.
+        let curve = learned
+            .and_then(|l| l.evaluate_every)
+            .map(|every| (every, test_episodes));
+        let validation = (learned.and_then(|l| l.stopping))
+            .map(|rule| (rule.validate_every, rule.validation_episodes));
+        let played = [curve, validation]
+            .into_iter()
+            .flatten()
+            .map(|(every, episodes)| {
+                let plays = plays(training_episodes, u64::from(every));
+                let plays = u32::try_from(plays.saturating_mul(u64::from(episodes)));
+                let tests = Self::of_tests(world, learned, &[n_train], plays.unwrap_or(u32::MAX));
+                // These are not the cell's test episodes (its tables count those).
+                Cost {
+                    test_episodes: 0,
+                    ..tests
+                }
+            });
+        played.fold(training, |sum, cost| sum + cost)
     }
 
     pub(crate) fn of_tests(

@@ -9,6 +9,8 @@ use policies::ppo::Profile;
 use serde::{Deserialize, Serialize};
 use serde_saphyr::{Location, Spanned};
 
+use super::stopping::{StoppingRule, Until};
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct ScenarioFile {
@@ -166,6 +168,8 @@ impl PolicySpec<ProfileName> {
             set: spec.set,
             test_actions: spec.test_actions,
             evaluate_every: spec.evaluate_every,
+            until: spec.until,
+            stopping: spec.stopping,
         };
         match self {
             PolicySpec::Baseline(baseline) => PolicySpec::Baseline(baseline),
@@ -212,6 +216,15 @@ pub(crate) struct LearnedSpec<P = Profile> {
     /// `test_curve`. Absent (the default, and left out of the key): no curve.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub evaluate_every: Option<u32>,
+    /// `converged`: train until the validation penalty stops improving (`stopping`), with
+    /// `episodes` as the cap; `episodes` (the default, left out of the key): exactly
+    /// `episodes`.
+    #[serde(default, skip_serializing_if = "Until::is_episodes")]
+    pub until: Until,
+    /// The stopping rule's values under `until: converged` (`scenario::stopping`); the
+    /// defaults where left out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stopping: Option<StoppingRule>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
@@ -244,10 +257,14 @@ pub enum Output {
     DisturbedSteps,
     /// Only learned cells with `evaluate_every` have it.
     TestCurve,
+    /// Only learned cells trained `until: converged` have these.
+    Validation,
+    Convergence,
+    Checkpoints,
 }
 
 impl Output {
-    pub const ALL: [Output; 9] = [
+    pub const ALL: [Output; 12] = [
         Output::Episodes,
         Output::Training,
         Output::Cells,
@@ -257,6 +274,9 @@ impl Output {
         Output::Disturbed,
         Output::DisturbedSteps,
         Output::TestCurve,
+        Output::Validation,
+        Output::Convergence,
+        Output::Checkpoints,
     ];
 
     /// The table's file name, without extension.
@@ -271,6 +291,9 @@ impl Output {
             Output::Disturbed => "disturbed",
             Output::DisturbedSteps => "disturbed_steps",
             Output::TestCurve => "test_curve",
+            Output::Validation => "validation",
+            Output::Convergence => "convergence",
+            Output::Checkpoints => "checkpoints",
         }
     }
 

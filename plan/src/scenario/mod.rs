@@ -10,6 +10,7 @@ pub mod error;
 pub mod format;
 mod policy;
 mod size;
+pub mod stopping;
 pub(crate) mod yaml;
 
 use std::path::{Path, PathBuf};

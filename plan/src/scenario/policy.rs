@@ -15,6 +15,7 @@ use world::Channels;
 
 use super::WorldConfig;
 use super::format::{BaselineSpec, Channel, LearnedSpec, PolicySpec, TestActions};
+use super::stopping::{StoppingError, StoppingRule, Until};
 
 /// One policy of a sweep.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -39,6 +40,9 @@ pub struct Learned {
     pub test_actions: ActionChoice,
     /// Training episodes between two plays of the test episodes (`test_curve`), if any.
     pub evaluate_every: Option<u32>,
+    /// Train until converged by this rule, `episodes` being the cap; `None`: train exactly
+    /// `episodes`.
+    pub stopping: Option<StoppingRule>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -53,12 +57,24 @@ pub(crate) enum PolicyError {
     NoChannels,
     #[error("channels lists one channel twice")]
     ChannelTwice,
+    #[error("stopping is given but until is not `converged`")]
+    StoppingUnused,
+    #[error(transparent)]
+    Stopping(#[from] StoppingError),
+    #[error(
+        "set.anneal_learning_rate: a run until converged keeps its learning rate constant (a \
+         schedule over the cap would make the run depend on its cap)"
+    )]
+    AnnealedUntilConverged,
     #[error(
         "set.{0}: the scenario sets this itself (agents.train, episodes, world.train_steps, \
          channels, the policy's kind and profile)"
     )]
     OwnField(String),
 }
+
+/// The training field that `until: converged` sets to false.
+const ANNEAL: &str = "anneal_learning_rate";
 
 /// The training fields a scenario sets through its own keys, which `set` may not name.
 const OWN_FIELDS: [&str; 6] = [
@@ -129,8 +145,12 @@ impl Learned {
             ),
         ]
         .map(|(field, value)| (field.to_owned(), value.expect("plain values serialise")));
+        // Under the stopping rule the learning rate is constant (`scenario::stopping`).
+        let constant = self
+            .stopping
+            .map(|_| (ANNEAL.to_owned(), serde_json::Value::Bool(false)));
         let given = self.set.iter().map(|(k, v)| (k.clone(), v.clone()));
-        TrainingConfig::profile(self.profile).with_values(given.chain(owned))
+        TrainingConfig::profile(self.profile).with_values(given.chain(owned).chain(constant))
     }
 }
 
@@ -151,6 +171,17 @@ impl TryFrom<PolicySpec> for ScenarioPolicy {
         if learned.evaluate_every == Some(0) {
             return Err(PolicyError::NoEvaluation);
         }
+        let stopping = match (learned.until, learned.stopping) {
+            (Until::Converged, rule) => Some(rule.unwrap_or_default()),
+            (Until::Episodes, None) => None,
+            (Until::Episodes, Some(_)) => return Err(PolicyError::StoppingUnused),
+        };
+        if let Some(rule) = &stopping {
+            rule.check()?;
+            if learned.set.contains_key(ANNEAL) {
+                return Err(PolicyError::AnnealedUntilConverged);
+            }
+        }
         if let Some(key) = learned
             .set
             .keys()
@@ -170,6 +201,7 @@ impl TryFrom<PolicySpec> for ScenarioPolicy {
                 TestActions::Greedy => ActionChoice::Greedy,
             },
             evaluate_every: learned.evaluate_every,
+            stopping,
         }))
     }
 }
@@ -209,6 +241,11 @@ impl From<ScenarioPolicy> for PolicySpec {
                 ActionChoice::Greedy => TestActions::Greedy,
             },
             evaluate_every: learned.evaluate_every,
+            until: match learned.stopping {
+                Some(_) => Until::Converged,
+                None => Until::Episodes,
+            },
+            stopping: learned.stopping,
         };
         match learned.architecture {
             ArchitectureName::MaGPpo => PolicySpec::MaGPpo(spec),

@@ -1,0 +1,200 @@
+//! Runs trained until converged (`plan::scenario::stopping`): where each stopped and why,
+//! what it cost, and how its best policy (chosen on validation episodes) tested beside its
+//! final one. For such runs this replaces the header's "still improving" table: a run either
+//! converged by the rule or was capped before converging, and the report says which.
+
+use polars::prelude::*;
+use store::schema::{cell, checkpoints, convergence as run, episodes};
+
+use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
+use super::{PENALTY_UNIT, ReportError, ReportWriter};
+use stats::{mean, median};
+
+/// The section, with the best-against-final table when the store has both policies' tests.
+pub fn section(
+    report: &mut ReportWriter,
+    convergence: &DataFrame,
+    both: Option<&DataFrame>,
+) -> Result<(), ReportError> {
+    report.heading(3, "Did the training runs converge?");
+    report.paragraph(
+        "For each learned (map, policy, N_train) trained until converged: its runs, how many \
+         the stopping rule ended (*converged*: the best validation penalty improved by less \
+         than the rule's minimum over its last `patience` validations) and how many reached \
+         their cap first (*capped before converging*: longer training may change the \
+         verdicts below), each run's stop episode and training CPU-minutes to the stop \
+         (validations not counted), the episode of its best validation, and which policy the \
+         test episodes and claims use. Validation episodes have their own seeds, never a \
+         test episode's.",
+    );
+    report.table("convergence", &convergence_frame(convergence)?)?;
+    if let Some(both) = both {
+        report.heading(3, "The best policy against the final one");
+        report.paragraph(
+            "Both policies of every run on the same test episodes, at N_test = N_train and \
+             every other N_test: the mean test penalty (10^6) over runs of each run's mean, \
+             and how many runs' best policy tested lower than their final one. Where the two \
+             are equal the run's best validation was its last.",
+        );
+        report.table("best_against_final", &best_against_final(both)?)?;
+    }
+    Ok(())
+}
+
+/// Runs' values as text, in run order: "120, 200, 340".
+fn listed<T: std::fmt::Display>(values: impl IntoIterator<Item = T>) -> String {
+    let texts: Vec<String> = values.into_iter().map(|v| v.to_string()).collect();
+    texts.join(", ")
+}
+
+fn convergence_frame(table: &DataFrame) -> Result<DataFrame, ReportError> {
+    let settings = trained_keys(table)?;
+    let stops = f64s(table, run::STOP_EPISODE)?;
+    let best = f64s(table, run::BEST_EPISODE)?;
+    let reasons = strings(table, run::STOP)?;
+    let cpu = f64s(table, run::CPU_SECONDS)?;
+    let tested = strings(table, run::TESTED)?;
+    let groups = group_rows(&settings);
+    let mut rows = Vec::new();
+    for ((map, policy), within) in &groups {
+        let of = |values: &[f64]| within.iter().map(|&r| values[r]).collect::<Vec<f64>>();
+        let count = |reason: &str| within.iter().filter(|&&r| reasons[r] == reason).count();
+        let minutes = of(&cpu)
+            .iter()
+            .map(|s| format!("{:.1}", s / 60.0))
+            .collect::<Vec<_>>();
+        rows.push(SettingRow {
+            map: map.clone(),
+            policy: policy.clone(),
+            runs: within.len() as u32,
+            converged: count(run::CONVERGED) as u32,
+            capped: count(run::CAPPED) as u32,
+            median_stop: median(&of(&stops))?,
+            stops: listed(of(&stops)),
+            cpu_minutes: minutes.join(", "),
+            best: listed(of(&best)),
+            tested: distinct(within.iter().map(|&r| tested[r].as_str())).join(", "),
+        });
+    }
+    Ok(df!(
+        "map" => rows.iter().map(|r| r.map.as_str()).collect::<Vec<_>>(),
+        "policy" => rows.iter().map(|r| r.policy.policy.as_str()).collect::<Vec<_>>(),
+        "n_train" => rows.iter().map(|r| r.policy.n_train).collect::<Vec<_>>(),
+        "runs" => rows.iter().map(|r| r.runs).collect::<Vec<_>>(),
+        "converged" => rows.iter().map(|r| r.converged).collect::<Vec<_>>(),
+        "capped" => rows.iter().map(|r| r.capped).collect::<Vec<_>>(),
+        "median_stop" => rows.iter().map(|r| r.median_stop).collect::<Vec<_>>(),
+        "stop_episodes" => rows.iter().map(|r| r.stops.as_str()).collect::<Vec<_>>(),
+        "cpu_minutes" => rows.iter().map(|r| r.cpu_minutes.as_str()).collect::<Vec<_>>(),
+        "best_episodes" => rows.iter().map(|r| r.best.as_str()).collect::<Vec<_>>(),
+        "tested" => rows.iter().map(|r| r.tested.as_str()).collect::<Vec<_>>(),
+    )?)
+}
+
+/// One learned setting's row of the convergence table.
+struct SettingRow {
+    map: String,
+    policy: PolicyKey,
+    runs: u32,
+    converged: u32,
+    capped: u32,
+    median_stop: f64,
+    stops: String,
+    cpu_minutes: String,
+    best: String,
+    tested: String,
+}
+
+/// Per (map, policy, N_train, N_test): the mean over runs of each policy's run mean.
+fn best_against_final(both: &DataFrame) -> Result<DataFrame, ReportError> {
+    let settings = trained_keys(both)?;
+    let keys = strings(both, cell::KEY)?;
+    let n_tests = f64s(both, episodes::N_TEST)?;
+    let which = strings(both, checkpoints::CHECKPOINT)?;
+    let penalties = f64s(both, episodes::CUMULATIVE_PENALTY)?;
+    let groups: Vec<_> = (settings.into_iter().zip(n_tests)).collect();
+    let mut columns: (Vec<String>, Vec<String>, Vec<Option<u32>>, Vec<u32>) = Default::default();
+    let mut values: (Vec<f64>, Vec<f64>, Vec<String>) = Default::default();
+    for (((map, policy), n_test), rows) in group_rows(&groups) {
+        let runs = distinct(rows.iter().map(|&r| keys[r].as_str()));
+        let run_mean = |run: &str, checkpoint: &str| -> Result<f64, ReportError> {
+            let of_run = rows
+                .iter()
+                .filter(|&&r| keys[r] == run && which[r] == checkpoint);
+            Ok(mean(&of_run.map(|&r| penalties[r]).collect::<Vec<_>>())? / PENALTY_UNIT)
+        };
+        let (mut best, mut last) = (Vec::new(), Vec::new());
+        for run in &runs {
+            best.push(run_mean(run, "best")?);
+            last.push(run_mean(run, "final")?);
+        }
+        let lower = best.iter().zip(&last).filter(|(b, f)| b < f).count();
+        columns.0.push(map);
+        columns.1.push(policy.policy);
+        columns.2.push(policy.n_train);
+        columns.3.push(n_test as u32);
+        values.0.push(mean(&best)?);
+        values.1.push(mean(&last)?);
+        values.2.push(format!("{lower} of {}", runs.len()));
+    }
+    Ok(df!(
+        "map" => columns.0,
+        "policy" => columns.1,
+        "n_train" => columns.2,
+        "n_test" => columns.3,
+        "best" => values.0,
+        "final" => values.1,
+        "best_lower" => values.2,
+    )?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn convergence_table() -> DataFrame {
+        df!(
+            cell::KEY => ["a", "b", "c"],
+            cell::MAP => ["open", "open", "open"],
+            cell::POLICY => ["ma-g-ppo", "ma-g-ppo", "ma-g-ppo"],
+            cell::N_TRAIN => [Some(4u32), Some(4), Some(4)],
+            cell::TRAINING_SEED => [1u64, 2, 3],
+            run::STOP_EPISODE => [300u64, 500, 1000],
+            run::STOP => [run::CONVERGED, run::CONVERGED, run::CAPPED],
+            run::BEST_EPISODE => [250u64, 450, 950],
+            run::BEST_PENALTY => [10.0, 11.0, 12.0],
+            run::FINAL_PENALTY => [10.5, 11.5, 12.5],
+            run::VALIDATIONS => [7u32, 11, 21],
+            run::CPU_SECONDS => [600.0, 900.0, 1800.0],
+            run::TESTED => ["best", "best", "best"],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn a_setting_counts_its_converged_and_capped_runs() {
+        let frame = convergence_frame(&convergence_table()).unwrap();
+        assert_eq!(frame.height(), 1);
+        let text = |name: &str| {
+            frame
+                .column(name)
+                .unwrap()
+                .str()
+                .unwrap()
+                .get(0)
+                .unwrap()
+                .to_owned()
+        };
+        let number = |name: &str| frame.column(name).unwrap().u32().unwrap().get(0).unwrap();
+        assert_eq!(
+            (number("runs"), number("converged"), number("capped")),
+            (3, 2, 1)
+        );
+        assert_eq!(text("stop_episodes"), "300, 500, 1000");
+        assert_eq!(text("cpu_minutes"), "10.0, 15.0, 30.0");
+        assert_eq!(text("best_episodes"), "250, 450, 950");
+        assert_eq!(text("tested"), "best");
+        let median_stop = frame.column("median_stop").unwrap().f64().unwrap().get(0);
+        assert_eq!(median_stop, Some(500.0));
+    }
+}

@@ -15,6 +15,7 @@ use policies::{LearnedPolicy, PlanError, Policy};
 use world::{StartError, World};
 
 use crate::episode::{StepObserver, run_disturbed_episode};
+use crate::events::EventsError;
 use crate::test_curve::{self, CpuMeter, CurvePoint, TestCurve};
 use crate::training_run::{TrainingRun, TrainingRunError};
 use crate::trajectory::CellRecording;
@@ -54,6 +55,8 @@ pub enum CellError {
     Table(#[from] polars::prelude::PolarsError),
     #[error("a learned cell trained until converged has no validation seed")]
     NoValidationSeed,
+    #[error(transparent)]
+    Events(#[from] EventsError),
 }
 
 /// Where a cell comes from, for its record.
@@ -67,13 +70,15 @@ const SAVE_EVERY: u64 = 100;
 
 /// Runs `cell` in `world` and saves it; `advance` hears of every finished episode's steps. A
 /// learned cell takes the training run of a finished cell with the same training identity in
-/// `store` or `cache` when there is one, else trains.
+/// `store` or `cache` when there is one, else trains, writing its TensorBoard events into
+/// `events` when given.
 pub(crate) fn run_cell(
     store: &Store,
     cache: Option<&Store>,
     origin: &CellOrigin,
     world: &Arc<World>,
     cell: &SweepCell,
+    events: Option<&Path>,
     advance: &dyn Fn(u64),
 ) -> Result<CellRecord, CellError> {
     let started = SystemTime::now();
@@ -93,7 +98,8 @@ pub(crate) fn run_cell(
                 None => {
                     let training = config.training_config_of(learned)?;
                     let folder = store.partial_training_folder(&cell.key);
-                    let trained = train_cell(&folder, cell, world, (training, learned), advance)?;
+                    let training = (training, learned);
+                    let trained = train_cell(&folder, cell, world, training, events, advance)?;
                     earlier_training_seconds = trained.earlier_seconds;
                     trained.into_files(cell, &mut files)?
                 }
@@ -377,12 +383,14 @@ impl Trained {
 
 /// Trains a learned cell's policy in `folder`, continuing the run an interrupted sweep saved
 /// there; plays its test curve along the way when the policy asks for one, and its
-/// validations when it trains until converged (`validation`).
+/// validations when it trains until converged (`validation`). With `events`, writes the
+/// training and the evaluations there as TensorBoard events.
 fn train_cell(
     folder: &Path,
     cell: &SweepCell,
     world: &Arc<World>,
     (training, learned): (TrainingConfig, &Learned),
+    events: Option<&Path>,
     advance: &dyn Fn(u64),
 ) -> Result<Trained, CellError> {
     let config = &cell.config;
@@ -395,6 +403,9 @@ fn train_cell(
         run = TrainingRun::start(folder, world.clone(), training, seed)?;
         evaluations = Evaluations::resume(folder, learned, 0)?;
     }
+    if let Some(events) = events {
+        run.write_events(events)?;
+    }
     let earlier_seconds = run.state().wall_seconds;
     let steps = config.world.train_steps as u64;
     let cap = run.state().config.episodes;
@@ -405,6 +416,10 @@ fn train_cell(
         let stop =
             evaluations.play_due(world, cell, learned, (run.state(), cpu_seconds), folder)?;
         advance(evaluations.steps_played(config) - evaluations.steps_before);
+        if let Some(events) = run.events() {
+            let (curve, validation) = (evaluations.curve.as_ref(), evaluations.validation.as_ref());
+            events.write_evaluations(curve, validation, stop)?;
+        }
         if stop.is_some() || done >= cap {
             break stop;
         }
@@ -650,7 +665,7 @@ fn trained_again(
             key: record.key.clone(),
             config: record.config.clone(),
         };
-        let trained = train_cell(&folder, &cell, world, (training, learned), &|_| ());
+        let trained = train_cell(&folder, &cell, world, (training, learned), None, &|_| ());
         let _ = std::fs::remove_dir_all(&folder);
         let models = trained?.into_files(&cell, &mut Vec::new())?;
         return models.policy(world, learned, models.tested(learned));
@@ -853,7 +868,8 @@ mod tests {
         assert_eq!(first.state().episodes_done, 2);
         assert!(before > 0.0);
         // The second process resumes it and finishes.
-        let trained = train_cell(&folder, cell, &world, (training, learned), &|_| ()).unwrap();
+        let training = (training, learned);
+        let trained = train_cell(&folder, cell, &world, training, None, &|_| ()).unwrap();
         // Through the checkpoint's JSON: equal to the microsecond, not always to the bit.
         assert!(
             (trained.earlier_seconds - before).abs() < 1e-6,
@@ -920,9 +936,46 @@ mod tests {
             assert!(stop_after.is_none_or(|limit| so_far < limit), "killed");
         };
         let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            train_cell(folder, cell, &world, (training, learned), &advance).unwrap()
+            // Its events beside the run in progress, as a sweep's are.
+            let events = folder.with_extension("events");
+            let training = (training, learned);
+            train_cell(folder, cell, &world, training, Some(&events), &advance).unwrap()
         }));
         run.ok()
+    }
+
+    /// The TensorBoard events of `trained` in `folder` (killed and resumed on the way): every
+    /// training episode once, each evaluation once at its training episode, the best
+    /// validation penalty so far at each, and the stop.
+    fn assert_events_of(trained: &Trained, folder: &Path) {
+        let scalars = crate::events::folder_scalars(folder);
+        let of = |tag: &str| -> Vec<(i64, f32)> {
+            let tagged = scalars.iter().filter(|(_, t, _)| t == tag);
+            tagged.map(|&(step, _, value)| (step, value)).collect()
+        };
+        let penalties = trained.log.column("penalty").unwrap().f64().unwrap();
+        let episodes = penalties.into_no_null_iter().enumerate();
+        let logged: Vec<(i64, f32)> = episodes.map(|(e, p)| (e as i64, p as f32)).collect();
+        assert_eq!(of("train/penalty"), logged);
+        let converged = trained.converged.as_ref().unwrap();
+        let points = converged.validation.points();
+        let validated: Vec<(i64, f32)> = (points.iter())
+            .map(|p| (p.training_episode as i64, p.penalty as f32))
+            .collect();
+        assert_eq!(of(crate::events::VALIDATION_PENALTY), validated);
+        let best = of(crate::events::BEST_VALIDATION_PENALTY);
+        let lowest = converged.validation.best().unwrap().penalty as f32;
+        assert_eq!(best.len(), points.len());
+        assert_eq!(best.last().unwrap().1, lowest);
+        let curve = trained.curve.as_ref().unwrap().points();
+        let tested: Vec<i64> = curve.iter().map(|p| p.training_episode as i64).collect();
+        let steps: Vec<i64> = of(crate::events::TEST_PENALTY)
+            .iter()
+            .map(|s| s.0)
+            .collect();
+        assert_eq!(steps, tested);
+        let done = trained.state.episodes_done as i64;
+        assert_eq!(of(crate::events::STOP), [(done, 1.0)]);
     }
 
     /// The rule stops the run before its cap; killed part way and resumed, or given a larger
@@ -950,6 +1003,7 @@ mod tests {
         assert!(train_converged(60, &cut, Some(killed_at)).is_none());
         assert!(cut.join(store::VALIDATION_FILE).exists());
         let resumed = train_converged(60, &cut, None).unwrap();
+        assert_events_of(&resumed, &cut.with_extension("events"));
         assert_eq!(outcome_of(resumed), straight);
         // Resumed after its stop: nothing more is trained.
         let again = train_converged(60, &cut, None).unwrap();

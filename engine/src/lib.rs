@@ -6,6 +6,7 @@ pub mod audit;
 pub mod checkpoint_dir;
 pub mod cpu_clock;
 pub mod episode;
+pub mod events;
 pub mod execution;
 pub mod idleness;
 pub mod marl_eval;

@@ -31,6 +31,9 @@ pub struct SweepOptions {
     /// Table stores (committed reports' `store/`) whose cells are taken instead of computed,
     /// without their checkpoints (`store::taken`).
     pub tables: Vec<TakenTables>,
+    /// Whether each learned cell trained here writes TensorBoard events as it trains
+    /// (`events::sweep_folder`).
+    pub events: bool,
 }
 
 /// What a sweep did.
@@ -109,8 +112,7 @@ pub fn run_sweep(
     };
     let from_tables = take_from_tables(store, &options.tables, &mut todo)?;
     in_work_order(&mut todo);
-    let CellsRun { failed, elsewhere } =
-        run_cells(scenario, store, options.cache.as_ref(), &todo, options.jobs)?;
+    let CellsRun { failed, elsewhere } = run_cells(scenario, store, options, &todo)?;
     if let Some(position) = failed.iter().position(|(_, e)| out_of_storage(e)) {
         let (key, error) = failed.into_iter().nth(position).expect("found above");
         let folder = store.root().to_owned();
@@ -269,7 +271,7 @@ struct CellsRun {
     elsewhere: usize,
 }
 
-/// Runs `todo`, `jobs` cells at a time, copying each finished cell into `cache`.
+/// Runs `todo`, `options.jobs` cells at a time, copying each finished cell into the cache.
 ///
 /// Each cell runs on a worker thread of its own with a rayon pool of its own, never as a task
 /// of a shared pool: a rayon thread that waits inside a cell's parallel product steals other
@@ -278,10 +280,10 @@ struct CellsRun {
 fn run_cells(
     scenario: &Scenario,
     store: &Store,
-    cache: Option<&Store>,
+    options: &SweepOptions,
     todo: &[&SweepCell],
-    jobs: usize,
 ) -> Result<CellsRun, SweepError> {
+    let (cache, jobs) = (options.cache.as_ref(), options.jobs);
     let cores = std::thread::available_parallelism().map_or(1, usize::from);
     let threads_per_cell = (cores / jobs).max(1);
     let worlds: Vec<OnceLock<Arc<World>>> =
@@ -311,9 +313,16 @@ fn run_cells(
             return Ok(());
         }
         let bar = progress.start_cell(cell_label(cell), cell.config.cost().env_steps);
-        run_cell(store, cache, &origin, world, cell, &|steps| {
-            bar.advance(steps)
-        })?;
+        let events = (options.events).then(|| crate::events::sweep_folder(store, &cell.config));
+        run_cell(
+            store,
+            cache,
+            &origin,
+            world,
+            cell,
+            events.as_deref(),
+            &|steps| bar.advance(steps),
+        )?;
         if let Some(cache) = cache {
             cache.import_cell(store, &cell.key)?;
         }

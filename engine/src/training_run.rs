@@ -1,6 +1,7 @@
 //! A training run kept in a folder (the checkpoint files and `training.parquet`), saved every
 //! so often so that an interrupted run continues where it was saved, bit for bit. Both
-//! `harness train` and the sweep's learned cells train through it.
+//! `harness train` and the sweep's learned cells train through it, and it writes their
+//! TensorBoard events (`events`) episode by episode when asked to.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -12,6 +13,7 @@ use policies::ppo::{
 use world::World;
 
 use crate::checkpoint_dir::{self, CheckpointDirError};
+use crate::events::{EventLog, EventsError};
 use crate::training_log;
 use store::atomic_file::write_atomic;
 
@@ -37,6 +39,8 @@ pub enum TrainingRunError {
     Log { path: PathBuf, source: PolarsError },
     #[error("training log: {0}")]
     Table(#[from] PolarsError),
+    #[error(transparent)]
+    Events(#[from] EventsError),
 }
 
 pub struct TrainingRun {
@@ -44,6 +48,8 @@ pub struct TrainingRun {
     trainer: Trainer,
     /// Every episode so far, runs before a resume included.
     log: DataFrame,
+    /// The run's TensorBoard events, once asked for (`write_events`).
+    events: Option<EventLog>,
 }
 
 impl TrainingRun {
@@ -58,6 +64,7 @@ impl TrainingRun {
             folder: folder.to_owned(),
             trainer: Trainer::new(world, config, seed)?,
             log: training_log::to_frame(&[])?,
+            events: None,
         })
     }
 
@@ -79,6 +86,7 @@ impl TrainingRun {
             folder: folder.to_owned(),
             trainer: Trainer::resume(world, state)?,
             log,
+            events: None,
         })
     }
 
@@ -110,8 +118,24 @@ impl TrainingRun {
         (self.trainer.into_state(), self.log)
     }
 
+    /// Writes the run's TensorBoard events into `folder` from now on, each episode as it
+    /// ends; first the episodes of the log that the folder's files lack (a new run removes
+    /// them: see `events`).
+    pub fn write_events(&mut self, folder: &Path) -> Result<(), TrainingRunError> {
+        let mut events = EventLog::open(folder, self.state().episodes_done == 0)?;
+        events.write_log(&self.log)?;
+        self.events = Some(events);
+        Ok(())
+    }
+
+    /// The run's TensorBoard events, for what else is measured along it.
+    pub fn events(&mut self) -> Option<&mut EventLog> {
+        self.events.as_mut()
+    }
+
     /// Trains until `total` episodes are done (at most the configured number), saving after
-    /// every `save_every` episodes and at the end.
+    /// every `save_every` episodes and at the end. An event that cannot be written stops the
+    /// run after the save that follows it, so that no training is lost.
     pub fn train(
         &mut self,
         total: u64,
@@ -123,9 +147,21 @@ impl TrainingRun {
         while self.state().episodes_done < total {
             let first = self.state().episodes_done;
             let stop = (first / save_every + 1) * save_every;
-            let records = self.trainer.train(stop.min(total), on_record)?;
+            let mut failed = None;
+            let events = &mut self.events;
+            let records = self.trainer.train(stop.min(total), &mut |record| {
+                on_record(record);
+                if let Some(events) = events.as_mut()
+                    && failed.is_none()
+                {
+                    failed = events.write_record(record).err();
+                }
+            })?;
             self.log = training_log::append(&self.log, first, &records)?;
             self.save()?;
+            if let Some(error) = failed {
+                return Err(error.into());
+            }
         }
         Ok(())
     }
@@ -144,6 +180,7 @@ mod tests {
     use std::path::Path;
 
     use policies::ppo::Profile;
+    use store::schema::training;
     use world::{Map, WorldParams};
 
     use super::*;
@@ -222,5 +259,53 @@ mod tests {
         for dir in [straight_folder, cut] {
             std::fs::remove_dir_all(dir).unwrap();
         }
+    }
+
+    /// A run killed between two saves trains again, when resumed, the episodes after the
+    /// save; their events, written before the kill, are not written twice.
+    #[test]
+    fn a_resumed_run_continues_its_events_without_repeating_a_step() {
+        let dir = folder("events");
+        let events = dir.join("events");
+        let killed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            let mut run = TrainingRun::start(&dir, world(), config(), 5).unwrap();
+            run.write_events(&events).unwrap();
+            // Saved after episode 4 (0..=3), killed as episode 5 (index 5) ends.
+            run.train(6, 4, &mut |r| assert!(r.episode < 5, "killed"))
+                .unwrap();
+        }));
+        assert!(killed.is_err());
+        let penalty = |(_, tag, _): &&(i64, String, f32)| tag == "train/penalty";
+        let before = crate::events::folder_scalars(&events);
+        // Episode 4 was written before the kill, and will be trained again.
+        assert_eq!(before.iter().filter(penalty).map(|s| s.0).max(), Some(4));
+        let mut resumed = TrainingRun::resume(&dir, world(), &[]).unwrap();
+        assert_eq!(resumed.state().episodes_done, 4);
+        resumed.write_events(&events).unwrap();
+        resumed.train(6, 4, &mut |_| ()).unwrap();
+        let scalars = crate::events::folder_scalars(&events);
+        let log = resumed.log();
+        for (column, tag) in crate::events::TRAINING_TAGS {
+            let written: Vec<(i64, f32)> = (scalars.iter())
+                .filter(|(_, t, _)| t == tag)
+                .map(|&(step, _, value)| (step, value))
+                .collect();
+            let values = log
+                .column(column)
+                .unwrap()
+                .cast(&polars::prelude::DataType::Float64);
+            let values = values.unwrap().f64().unwrap().clone();
+            let logged: Vec<(i64, f32)> = (values.into_no_null_iter().enumerate())
+                .map(|(episode, value)| (episode as i64, value as f32))
+                .collect();
+            if training::TIMING_COLUMNS.contains(&column) {
+                // Episode 4's times are the killed process's.
+                let steps = |v: &[(i64, f32)]| v.iter().map(|s| s.0).collect::<Vec<_>>();
+                assert_eq!(steps(&written), steps(&logged), "{tag}");
+            } else {
+                assert_eq!(written, logged, "{tag}");
+            }
+        }
+        std::fs::remove_dir_all(dir).unwrap();
     }
 }

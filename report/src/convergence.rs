@@ -7,7 +7,9 @@ use polars::prelude::*;
 use store::schema::{cell, checkpoints, convergence as run, episodes};
 
 use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
+use super::verdicts::ClaimResult;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
+use plan::scenario::claims::Claim;
 use stats::{mean, median};
 
 /// The section, with the best-against-final table when the store has both policies' tests.
@@ -37,6 +39,38 @@ pub fn section(
              are equal the run's best validation was its last.",
         );
         report.table("best_against_final", &best_against_final(both)?)?;
+    }
+    Ok(())
+}
+
+/// Names, in every verdict's text, which policy of its runs until converged the claim
+/// judged (the rule's `tested`: `best` by validation, or `final`).
+pub fn name_tested(
+    results: &mut [ClaimResult],
+    claims: &[Claim],
+    convergence: &DataFrame,
+) -> Result<(), ReportError> {
+    let policies = strings(convergence, cell::POLICY)?;
+    let tested = strings(convergence, run::TESTED)?;
+    for (result, claim) in results.iter_mut().zip(claims) {
+        let named: Vec<String> = claim
+            .test
+            .policies()
+            .into_iter()
+            .filter_map(|policy| {
+                let rows = (0..policies.len()).filter(|&r| policies[r] == policy);
+                let which = distinct(rows.map(|r| tested[r].as_str()));
+                (!which.is_empty()).then(|| format!("{policy}: its runs' {}", which.join(" and ")))
+            })
+            .collect();
+        if !named.is_empty() {
+            let policy = if named.len() == 1 {
+                "policy"
+            } else {
+                "policies"
+            };
+            result.ours = format!("{} (tested {policy}: {})", result.ours, named.join("; "));
+        }
     }
     Ok(())
 }

@@ -92,6 +92,7 @@ mod tests {
             paper: String::new(),
             ours: String::new(),
             verdict,
+            power: Vec::new(),
         }
     }
 

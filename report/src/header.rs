@@ -235,12 +235,8 @@ fn compute_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResult
 /// "...; the 48 training runs took 7.18 CPU hours by their logs": a run's wall time is its
 /// log's last (the log counts from the run's start, across resumes); one cell holds one run.
 fn training_runs_clause(training: &DataFrame) -> PolarsResult<String> {
-    let keys = strings(training, cell::KEY)?;
-    let walls = f64s(training, training::WALL_SECONDS)?;
-    let runs: Vec<f64> = group_rows(&keys)
-        .into_iter()
-        .map(|(_, rows)| rows.iter().map(|&r| walls[r]).fold(0.0, f64::max))
-        .collect();
+    let by_setting = super::training_run_seconds(training)?;
+    let runs: Vec<f64> = by_setting.into_values().flatten().collect();
     Ok(match runs.len() {
         0 => String::new(),
         n => format!(
@@ -537,6 +533,9 @@ mod tests {
     fn each_training_run_costs_its_logs_last_wall_time() {
         let training = df!(
             cell::KEY => ["a", "a", "b", "b", "b"],
+            cell::MAP => ["open"; 5],
+            cell::POLICY => ["ma-g-ppo"; 5],
+            cell::N_TRAIN => [4u32; 5],
             training::WALL_SECONDS => [1.0, 3600.0, 2.0, 5000.0, 7200.0],
         )
         .unwrap();
@@ -545,10 +544,7 @@ mod tests {
             line.ends_with("the 2 training runs took 3.00 CPU hours by their logs"),
             "{line}"
         );
-        let none =
-            df!(cell::KEY => Vec::<String>::new(), training::WALL_SECONDS => Vec::<f64>::new())
-                .unwrap();
-        assert_eq!(training_runs_clause(&none).unwrap(), "");
+        assert_eq!(training_runs_clause(&training.head(Some(0))).unwrap(), "");
     }
 
     #[test]

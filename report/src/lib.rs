@@ -313,7 +313,11 @@ impl StoreTables {
             disturbed: self.disturbed.as_ref(),
             test_curve: self.test_curve.as_ref(),
         };
-        verdicts::evaluate(claims, &recorded)
+        let mut results = verdicts::evaluate(claims, &recorded)?;
+        if let Some(convergence) = &self.convergence {
+            convergence::name_tested(&mut results, claims, convergence)?;
+        }
+        Ok(results)
     }
 
     /// Every test episode that the behaviour claims of `claims` read, measured (see

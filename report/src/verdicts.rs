@@ -23,6 +23,7 @@ use super::time_to_quality;
 use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use plan::scenario::claims::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
+use stats::power::runs_to_decide;
 use stats::{Bootstrap, StatsError, least_squares_slope, mean, mean_difference};
 
 /// One claim's verdict and the numbers behind it.
@@ -33,6 +34,166 @@ pub struct ClaimResult {
     pub paper: String,
     pub ours: String,
     pub verdict: Verdict,
+    /// Each point that compares training runs, with the runs that would decide it: what
+    /// `harness check --pilot` prices.
+    pub power: Vec<PointPower>,
+}
+
+/// A point of a claim whose comparison draws training runs (on one side or both): the
+/// estimate, the runs it rests on, and the runs per side that would decide it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointPower {
+    /// The point as the verdict's text names it.
+    pub point: String,
+    /// The compared statistic (a - b, or (a - b) / scale) and its 95 % interval.
+    pub estimate: f64,
+    pub interval: (f64, f64),
+    /// The training runs compared: each learned side's, once where both sides are the same
+    /// runs (under two conditions).
+    pub learned: Vec<LearnedRuns>,
+    /// Which sides are training runs: a baseline's episodes are not seeds.
+    pub sides: RunSides,
+    /// The runs per side the interval rests on: the harmonic mean where the sides differ.
+    pub runs: f64,
+    pub decision: Decision,
+}
+
+/// One learned side of a comparison: its setting, where more runs would be trained, and its
+/// runs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LearnedRuns {
+    pub map: String,
+    pub policy: String,
+    pub n_train: u32,
+    pub runs: usize,
+}
+
+/// Which sides of a comparison are training runs, whose count is the seeds'.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RunSides {
+    Both,
+    A,
+    B,
+}
+
+impl RunSides {
+    /// "runs a side", "runs of a".
+    pub fn per(self) -> &'static str {
+        match self {
+            RunSides::Both => "a side",
+            RunSides::A => "of a",
+            RunSides::B => "of b",
+        }
+    }
+}
+
+/// Whether a point's interval decides it, and if not what would.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Decision {
+    /// The interval excludes the claim's threshold (0, or the tolerance).
+    Decided,
+    /// About this many runs per side would find the observed difference with 80 % power
+    /// (`stats::power::runs_to_decide`).
+    Runs(u64),
+    /// The estimate lies on the threshold: no number of runs decides it.
+    Never,
+}
+
+impl PointPower {
+    /// The comparison of `a` and `b` with this estimate and interval, judged against
+    /// `thresholds`; `None` where neither side is training runs or there is no interval.
+    fn of(
+        (a, b): (&Sample, &Sample),
+        estimate: f64,
+        interval: (f64, f64),
+        thresholds: &[f64],
+    ) -> Option<Self> {
+        let (low, high) = interval;
+        let (of_a, of_b) = (LearnedRuns::of(a), LearnedRuns::of(b));
+        let sides = match (&of_a, &of_b) {
+            (Some(_), Some(_)) => RunSides::Both,
+            (Some(_), None) => RunSides::A,
+            (None, Some(_)) => RunSides::B,
+            (None, None) => return None,
+        };
+        if !(low.is_finite() && high.is_finite()) {
+            return None;
+        }
+        let learned: Vec<LearnedRuns> = match a.cells == b.cells {
+            true => of_a.into_iter().collect(),
+            false => of_a.into_iter().chain(of_b).collect(),
+        };
+        let runs = learned.len() as f64 / learned.iter().map(|l| 1.0 / l.runs as f64).sum::<f64>();
+        let held = thresholds.iter().any(|t| (low..=high).contains(t));
+        let gap = thresholds
+            .iter()
+            .map(|t| (estimate - t).abs())
+            .fold(f64::INFINITY, f64::min);
+        let decision = match (held, runs_to_decide(gap, (high - low) / 2.0, runs)) {
+            (false, _) => Decision::Decided,
+            (true, Some(runs)) => Decision::Runs(runs),
+            (true, None) => Decision::Never,
+        };
+        Some(Self {
+            point: String::new(),
+            estimate,
+            interval,
+            learned,
+            sides,
+            runs,
+            decision,
+        })
+    }
+
+    fn at(self, point: String) -> Self {
+        Self { point, ..self }
+    }
+
+    /// What the verdict's text adds beside *detectable*: nothing for a decided point.
+    fn clause(&self) -> String {
+        match self.decision {
+            Decision::Decided => String::new(),
+            Decision::Runs(runs) => format!(", decided by about {runs} runs {}", self.sides.per()),
+            Decision::Never => ", on the threshold: no number of runs decides it".to_owned(),
+        }
+    }
+}
+
+impl LearnedRuns {
+    /// A learned policy's sample as runs; `None` for a baseline's.
+    fn of(sample: &Sample) -> Option<Self> {
+        sample.group.policy.n_train.map(|n_train| Self {
+            map: sample.group.map.clone(),
+            policy: sample.group.policy.policy.clone(),
+            n_train,
+            runs: sample.runs(),
+        })
+    }
+
+    /// Its setting, as `training_run_seconds` keys it.
+    pub fn setting(&self) -> super::LearnedSetting {
+        (self.map.clone(), self.policy.clone(), self.n_train)
+    }
+}
+
+/// A point's test, its text, and what deciding it would take where it compares runs.
+type PointJudged = (PointTest, String, Option<PointPower>);
+
+/// What one claim's test gives: its verdict, our numbers, its points' power.
+struct Judged {
+    verdict: Verdict,
+    ours: String,
+    power: Vec<PointPower>,
+}
+
+impl From<(Verdict, String)> for Judged {
+    fn from((verdict, ours): (Verdict, String)) -> Self {
+        Self {
+            verdict,
+            ours,
+            power: Vec::new(),
+        }
+    }
 }
 
 /// What claims are tested against: the episodes table, and where the sweep kept them the
@@ -88,28 +249,31 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
             let short = claim
                 .budget
                 .and_then(|budget| short_of_budget(claim, budget, trained.as_ref()));
-            let (verdict, ours) = match (&claim.test, short) {
-                (_, Some(text)) => (Verdict::NotTested, text),
-                (ClaimTest::NotTested { reason }, None) => (Verdict::NotTested, reason.clone()),
+            let judged: Judged = match (&claim.test, short) {
+                (_, Some(text)) => (Verdict::NotTested, text).into(),
+                (ClaimTest::NotTested { reason }, None) => {
+                    (Verdict::NotTested, reason.clone()).into()
+                }
                 (ClaimTest::Lower { pair }, None) => lower(sides(pair), pair, seed)?,
                 (ClaimTest::Within { pair, tolerance }, None) => tolerated(
                     sides(pair),
                     (pair, &samples),
                     *tolerance,
                     seed,
-                    PointTest::within,
+                    Tolerated::Within,
                 )?,
                 (ClaimTest::NotWorse { pair, tolerance }, None) => tolerated(
                     sides(pair),
                     (pair, &samples),
                     *tolerance,
                     seed,
-                    PointTest::below,
+                    Tolerated::NotWorse,
                 )?,
-                (ClaimTest::GapGrows { pair }, None) => gap_grows(sides(pair), pair, seed)?,
+                (ClaimTest::GapGrows { pair }, None) => gap_grows(sides(pair), pair, seed)?.into(),
                 (ClaimTest::EveryRunLower { pair }, None) => {
                     per_point(sides(pair), pair, seed, |a, b, _, seed| {
-                        Ok(every_run_lower(a, b, seed)?)
+                        let (test, text) = every_run_lower(a, b, seed)?;
+                        Ok((test, text, None))
                     })?
                 }
                 (
@@ -121,7 +285,7 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                         ..
                     },
                     None,
-                ) => adapts_better(&disturbed, (a, b), disturbance, points, seed)?,
+                ) => adapts_better(&disturbed, (a, b), disturbance, points, seed)?.into(),
                 (
                     ClaimTest::Faster {
                         a,
@@ -138,8 +302,9 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                         (a, b, reference),
                         (points, *ratio),
                         seed,
-                    )?,
-                    None => (Verdict::NoData, "no test_curve table".to_owned()),
+                    )?
+                    .into(),
+                    None => (Verdict::NoData, "no test_curve table".to_owned()).into(),
                 },
                 (ClaimTest::DiagonalBest { policy, map, n }, None) => {
                     diagonal_best(&samples, policy, map, n, seed)?
@@ -159,7 +324,7 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                         .map(|t| curve_samples(t, map, *n_train, *episodes));
                     match table.transpose()? {
                         Some(curves) => curve_below(curves.get(a), curves.get(b), *episodes, seed)?,
-                        None => (Verdict::NoData, "no training table".to_owned()),
+                        None => (Verdict::NoData, "no training table".to_owned()).into(),
                     }
                 }
                 (
@@ -174,8 +339,14 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                     policy,
                     point,
                     *expected,
-                ),
+                )
+                .into(),
             };
+            let Judged {
+                verdict,
+                ours,
+                power,
+            } = judged;
             let ours = match claim_pair(&claim.test).and_then(|p| p.at_episode) {
                 Some(at) => format!("after {at} training episodes (test curves): {ours}"),
                 None => ours,
@@ -186,6 +357,7 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                 paper: claim.paper.clone(),
                 ours,
                 verdict,
+                power,
             })
         })
         .collect()
@@ -318,28 +490,47 @@ fn missing(policy: &str, point: &Point) -> String {
     format!("no results of {policy} at {}", point_label_trained(point))
 }
 
-/// A claim tested point by point: `test` gives each point's test and numbers.
+/// A claim tested point by point: `test` gives each point's test, numbers and power.
 fn per_point(
     samples: Sides,
     pair: &Pair,
     seed: world::Seed,
-    test: impl Fn(&Sample, &Sample, &Point, world::Seed) -> Result<(PointTest, String), ReportError>,
-) -> Result<(Verdict, String), ReportError> {
+    test: impl Fn(&Sample, &Sample, &Point, world::Seed) -> Result<PointJudged, ReportError>,
+) -> Result<Judged, ReportError> {
     let found = match pairs(samples, pair) {
         Ok(found) => found,
-        Err(missing) => return Ok((Verdict::NoData, missing)),
+        Err(missing) => return Ok((Verdict::NoData, missing).into()),
     };
-    let mut tests = Vec::new();
-    let mut texts = Vec::new();
-    for (i, ((a, b), point)) in found.iter().zip(&pair.points).enumerate() {
-        let (test, text) = test(a, b, point, seed.child(i as u64))?;
-        tests.push(test);
-        texts.push(format!("{}: {text}", point_label_trained(point)));
-    }
-    Ok((Verdict::combine(&tests), texts.join("; ")))
+    let labelled = found
+        .iter()
+        .zip(&pair.points)
+        .enumerate()
+        .map(|(i, ((a, b), point))| {
+            let judged = test(a, b, point, seed.child(i as u64))?;
+            Ok((point_label_trained(point), judged))
+        });
+    labelled
+        .collect::<Result<Vec<_>, ReportError>>()
+        .map(combine)
 }
 
-fn lower(samples: Sides, pair: &Pair, seed: world::Seed) -> Result<(Verdict, String), ReportError> {
+/// A claim's verdict from its points, each labelled: "LABEL: numbers; LABEL: ...".
+fn combine(points: Vec<(String, PointJudged)>) -> Judged {
+    let tests: Vec<PointTest> = points.iter().map(|(_, (test, ..))| *test).collect();
+    let texts: Vec<String> = (points.iter())
+        .map(|(label, (_, text, _))| format!("{label}: {text}"))
+        .collect();
+    let power = (points.into_iter())
+        .filter_map(|(label, (.., power))| power.map(|p| p.at(label)))
+        .collect();
+    Judged {
+        verdict: Verdict::combine(&tests),
+        ours: texts.join("; "),
+        power,
+    }
+}
+
+fn lower(samples: Sides, pair: &Pair, seed: world::Seed) -> Result<Judged, ReportError> {
     per_point(samples, pair, seed, |a, b, _, seed| {
         Ok(compare_lower(a, b, seed)?)
     })
@@ -356,16 +547,13 @@ fn draws(sample: &Sample) -> String {
 
 /// "a lower than b": the interval of the difference of means decides; the probability of
 /// improvement over draws (runs of a learned policy) and its interval are shown beside it.
-fn compare_lower(
-    a: &Sample,
-    b: &Sample,
-    seed: world::Seed,
-) -> Result<(PointTest, String), StatsError> {
+fn compare_lower(a: &Sample, b: &Sample, seed: world::Seed) -> Result<PointJudged, StatsError> {
     let (difference, improvement) = difference_and_improvement(a, b, seed)?;
     let (low, high) = difference.interval(CONFIDENCE)?;
     let (p_low, p_high) = improvement.interval(CONFIDENCE)?;
+    let power = PointPower::of((a, b), difference.estimate, (low, high), &[0.0]);
     let text = format!(
-        "{} ({}) vs {} ({}), a - b {} {} (detectable {}), P(a < b) {:.2} {}",
+        "{} ({}) vs {} ({}), a - b {} {} (detectable {}{}), P(a < b) {:.2} {}",
         number(mean(&a.units()?)?),
         draws(a),
         number(mean(&b.units()?)?),
@@ -373,20 +561,18 @@ fn compare_lower(
         number(difference.estimate),
         interval(low, high, number),
         number(detectable(low, high)),
+        power.as_ref().map_or_else(String::new, PointPower::clause),
         improvement.estimate,
         interval(p_low, p_high, |p| format!("{p:.2}"))
     );
-    Ok((PointTest::below(&difference, 0.0)?, text))
+    Ok((PointTest::below(&difference, 0.0)?, text, power))
 }
 
 /// The smallest true difference a comparison with this interval would find with 80 % power
-/// (two-sided 95 %, normal approximation): the interval's half-width times
-/// (z(0.975) + z(0.8)) / z(0.975). A difference below it going unseen is no evidence of none;
-/// more runs narrow it (about as one over the square root of their number).
+/// (`stats::power::detectable` of its half-width). More runs narrow it, about as one over
+/// the square root of their number.
 fn detectable(low: f64, high: f64) -> f64 {
-    const Z_975: f64 = 1.959_963_984_540_054;
-    const Z_80: f64 = 0.841_621_233_572_914_3;
-    (high - low) / 2.0 * (Z_975 + Z_80) / Z_975
+    stats::power::detectable((high - low) / 2.0)
 }
 
 /// `every_run_lower`: each training run of `a` (its mean) against `b`'s mean and its 95 %
@@ -419,20 +605,46 @@ fn every_run_lower(
     Ok((test, text))
 }
 
+/// How a tolerated difference is judged.
+#[derive(Clone, Copy)]
+enum Tolerated {
+    /// `within`: inside [-tolerance, tolerance].
+    Within,
+    /// `not_worse`: below the tolerance.
+    NotWorse,
+}
+
+impl Tolerated {
+    fn test(self, boot: &Bootstrap, tolerance: f64) -> Result<PointTest, StatsError> {
+        match self {
+            Tolerated::Within => PointTest::within(boot, tolerance),
+            Tolerated::NotWorse => PointTest::below(boot, tolerance),
+        }
+    }
+
+    /// The bounds an interval must not hold to decide the point.
+    fn thresholds(self, tolerance: f64) -> Vec<f64> {
+        match self {
+            Tolerated::Within => vec![-tolerance, tolerance],
+            Tolerated::NotWorse => vec![tolerance],
+        }
+    }
+}
+
 /// `within` and `not_worse`: (a - b) / scale at every point, with the scale the claim names
-/// (b's mean, Random's mean at the point, or 1), judged by `judge`.
+/// (b's mean, Random's mean at the point, or 1), judged as `judge` says.
 fn tolerated(
     sides: Sides,
     (pair, undisturbed): (&Pair, &[Sample]),
     tolerance: Tolerance,
     seed: world::Seed,
-    judge: fn(&Bootstrap, f64) -> Result<PointTest, StatsError>,
-) -> Result<(Verdict, String), ReportError> {
+    judge: Tolerated,
+) -> Result<Judged, ReportError> {
     let random_at = |point: &Point| find(undisturbed, RANDOM, point);
     if tolerance.scale == Scale::Random
         && let Some(point) = pair.points.iter().find(|p| random_at(p).is_none())
     {
-        return Ok((Verdict::NoData, missing(RANDOM, point)));
+        return Ok((Verdict::NoData, missing(RANDOM, point)).into());
     }
     per_point(sides, pair, seed, |a, b, point, seed| {
         let mut samples = vec![a, b];
@@ -447,9 +659,11 @@ fn tolerated(
         };
         let boot = bootstrap_of(&samples, &statistic, seed)?;
         let (low, high) = boot.interval(CONFIDENCE)?;
+        let thresholds = judge.thresholds(tolerance.value);
+        let power = PointPower::of((a, b), boot.estimate, (low, high), &thresholds);
         let text = format!(
             "{} ({}) vs {} ({}), (a - b) / {} {:+.3} {} (detectable {:.3}, \
-             tolerance {})",
+             tolerance {}{})",
             number(mean(&a.units()?)?),
             draws(a),
             number(mean(&b.units()?)?),
@@ -458,9 +672,10 @@ fn tolerated(
             boot.estimate,
             interval(low, high, |v| format!("{v:+.3}")),
             detectable(low, high),
-            tolerance.value
+            tolerance.value,
+            power.as_ref().map_or_else(String::new, PointPower::clause)
         );
-        Ok((judge(&boot, tolerance.value)?, text))
+        Ok((judge.test(&boot, tolerance.value)?, text, power))
     })
 }
 
@@ -568,9 +783,8 @@ fn diagonal_best(
     map: &str,
     n: &[u32],
     seed: world::Seed,
-) -> Result<(Verdict, String), ReportError> {
-    let mut tests = Vec::new();
-    let mut texts = Vec::new();
+) -> Result<Judged, ReportError> {
+    let mut points = Vec::new();
     for (column, &n_test) in n.iter().enumerate() {
         let at = |n_train| Point {
             map: map.to_owned(),
@@ -578,21 +792,18 @@ fn diagonal_best(
             n_train,
         };
         let Some(diagonal) = find(samples, policy, &at(n_test)) else {
-            return Ok((Verdict::NoData, missing(policy, &at(n_test))));
+            return Ok((Verdict::NoData, missing(policy, &at(n_test))).into());
         };
         for (row, &n_train) in n.iter().enumerate().filter(|&(_, &k)| k != n_test) {
             let Some(other) = find(samples, policy, &at(n_train)) else {
-                return Ok((Verdict::NoData, missing(policy, &at(n_train))));
+                return Ok((Verdict::NoData, missing(policy, &at(n_train))).into());
             };
             let seed = seed.child((column * n.len() + row) as u64);
-            let (test, text) = compare_lower(diagonal, other, seed)?;
-            tests.push(test);
-            texts.push(format!(
-                "N_test {n_test}, N_train {n_test} vs {n_train}: {text}"
-            ));
+            let label = format!("N_test {n_test}, N_train {n_test} vs {n_train}");
+            points.push((label, compare_lower(diagonal, other, seed)?));
         }
     }
-    Ok((Verdict::combine(&tests), texts.join("; ")))
+    Ok(combine(points))
 }
 
 /// Each policy's training penalties (10^6) on `map` at `n_train` within `episodes`, as a
@@ -662,18 +873,13 @@ fn curve_below(
     b: Option<&Sample>,
     (first, last): (u64, u64),
     seed: world::Seed,
-) -> Result<(Verdict, String), ReportError> {
+) -> Result<Judged, ReportError> {
     let (Some(a), Some(b)) = (a, b) else {
-        return Ok((
-            Verdict::NoData,
-            format!("no training episodes {first}..={last} of both policies"),
-        ));
+        let missing = format!("no training episodes {first}..={last} of both policies");
+        return Ok((Verdict::NoData, missing).into());
     };
-    let (test, text) = compare_lower(a, b, seed)?;
-    Ok((
-        Verdict::combine(&[test]),
-        format!("training episodes {first}..={last}, each run's mean: {text}"),
-    ))
+    let label = format!("training episodes {first}..={last}, each run's mean");
+    Ok(combine(vec![(label, compare_lower(a, b, seed)?)]))
 }
 
 /// The verdict table: claim, kind, the paper's words, our numbers, the verdict. Behaviour
@@ -703,8 +909,16 @@ pub const RULE: &str = "Each of the scenario's claims with our numbers and a ver
      probability that a run of a (an episode, for a baseline) has a lower penalty than one \
      of b. *detectable* is the smallest true difference the comparison would find four times \
      in five at the spread its runs showed (from the interval's width): a smaller one can go \
-     unseen, so an inconclusive verdict rules out only differences above it. Penalties in \
-     10^6.";
+     unseen, so an inconclusive verdict rules out only differences above it. Where a point's \
+     interval holds the claim's threshold (0, or the tolerance), *decided by about N runs a \
+     side* is the number of training runs (seeds) per side that would find the observed \
+     difference four times in five at the same spread (of the learned side, against a \
+     baseline, whose episodes are not seeds): the runs the interval rests on times the square \
+     of (the interval's half-width over z(0.975), times z(0.975) + z(0.8), over the \
+     estimate's distance from the threshold), the two-sample formula \
+     2 (z(0.975) + z(0.8))^2 sigma^2 / delta^2 with sigma read from the interval. The spread \
+     of five runs is itself uncertain, and so is the observed difference, so the figure is a \
+     rough guide, off by a factor of about two either way. Penalties in 10^6.";
 
 pub fn section(report: &mut ReportWriter, results: &[ClaimResult]) -> Result<(), ReportError> {
     let (behaviours, statistical): (Vec<&ClaimResult>, Vec<&ClaimResult>) =
@@ -820,16 +1034,33 @@ mod tests {
                 (&pair("losses", "plain"), &samples),
                 tolerance,
                 seed,
-                PointTest::below,
+                Tolerated::NotWorse,
             )
             .unwrap()
         };
-        let (by_random, text) = judge(Scale::Random);
-        assert_eq!(by_random, Verdict::Supported, "{text}");
+        let by_random = judge(Scale::Random);
+        let text = &by_random.ours;
+        assert_eq!(by_random.verdict, Verdict::Supported, "{text}");
         assert!(text.contains("random's mean"), "{text}");
         assert!(text.contains("(detectable 0.0"), "{text}");
-        let (by_b, text) = judge(Scale::B);
-        assert_ne!(by_b, Verdict::Supported, "{text}");
+        assert!(!text.contains("decided by"), "a decided point: {text}");
+        let by_b = judge(Scale::B);
+        let text = &by_b.ours;
+        assert_ne!(by_b.verdict, Verdict::Supported, "{text}");
+        // Undecided against the tolerance 0.05, not against 0.
+        let [power] = &by_b.power[..] else {
+            panic!("one point: {:?}", by_b.power)
+        };
+        let Decision::Runs(runs) = power.decision else {
+            panic!("{power:?}")
+        };
+        let half_width = (power.interval.1 - power.interval.0) / 2.0;
+        let gap = power.estimate - 0.05;
+        assert_eq!(Some(runs), runs_to_decide(gap, half_width, 4.0), "{text}");
+        assert!(
+            text.contains(&format!("decided by about {runs} runs a side)")),
+            "{text}"
+        );
     }
 
     #[test]
@@ -838,21 +1069,74 @@ mod tests {
         let spread = |policy, runs: &[&[f64]]| sample(policy, Some(4), runs);
         let few = spread("a", &[&[10.0, 10.5], &[30.0, 29.0], &[20.0, 21.0]]);
         let b = spread("b", &[&[25.0, 25.5], &[35.0, 34.0], &[15.0, 16.0]]);
-        let (_, text) = compare_lower(&few, &b, seed).unwrap();
+        let (_, text, _) = compare_lower(&few, &b, seed).unwrap();
         let detectable_in = |text: &str| -> f64 {
             let after = text.split("(detectable ").nth(1).unwrap();
-            after.split(')').next().unwrap().parse().unwrap()
+            after.split([',', ')']).next().unwrap().parse().unwrap()
         };
         let wide = detectable_in(&text);
         let runs: Vec<&[f64]> = [&[10.0, 10.5][..], &[30.0, 29.0], &[20.0, 21.0]].repeat(4);
         let others: Vec<&[f64]> = [&[25.0, 25.5][..], &[35.0, 34.0], &[15.0, 16.0]].repeat(4);
-        let (_, text) = compare_lower(&spread("a", &runs), &spread("b", &others), seed).unwrap();
+        let (_, text, _) = compare_lower(&spread("a", &runs), &spread("b", &others), seed).unwrap();
         let narrow = detectable_in(&text);
         // Four times the runs, about half the detectable difference.
         assert!(
             narrow < 0.6 * wide && narrow > 0.3 * wide,
             "{wide} then {narrow}"
         );
+    }
+
+    /// An undecided point says how many runs would decide it, a decided one does not; against
+    /// a baseline the count is the learned side's, and two baselines have none.
+    #[test]
+    fn an_undecided_point_says_the_runs_that_would_decide_it() {
+        let seed = world::Seed::new(6);
+        let learned = |policy, runs: &[&[f64]]| sample(policy, Some(4), runs);
+        let a = learned(
+            "a",
+            &[&[10.0, 10.5], &[30.0, 29.0], &[20.0, 21.0], &[14.0, 15.0]],
+        );
+        let b = learned(
+            "b",
+            &[&[25.0, 25.5], &[35.0, 34.0], &[15.0, 16.0], &[24.0, 23.0]],
+        );
+        let (test, text, power) = compare_lower(&a, &b, seed).unwrap();
+        assert!(!test.supported, "{text}");
+        let power = power.unwrap();
+        let Decision::Runs(runs) = power.decision else {
+            panic!("{power:?}")
+        };
+        let (low, high) = power.interval;
+        assert!(low < 0.0 && 0.0 < high, "{text}");
+        assert_eq!(power.runs, 4.0);
+        assert_eq!(
+            runs_to_decide(power.estimate, (high - low) / 2.0, 4.0),
+            Some(runs)
+        );
+        assert!(runs > 4, "{runs}");
+        assert!(
+            text.contains(&format!(
+                "(detectable {}, decided by about {runs} runs a side)",
+                number(detectable(low, high))
+            )),
+            "{text}"
+        );
+
+        let far = learned(
+            "b",
+            &[&[60.0, 61.0], &[70.0, 69.0], &[65.0, 66.0], &[62.0, 64.0]],
+        );
+        let (test, text, power) = compare_lower(&a, &far, seed).unwrap();
+        assert!(test.supported, "{text}");
+        assert_eq!(power.unwrap().decision, Decision::Decided);
+        assert!(!text.contains("decided by"), "{text}");
+
+        let baseline = sample("gcs", None, &[&[24.0, 25.0, 19.0, 21.0, 20.0, 18.0]]);
+        let (_, text, power) = compare_lower(&a, &baseline, seed).unwrap();
+        assert_eq!(power.unwrap().sides, RunSides::A);
+        assert!(text.contains("runs of a)"), "{text}");
+        let (_, text, power) = compare_lower(&baseline, &baseline, seed).unwrap();
+        assert!(power.is_none() && !text.contains("decided by"), "{text}");
     }
 
     #[test]

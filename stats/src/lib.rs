@@ -1,8 +1,8 @@
 //! Summaries of episode results: mean, spread, robust centres (median, interquartile mean),
 //! bootstrap intervals (`resampling`: a learned policy's training runs are the unit of
-//! replication), a multiple-testing correction (`multiplicity`), and rows grouped by key
-//! (`grouping`). The engine's summary table and the report's verdicts both use them; they
-//! read no store and run nothing.
+//! replication), a multiple-testing correction (`multiplicity`), rows grouped by key
+//! (`grouping`), and the power of a comparison: the runs it needs (`power`). The engine's
+//! summary table and the report's verdicts both use them; they read no store and run nothing.
 //!
 //! Ten test episodes are too few to trust a normal approximation, and penalties are skewed
 //! (one bad episode can dominate), so intervals are the spread of statistics of resampled sets
@@ -11,6 +11,7 @@
 mod distributions;
 pub mod grouping;
 mod multiplicity;
+pub mod power;
 mod resampling;
 
 use thiserror::Error;

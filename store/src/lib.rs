@@ -15,6 +15,8 @@
 //! OUT/{episodes,training,cells,summary,trajectories,snapshots,...}.{parquet,csv}
 //! OUT/tables.json              the cells those tables hold, and every table file's blake3
 //! OUT/tables.lock              locked while a sweep or a report writes the tables
+//! OUT/events/RUN/              TensorBoard events of the learned cells trained here
+//!                              (`engine::events`): a view, in no record and no hash
 //! ```
 //!
 //! Per-cell files make shards independent and resume simple: a cell is finished when its

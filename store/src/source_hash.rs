@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 /// that running a cell reaches through its imports
 /// (`tests/tests/e2e/layers.rs` checks that none is left out: the scenario resolves a policy's
 /// training configuration, the store writes the result files, the statistics the summary).
-pub const NUMERIC_SOURCES: [&str; 23] = [
+pub const NUMERIC_SOURCES: [&str; 25] = [
     "world/src",
     "world/Cargo.toml",
     "policies/src",
@@ -36,11 +36,13 @@ pub const NUMERIC_SOURCES: [&str; 23] = [
     "engine/src/execution.rs",
     "engine/src/idleness.rs",
     "engine/src/episode.rs",
+    "engine/src/events.rs",
     "engine/src/summary.rs",
     "engine/src/test_curve.rs",
     "engine/src/training_log.rs",
     "engine/src/training_run.rs",
     "engine/src/trajectory.rs",
+    "engine/src/validation.rs",
 ];
 
 /// The lock file, of which only the crates the numeric crates depend on count.

@@ -1,4 +1,7 @@
-//! `harness check FILE`: validates a scenario and prints its cells and their cost.
+//! `harness check FILE`: validates a scenario and prints its cells and their cost, and with
+//! `--pilot` the training runs its claims would need (`pilot`).
+
+mod pilot;
 
 use std::path::PathBuf;
 
@@ -19,6 +22,11 @@ pub struct CheckArgs {
     /// Accept a scenario above the size limits (cells, test episodes, CPU time, memory).
     #[arg(long)]
     no_limits: bool,
+    /// A pilot sweep's store (its output folder, or a report's `store/`): print the training
+    /// runs (seeds) that would decide each of the scenario's undecided claims, judged on the
+    /// pilot's runs, and their CPU time by the pilot's training logs.
+    #[arg(long)]
+    pilot: Option<PathBuf>,
 }
 
 pub fn run(args: CheckArgs) -> anyhow::Result<()> {
@@ -113,7 +121,10 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         cells.len(),
         duration(wall)
     );
-    Ok(())
+    match &args.pilot {
+        Some(store) => pilot::print(scenario.claims(), store),
+        None => Ok(()),
+    }
 }
 
 /// A rough duration, in the unit that reads best.

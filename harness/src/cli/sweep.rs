@@ -46,6 +46,11 @@ pub struct SweepArgs {
     /// Accept a scenario above the size limits (cells, test episodes, CPU time, memory).
     #[arg(long)]
     no_limits: bool,
+    /// Write no TensorBoard events (by default every learned cell trained here writes them as
+    /// it trains, into OUT/events/MAP-POLICY-nN_TRAIN-seedREPETITION/: `tensorboard --logdir
+    /// OUT`).
+    #[arg(long)]
+    no_events: bool,
 }
 
 pub fn run(args: SweepArgs) -> anyhow::Result<()> {
@@ -74,6 +79,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
             .iter()
             .map(|folder| TakenTables::open(Store::new(folder)))
             .collect::<Result<_, _>>()?,
+        events: !args.no_events,
     };
     warn_of_cells_left_behind(&scenario, &out)?;
     let report = run_sweep(&scenario, &text, &Store::new(&out), &options)?;

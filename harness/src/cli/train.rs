@@ -1,5 +1,6 @@
 //! `harness train`: trains MA-G-PPO or MA-PPO, writing a checkpoint and the training log to a
-//! folder every so often and at the end; `--resume` continues from that folder.
+//! folder every so often and at the end, and TensorBoard events as it trains; `--resume`
+//! continues from that folder.
 
 mod run_folder;
 
@@ -38,7 +39,7 @@ pub struct TrainArgs {
     #[arg(long)]
     seed: Option<u64>,
     /// Folder for checkpoint.safetensors, checkpoint.optimizer.safetensors, checkpoint.json,
-    /// training.parquet and world.json.
+    /// training.parquet, world.json and the TensorBoard events (events.out.tfevents.*).
     #[arg(long)]
     out: PathBuf,
     /// Override any configuration field: key=value, the value as JSON or a bare word.
@@ -67,6 +68,10 @@ pub struct TrainArgs {
     /// Agents of a test episode (default: the training maximum).
     #[arg(long)]
     test_agents: Option<usize>,
+    /// Write no TensorBoard events (by default they are written into --out as the run trains,
+    /// an event per episode: `tensorboard --logdir OUT`).
+    #[arg(long)]
+    no_events: bool,
 }
 
 impl TrainArgs {
@@ -110,6 +115,9 @@ fn parse_agents(text: &str) -> anyhow::Result<AgentCount> {
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let world = args.world.load()?;
     let mut run = open(&args, &world)?;
+    if !args.no_events {
+        run.write_events(&args.out)?;
+    }
     let configured = run.state().config.episodes;
     let total = args.until.map_or(configured, |until| until.min(configured));
     let progress = progress_bar(total, run.state().episodes_done);

@@ -9,8 +9,10 @@ mod smoke;
 
 mod baselines;
 mod behaviour_claims;
+mod converged;
 mod disturbances;
 mod docs;
+mod events;
 mod fingerprint;
 mod hostile_inputs;
 mod layers;

@@ -619,6 +619,54 @@ fn check_prints_every_cell_and_the_cost() {
     );
 }
 
+/// `harness check --pilot` on RQ4's committed store: every claim is named, and every point is
+/// decided or given a positive number of runs a side that would decide it, priced in CPU.
+#[test]
+fn check_with_a_pilot_gives_the_seeds_each_undecided_point_needs() {
+    use crate::common::repo_file;
+    let scenario = repo_file("scenarios/rq4.yaml");
+    let pilot = repo_file("reports/rq4/store");
+    let printed = succeed(harness(&["check", &scenario, "--pilot", &pilot]));
+    let rq4 = plan::scenario::Scenario::load(Path::new(&scenario)).unwrap();
+    assert!(!rq4.claims().is_empty());
+    for claim in rq4.claims() {
+        assert!(
+            printed.contains(&format!("claim {} (", claim.id)),
+            "{printed}"
+        );
+    }
+    let points: Vec<&str> = printed
+        .lines()
+        .filter(|l| l.starts_with("  open N="))
+        .collect();
+    assert_eq!(points.len(), 4, "rq4 compares N = 2, 4, 6, 10: {printed}");
+    let mut undecided = 0;
+    for line in points.iter().filter(|l| !l.ends_with(": decided")) {
+        let runs: u64 = (line.split(": about ").nth(1))
+            .and_then(|after| after.split(' ').next())
+            .and_then(|runs| runs.parse().ok())
+            .unwrap_or_else(|| panic!("no runs a side in {line}"));
+        assert!(runs > 0, "{line}");
+        assert!(line.contains("runs a side decide it"), "{line}");
+        assert!(line.contains("of CPU"), "{line}");
+        undecided += 1;
+    }
+    assert!(undecided > 0, "rq4 is inconclusive at every N: {printed}");
+    assert!(printed.contains("all claims: "), "{printed}");
+}
+
+/// `harness check --pilot` on a folder that holds no sweep fails naming it, without a panic.
+#[test]
+fn check_with_a_pilot_that_is_no_sweep_names_the_folder() {
+    let empty = scratch("pilot-no-sweep");
+    let scenario = crate::common::repo_file("scenarios/rq4.yaml");
+    let output = harness(&["check", &scenario, "--pilot", empty.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    assert!(stderr.contains(empty.to_str().unwrap()), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
 /// `harness check rq6.yaml | head -1`: the reader is gone before the harness writes (it
 /// closes its end at once; the harness must first start and read the scenario), and the
 /// harness must end as Unix tools do, by SIGPIPE, without a panic's message (it used to print

@@ -155,6 +155,27 @@ impl ClaimTest {
             ClaimTest::NotTested { .. } => "not_tested",
         }
     }
+
+    /// The policies (table labels) the claim compares, in the order written.
+    pub fn policies(&self) -> Vec<&str> {
+        match self {
+            ClaimTest::Lower { pair }
+            | ClaimTest::Within { pair, .. }
+            | ClaimTest::NotWorse { pair, .. }
+            | ClaimTest::GapGrows { pair }
+            | ClaimTest::EveryRunLower { pair } => vec![&pair.a, &pair.b],
+            ClaimTest::DiagonalBest { policy, .. } | ClaimTest::Behaviour { policy, .. } => {
+                vec![policy]
+            }
+            ClaimTest::CurveBelow { a, b, .. } | ClaimTest::AdaptsBetter { a, b, .. } => {
+                vec![a, b]
+            }
+            ClaimTest::Faster {
+                a, b, reference, ..
+            } => vec![a, b, reference],
+            ClaimTest::NotTested { .. } => Vec::new(),
+        }
+    }
 }
 
 /// Two policies at a list of points, in the order written.

@@ -120,6 +120,17 @@ fn a_sweep_until_converged_stops_tests_both_policies_and_reports_where_runs_stop
         ours.ends_with("(tested policy: ma-g-ppo@fast-v2: its runs' best)"),
         "{ours}"
     );
+    // An undecided point says how many runs would decide it.
+    let verdict = claims
+        .column("verdict")
+        .unwrap()
+        .str()
+        .unwrap()
+        .get(0)
+        .unwrap();
+    if verdict == "inconclusive" {
+        assert!(ours.contains("decided by about"), "{ours}");
+    }
     let header = table(&reports.join("converged/tables/convergence.parquet"));
     let runs = header.column("runs").unwrap().u32().unwrap().get(0);
     assert_eq!(runs, Some(3));

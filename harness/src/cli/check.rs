@@ -105,6 +105,15 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         total.env_steps,
         duration(total.cpu_seconds())
     );
+    let converging = (scenario.policies().iter())
+        .filter(|p| p.learned().is_some_and(|l| l.stopping.is_some()))
+        .count();
+    if converging > 0 {
+        println!(
+            "until converged: {converging} learned policies train until their validation \
+             penalty stops improving; their cells are counted to their cap, an upper bound"
+        );
+    }
     println!(
         "memory: about {:.2} GB at the peak (the sweep's tables, its maps' worlds and its two largest training runs or plans)",
         scenario.size().memory_bytes as f64 / 1e9

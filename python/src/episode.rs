@@ -18,6 +18,8 @@ pub struct Running {
     pub observer: Observer,
     pub steps: usize,
     actions: Vec<Action>,
+    /// Whether an episode was started: a step before `reset` would play a hidden one.
+    started: bool,
 }
 
 impl Running {
@@ -36,22 +38,26 @@ impl Running {
             episode,
             steps,
             actions: vec![Action::Stay; agents],
+            started: false,
         })
     }
 
     /// Starts from `starts`, or from cells drawn from `seed` as `harness run --seed` draws them.
     pub fn reset(&mut self, seed: Seed, starts: Option<&[Cell]>) -> Result<(), StartError> {
-        match starts {
-            Some(starts) => self.episode.reset_at(starts).map(drop),
-            None => {
-                self.episode.reset(seed);
-                Ok(())
-            }
-        }
+        // The start's reward is not a step's: Python's episode begins with observations only.
+        let _start_reward = match starts {
+            Some(starts) => self.episode.reset_at(starts)?,
+            None => self.episode.reset(seed),
+        };
+        self.started = true;
+        Ok(())
     }
 
     /// One step of the actions' indices (0 stay, 1 +y, 2 -x, 3 -y, 4 +x); the step's reward.
     pub fn step(&mut self, actions: &[i64]) -> Result<f64, String> {
+        if !self.started {
+            return Err("the environment has not been reset: call reset first".into());
+        }
         if self.episode.time() >= self.steps {
             return Err(format!(
                 "the episode is over (T = {} steps): reset it first",

@@ -6,6 +6,7 @@ mod env;
 mod episode;
 mod maps;
 mod render;
+mod threads;
 mod vector;
 mod world_spec;
 

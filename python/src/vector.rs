@@ -10,6 +10,7 @@ use world::Seed;
 
 use crate::env::image_shape;
 use crate::episode::{Running, check_observation_size};
+use crate::threads::ProcessPool;
 use crate::world_spec::World;
 
 /// What a step of all the environments returns: observations, rewards, truncated.
@@ -18,6 +19,8 @@ type Stepped<'py> = (Bound<'py, PyArray5<f32>>, Bound<'py, PyArray1<f64>>, bool)
 #[pyclass(module = "vpm_world._core")]
 pub struct VectorEnv {
     envs: Vec<Running>,
+    /// The threads that step the environments, rebuilt in a forked child (`threads`).
+    pool: ProcessPool,
 }
 
 #[pymethods]
@@ -33,6 +36,7 @@ impl VectorEnv {
         check_observation_size(n, first.observation_len()).map_err(PyValueError::new_err)?;
         Ok(Self {
             envs: vec![first; n],
+            pool: ProcessPool::new()?,
         })
     }
 
@@ -93,18 +97,20 @@ impl VectorEnv {
     ) -> PyResult<(Bound<'py, PyArray5<f32>>, Vec<f64>)> {
         let per_env = self.envs[0].observation_len();
         let mut values = vec![0.0; per_env * self.envs.len()];
-        let envs = &mut self.envs;
+        let (envs, pool) = (&mut self.envs, &mut self.pool);
         let results = py.detach(|| {
-            envs.par_iter_mut()
-                .zip(values.par_chunks_mut(per_env))
-                .enumerate()
-                .map(|(k, (env, out))| {
-                    let value = each(k, env)?;
-                    env.observe(out);
-                    Ok(value)
-                })
-                .collect::<Result<Vec<f64>, String>>()
-        });
+            pool.install(|| {
+                envs.par_iter_mut()
+                    .zip(values.par_chunks_mut(per_env))
+                    .enumerate()
+                    .map(|(k, (env, out))| {
+                        let value = each(k, env)?;
+                        env.observe(out);
+                        Ok(value)
+                    })
+                    .collect::<Result<Vec<f64>, String>>()
+            })
+        })?;
         let results = results.map_err(PyValueError::new_err)?;
         let (channels, side, _) = image_shape(&self.envs[0]);
         let shape = (

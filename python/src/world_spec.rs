@@ -5,17 +5,20 @@ use std::sync::Arc;
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use world::observation::AGENT_CODE;
 use world::penalty::OBSTACLE_CODE;
 use world::{Channels, ObservationConfig, WorldParams};
 
-use crate::maps;
+use crate::{maps, threads};
 
 /// A map with L, D and Rmax, and what the agents observe of it.
 #[pyclass(module = "vpm_world._core", frozen)]
 pub struct World {
     pub world: Arc<world::World>,
     pub observation: ObservationConfig,
+    /// The `map` argument as given, so that a pickled world is rebuilt from it.
+    spec: String,
 }
 
 #[pymethods]
@@ -56,16 +59,32 @@ impl World {
         if mini_map_block == Some(0) {
             return Err(PyValueError::new_err("mini_map_block must be at least 1"));
         }
-        let map = maps::load(map).map_err(PyValueError::new_err)?;
+        let spec = map;
+        let map = maps::load(spec).map_err(PyValueError::new_err)?;
         let observation = ObservationConfig {
             channels,
             mark_others_on_mini,
             mini_map_block,
         };
         Ok(Self {
-            world: world::World::new(map, params),
+            world: threads::in_own_pool(|| world::World::new(map, params))?,
             observation,
+            spec: spec.to_owned(),
         })
+    }
+
+    /// The constructor's arguments, by which pickle and `copy.deepcopy` rebuild the world (a
+    /// map file is read again from its path).
+    fn __getnewargs_ex__<'py>(&self, py: Python<'py>) -> PyResult<((String,), Bound<'py, PyDict>)> {
+        let params = self.world.params();
+        let keywords = PyDict::new(py);
+        keywords.set_item("fov", params.fov())?;
+        keywords.set_item("decay", params.decay())?;
+        keywords.set_item("rmax", params.rmax())?;
+        keywords.set_item("channels", channels_name(self.observation.channels))?;
+        keywords.set_item("mark_others_on_mini", self.observation.mark_others_on_mini)?;
+        keywords.set_item("mini_map_block", self.observation.mini_map_block)?;
+        Ok(((self.spec.clone(),), keywords))
     }
 
     /// The map's name (a paper map's, or the file's).
@@ -113,6 +132,15 @@ impl World {
     fn observation_bounds(&self) -> (f32, f32) {
         let rmax = self.world.params().rmax();
         (-1.0, AGENT_CODE.max(OBSTACLE_CODE) / rmax)
+    }
+}
+
+/// The name `channels` takes for these channels.
+fn channels_name(channels: Channels) -> &'static str {
+    match channels {
+        Channels::Local => "local",
+        Channels::Mini => "mini",
+        Channels::Both => "both",
     }
 }
 

@@ -1,5 +1,6 @@
 """Bad values are refused with the harness's message, as Python exceptions naming the value."""
 
+import numpy as np
 import pytest
 
 import vpm_world
@@ -70,3 +71,62 @@ def test_vector_env_refuses_wrong_shapes():
         vector.step([[0, 0]])
     with pytest.raises(ValueError, match="n \\(environments\\) must be at least 1"):
         vpm_world.VectorEnv(0)
+
+
+@pytest.mark.parametrize("action", [2.7, "3", True, np.float64(1.0), None])
+def test_an_action_that_is_not_an_integer_is_a_type_error_naming_the_agent(action):
+    env = vpm_world.ParallelEnv("open", 2, steps=3)
+    env.reset(seed=0)
+    with pytest.raises(TypeError, match="agent_1's action must be an integer"):
+        env.step({"agent_0": 0, "agent_1": action})
+
+
+def test_numpy_integer_actions_are_actions():
+    env = vpm_world.ParallelEnv("open", 3, steps=3)
+    env.reset(seed=0)
+    env.step({"agent_0": np.int32(1), "agent_1": np.uint8(4), "agent_2": np.array(2)})
+    assert env.action_space("agent_0").contains(np.int64(3))
+
+
+@pytest.mark.parametrize("seed", [1.5, "7", True])
+def test_a_seed_that_is_not_an_integer_is_a_type_error(seed):
+    with pytest.raises(TypeError, match="seed must be an integer"):
+        vpm_world.ParallelEnv("open", 2).reset(seed=seed)
+    with pytest.raises(TypeError, match="seed must be an integer"):
+        vpm_world.VectorEnv(2, "open", 2).reset(seed)
+
+
+def test_a_numpy_integer_seed_is_the_same_seed():
+    env = vpm_world.ParallelEnv("open", 2)
+    env.reset(seed=np.uint64(7))
+    positions = env.positions()
+    env.reset(seed=7)
+    assert env.positions() == positions
+
+
+@pytest.mark.parametrize("actions", [np.full((2, 2), 1.0), [["1", "2"], ["3", "4"]],
+                                     np.ones((2, 2), dtype=bool)])
+def test_vector_actions_that_are_not_integers_are_type_errors(actions):
+    vector = vpm_world.VectorEnv(2, "open", 2, steps=3)
+    vector.reset(0)
+    with pytest.raises(TypeError, match="actions must be integers"):
+        vector.step(actions)
+
+
+def test_a_step_before_reset_is_refused():
+    with pytest.raises(ValueError, match="has not been reset: call reset first"):
+        vpm_world.ParallelEnv("open", 2).step({"agent_0": 0, "agent_1": 0})
+    with pytest.raises(ValueError, match="has not been reset"):
+        vpm_world.Env(vpm_world.World("open"), 2).step([0, 0])
+    with pytest.raises(ValueError, match="has not been reset"):
+        vpm_world.VectorEnv(2, "open", 2).step(np.zeros((2, 2), dtype=int))
+
+
+def test_every_agent_needs_an_action():
+    env = vpm_world.ParallelEnv("open", 3, steps=3)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"no actions for \['agent_1'\]"):
+        env.step({"agent_0": 0, "agent_2": 0})
+    with pytest.raises(ValueError, match="no actions for"):
+        env.step({})
+    env.step({a: 0 for a in env.agents})

@@ -4,6 +4,7 @@ the Rust environment, which does the stepping and writes the observations."""
 from __future__ import annotations
 
 import functools
+import operator
 import secrets
 
 import numpy as np
@@ -31,6 +32,9 @@ class ParallelEnv(_ParallelEnv):
     steps these robots (or that many drawn from the episode's seed, as the harness draws them)
     are lost. They stay on their cells and no longer see; each is terminated at step ``at``
     and leaves ``agents``.
+
+    Pickling (and ``copy.deepcopy``) copies the environment's specification, its constructor's
+    arguments, not the episode in progress: the copy is a new environment, to be reset.
     """
 
     metadata = {"name": "vpm_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}
@@ -42,6 +46,10 @@ class ParallelEnv(_ParallelEnv):
                  render_mode: str | None = None):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self._spec = dict(map=map, n_agents=n_agents, fov=fov, decay=decay, rmax=rmax,
+                          steps=steps, channels=channels,
+                          mark_others_on_mini=mark_others_on_mini,
+                          mini_map_block=mini_map_block, lose=lose, render_mode=render_mode)
         self.world = _core.World(map, fov=fov, decay=decay, rmax=rmax, channels=channels,
                                  mark_others_on_mini=mark_others_on_mini,
                                  mini_map_block=mini_map_block)
@@ -62,6 +70,11 @@ class ParallelEnv(_ParallelEnv):
         self._root = None
         self._episodes = 0
         self._loss = None
+
+    def __reduce__(self):
+        """Rebuilt from the constructor's arguments, so that vector environments can send it to
+        subprocesses (``multiprocessing``, SuperSuit's ``concat_vec_envs_v1``)."""
+        return functools.partial(type(self), **self._spec), ()
 
     @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
@@ -91,12 +104,17 @@ class ParallelEnv(_ParallelEnv):
         return self._observations(observations), infos
 
     def step(self, actions):
+        """Every agent in ``agents`` must have an action (an integer 0 to 4); the actions of
+        agents already lost or terminated are ignored."""
         unknown = set(actions) - set(self._index)
         if unknown:
             raise KeyError(f"no such agents: {sorted(unknown)}")
+        missing = [a for a in self.agents if a not in actions]
+        if missing:
+            raise ValueError(f"no actions for {missing}: every agent in env.agents needs one")
         indices = [0] * self.num_agents_possible
         for agent, action in actions.items():
-            indices[self._index[agent]] = int(action)
+            indices[self._index[agent]] = _integer(action, f"{agent}'s action")
         acting = self.agents[:]
         observations, reward = self._env.step(indices)
         lost = self._lose_now() if self._loss and self._env.time == self._loss[0] else set()
@@ -135,9 +153,7 @@ class ParallelEnv(_ParallelEnv):
 
     def _next_seed(self, seed):
         if seed is not None:
-            if not 0 <= int(seed) < 2**64:
-                raise ValueError(f"seed must be between 0 and 2^64 - 1, got {seed}")
-            self._root, self._episodes = int(seed), 0
+            self._root, self._episodes = _checked_seed(seed), 0
             return self._root
         if self._root is None:
             self._root, self._episodes = secrets.randbits(64), 0
@@ -163,6 +179,26 @@ class ParallelEnv(_ParallelEnv):
 def parallel_env(**kwargs) -> ParallelEnv:
     """PettingZoo's conventional constructor name."""
     return ParallelEnv(**kwargs)
+
+
+def _integer(value, what: str) -> int:
+    """``value`` as a Python int if it is an integer (int, a numpy integer or 0-d integer
+    array, as gymnasium's ``Discrete`` takes); floats, strings and booleans are refused rather
+    than rounded or parsed."""
+    if not isinstance(value, (bool, np.bool_)):
+        try:
+            return operator.index(value)
+        except TypeError:
+            pass
+    raise TypeError(f"{what} must be an integer, got {value!r} ({type(value).__name__})")
+
+
+def _checked_seed(seed) -> int:
+    """A seed: an integer from 0 to 2^64 - 1."""
+    seed = _integer(seed, "seed")
+    if not 0 <= seed < 2**64:
+        raise ValueError(f"seed must be between 0 and 2^64 - 1, got {seed}")
+    return seed
 
 
 def _check_lose(lose, n_agents):

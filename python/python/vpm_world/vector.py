@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from . import _core
+from .parallel import _checked_seed
 
 
 class VectorEnv:
@@ -14,6 +17,8 @@ class VectorEnv:
     test episode k of a cell; ``step(actions)`` takes an ``n x n_agents`` integer array and
     returns the observations (``n x n_agents x C x S x S``, float32), each environment's
     reward (``n``, the team's, <= 0) and whether the episodes have run their ``steps``.
+
+    Pickling copies the specification (the constructor's arguments), not the episodes.
     """
 
     def __init__(self, n: int, map: str = "open", n_agents: int = 4, *, steps: int = 2000,
@@ -21,12 +26,21 @@ class VectorEnv:
         self.world = _core.World(map, **world)
         self._core = _core.VectorEnv(self.world, n, n_agents, steps)
         self.n, self.n_agents, self.steps = n, n_agents, steps
+        self._spec = dict(n=n, map=map, n_agents=n_agents, steps=steps, **world)
+
+    def __reduce__(self):
+        return functools.partial(type(self), **self._spec), ()
 
     def reset(self, seed: int) -> np.ndarray:
-        return self._core.reset(seed)
+        return self._core.reset(_checked_seed(seed))
 
     def step(self, actions) -> tuple[np.ndarray, np.ndarray, bool]:
-        return self._core.step(np.asarray(actions, dtype=np.int64))
+        """``actions``: integers (any numpy integer type); floats, strings and booleans are
+        refused, not rounded or parsed."""
+        actions = np.asarray(actions)
+        if not np.issubdtype(actions.dtype, np.integer):
+            raise TypeError(f"actions must be integers, got an array of {actions.dtype}")
+        return self._core.step(actions.astype(np.int64, copy=False))
 
     def positions(self) -> list[list[tuple[int, int]]]:
         return self._core.positions()

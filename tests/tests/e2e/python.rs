@@ -1,7 +1,7 @@
 //! The world from Python: the `vpm_world` wheel is built from `python/` with maturin,
 //! installed into the Python that `.ci/run` prepares, and its tests run (PettingZoo's API and
-//! seed tests, the same episodes as this harness, errors, lost robots), then the README's
-//! example. A slow test: without `VPM_FULL=1` it prints `NOT RUN`.
+//! seed tests, the same episodes as this harness, errors, lost robots, fork and pickle), then
+//! the README's example. A slow test: without `VPM_FULL=1` it prints `NOT RUN`.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

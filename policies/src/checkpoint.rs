@@ -12,9 +12,14 @@
 //!
 //! A load trusts nothing in the files: the sizes in the metadata are bounded and must make
 //! the network the metadata and the weights file describe before that network is allocated,
-//! and every tensor must be there, known, of its shape and finite.
+//! and every tensor must be there, known, of its shape and finite. The settings the shapes do
+//! not pin are held to what any world could give (the image side to the mini-map block, the
+//! agents to the largest map, a version-1 label to the fields its writers wrote), and a probe
+//! forward pass must give finite probabilities and values, so that weights which overflow
+//! together are refused rather than played.
 
 mod checks;
+mod probe;
 #[cfg(test)]
 mod refusals;
 
@@ -30,7 +35,7 @@ use crate::ppo::config::{ConfigError, TrainingConfig};
 use crate::ppo::trainer::{TrainingState, adam_config};
 use crate::ppo::value_norm::ValueNorm;
 
-pub use checks::MAX_IMAGE_SIDE;
+pub use checks::{MAX_AGENTS, MAX_IMAGE_SIDE};
 
 pub const WEIGHTS_FILE: &str = "checkpoint.safetensors";
 pub const OPTIMIZER_FILE: &str = "checkpoint.optimizer.safetensors";
@@ -38,7 +43,15 @@ pub const METADATA_FILE: &str = "checkpoint.json";
 /// Bumped whenever the files change meaning.
 pub const FORMAT_VERSION: u32 = 2;
 /// The first version, whose CNN-feature columns were in our channels-last order.
+///
+/// Both versions hold the same tensors of the same shapes: only the order of the CNN-feature
+/// columns differs, and any order of a matrix's columns is a valid matrix, so no shape (nor the
+/// probe) tells a version-1 file from a version-2 one, whatever the network. What does is the
+/// configuration: `mini_map_block` came after version 2, and every writer since writes it, so
+/// a file that says version 1 and has it is a current checkpoint read in the wrong order.
 const CHANNELS_LAST_VERSION: u32 = 1;
+/// The first configuration field that no version-1 writer wrote.
+const AFTER_VERSION_1: &str = "mini_map_block";
 
 /// The JSON file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -102,12 +115,36 @@ pub enum CheckpointError {
     #[error("{METADATA_FILE}: format version {found}, this build reads 1 and {FORMAT_VERSION}")]
     Version { found: u32 },
     #[error(
+        "{METADATA_FILE}: format_version {CHANNELS_LAST_VERSION}, but its config has \
+         `{AFTER_VERSION_1}`, which only writers of format {FORMAT_VERSION} write (read as \
+         version {CHANNELS_LAST_VERSION}, the CNN-feature columns would be permuted)"
+    )]
+    VersionTooOld,
+    #[error(
         "{METADATA_FILE}: image_side {found} is above {MAX_IMAGE_SIDE}, the largest observation \
          side (maps are at most {} cells a side, the field of view at most {})",
         world::map::MAX_SIDE,
         world::params::MAX_FOV
     )]
     ImageSide { found: usize },
+    #[error(
+        "{METADATA_FILE}: image_side {image_side} is wider than any observation with \
+         mini_map_block {}: at most {largest} (the field of view is at most {}, the mini-map of \
+         a map of at most {} cells a side in those blocks no wider)",
+        block_text(*.block),
+        world::params::MAX_FOV,
+        world::map::MAX_SIDE
+    )]
+    ImageSideForBlock {
+        image_side: usize,
+        block: Option<usize>,
+        largest: usize,
+    },
+    #[error(
+        "{METADATA_FILE}: agents.max {max} is above {MAX_AGENTS}, the cells of the largest map \
+         (agents stand on distinct cells; the network itself sets no limit)"
+    )]
+    Agents { max: usize },
     #[error(
         "{METADATA_FILE}: convolution {layer}'s {field} {value} is above {MAX_IMAGE_SIDE}, the \
          largest observation side"
@@ -132,6 +169,15 @@ pub enum CheckpointError {
          each) of the network in {METADATA_FILE}"
     )]
     TooSmall { bytes: usize, parameters: usize },
+    #[error(
+        "{WEIGHTS_FILE}: every value is finite, but a probe forward pass gives {output} that are \
+         not; the largest weight is {largest:e}, in tensor `{tensor}`"
+    )]
+    Overflow {
+        output: &'static str,
+        tensor: String,
+        largest: f32,
+    },
     #[error("{METADATA_FILE}: {0}")]
     Config(#[from] ConfigError),
     #[error("{METADATA_FILE}: the network cannot be built: {0}")]
@@ -143,6 +189,14 @@ fn tensor_list(names: &[String]) -> String {
     let quoted: Vec<String> = names.iter().map(|name| format!("`{name}`")).collect();
     let plural = if names.len() == 1 { "" } else { "s" };
     format!("tensor{plural} {}", quoted.join(", "))
+}
+
+/// A mini-map block as the metadata writes it.
+fn block_text(block: Option<usize>) -> String {
+    block.map_or_else(
+        || "null (fitted to the field of view)".to_owned(),
+        |b| b.to_string(),
+    )
 }
 
 /// A parameter count, or what overflowed a `usize`.
@@ -194,7 +248,21 @@ pub fn read_metadata(text: &str) -> Result<CheckpointMetadata, CheckpointError> 
             found: metadata.format_version,
         });
     }
+    if metadata.format_version == CHANNELS_LAST_VERSION && written_after_version_1(text) {
+        return Err(CheckpointError::VersionTooOld);
+    }
     Ok(metadata)
+}
+
+/// Whether the metadata's configuration, as written, has a field that version-1 writers did not
+/// write (the parsed configuration fills it in by default, so the text is read again).
+fn written_after_version_1(text: &str) -> bool {
+    #[derive(Deserialize)]
+    struct Written {
+        config: serde_json::Map<String, serde_json::Value>,
+    }
+    serde_json::from_str::<Written>(text)
+        .is_ok_and(|written| written.config.contains_key(AFTER_VERSION_1))
 }
 
 /// The model of a checkpoint, for evaluation.
@@ -210,6 +278,8 @@ pub fn load_model(
     let tensors = open_tensors(WEIGHTS_FILE, weights, &specs, &[""])?;
     let values = model.params_mut().values_mut();
     read_tensors(WEIGHTS_FILE, &tensors, &specs, &layout, "", values)?;
+    // Finite weights can still overflow together; the policy must be a distribution.
+    probe::probe(&model)?;
     Ok(model)
 }
 
@@ -227,6 +297,7 @@ fn bounded_model_config(
     if image_side > MAX_IMAGE_SIDE {
         return Err(CheckpointError::ImageSide { found: image_side });
     }
+    check_settings(metadata)?;
     if let Some((layer, field, value)) = checks::oversized_convolution(&metadata.config.network) {
         return Err(CheckpointError::Convolution {
             layer,
@@ -253,6 +324,27 @@ fn bounded_model_config(
         });
     }
     Ok(model_config)
+}
+
+/// The settings of `checkpoint.json` that the network's shapes do not pin, held to what any
+/// world could give: the image side to the mini-map block, the agents to the largest map.
+/// (The channels, the image side and the network are held to the weights by the parameter
+/// count and every tensor's shape.)
+fn check_settings(metadata: &CheckpointMetadata) -> Result<(), CheckpointError> {
+    let (image_side, block) = (metadata.image_side, metadata.config.mini_map_block);
+    let largest = checks::largest_image_side(block);
+    if image_side > largest {
+        return Err(CheckpointError::ImageSideForBlock {
+            image_side,
+            block,
+            largest,
+        });
+    }
+    let max = metadata.config.agents.max;
+    if max > MAX_AGENTS {
+        return Err(CheckpointError::Agents { max });
+    }
+    Ok(())
 }
 
 /// The whole training state, to resume from.

@@ -16,6 +16,28 @@ pub const MAX_IMAGE_SIDE: usize = if MAX_SIDE > MAX_FOV {
     MAX_FOV
 };
 
+/// The most agents any configuration can ask for: agents stand on distinct free cells, and
+/// the largest map has `MAX_SIDE`^2 cells. The network itself has no limit (its weights are
+/// shared by all agents and the attention reads any number), so this is the only bound a
+/// checkpoint can be held to without its map; where the map is known, `world::Episode` refuses
+/// more agents than its free cells.
+pub const MAX_AGENTS: usize = MAX_SIDE * MAX_SIDE;
+
+/// The widest observation a mini-map block allows. The image is as wide as the field of view
+/// (odd, at most `MAX_FOV`) or the mini-map, whichever is wider; the default block (`None`)
+/// fits the map into the field of view, so the image is the field of view; a block `b` makes
+/// the mini-map of the largest map `MAX_SIDE / b` pixels (rounded up) a side.
+///
+/// This is all a checkpoint alone can tell of its block: a block changes what each pixel of
+/// the mini-map means, not the network's shapes (blocks 2 and 7 on a 50 x 50 map with L = 25
+/// both give 25 x 25 images), so a block that lies within this limit loads, and the image side
+/// is held to the map only where the map is known (`LearnedPolicy::new`).
+pub fn largest_image_side(block: Option<usize>) -> usize {
+    block.map_or(MAX_FOV, |block| {
+        MAX_FOV.max(MAX_SIDE.div_ceil(block.max(1)))
+    })
+}
+
 /// The first of a custom network's kernels, strides and paddings above the largest image side,
 /// as `(layer, field, value)`: no layer can use more, and the network's own checks add and
 /// multiply them unchecked.

@@ -195,11 +195,20 @@ fn a_truncated_file_is_a_format_error() {
     assert!(error.starts_with("checkpoint.safetensors: "), "{error}");
 }
 
+/// The metadata with `config.field` set to `value`.
+fn set_config(text: &str, field: &str, value: serde_json::Value) -> String {
+    let mut json: serde_json::Value = serde_json::from_str(text).unwrap();
+    json["config"][field] = value;
+    json.to_string()
+}
+
 /// The side that aborted allocating 2.9 TB: the paper's network on 1000 x 1000 images has a
-/// 3 x 492032 x 492032 attention matrix.
+/// 3 x 492032 x 492032 attention matrix. (Blocks of one cell, so that a 1000-cell map could
+/// give such images.)
 #[test]
 fn an_image_side_the_network_does_not_have_is_refused_before_allocation() {
     let mut files = checkpoint::save(&state(TrainingConfig::profile(Profile::Paper), 25));
+    files.metadata = set_config(&files.metadata, "mini_map_block", 1.into());
     files.metadata = set_metadata(&files.metadata, "image_side", 1000.into());
     assert_eq!(
         load_error(&files),
@@ -251,7 +260,8 @@ fn sizes_that_overflow_are_refused() {
 /// Formats 1 and 2 hold the same tensors, of the same shapes, under the same names; they
 /// differ only in the order of the CNN-feature columns of three matrices, and any order of a
 /// matrix's columns is a valid matrix. So `format_version: 1` over format-2 weights loads (a
-/// network with those columns permuted): nothing in the files tells the two apart.
+/// network with those columns permuted) once the metadata is read: nothing in the weights
+/// tells the two apart. The metadata's text does (the next test).
 #[test]
 fn format_1_over_format_2_weights_cannot_be_told_apart() {
     let files = small();
@@ -283,4 +293,104 @@ fn a_convolution_larger_than_any_image_is_refused() {
             usize::MAX / 2
         )
     );
+}
+
+/// The file with every value of tensor `name` set to `value`.
+fn fill(bytes: &[u8], name: &str, value: f32) -> Vec<u8> {
+    rewrite(bytes, |tensors| {
+        for chunk in tensor(tensors, name).2.chunks_exact_mut(4) {
+            chunk.copy_from_slice(&value.to_le_bytes());
+        }
+    })
+}
+
+/// Every weight 1e30 is finite, so no tensor is refused on its own, but the actor's logits
+/// overflow to infinities whose softmax is NaN: the episode would play on NaN probabilities.
+#[test]
+fn weights_that_overflow_together_are_refused_naming_the_largest() {
+    let mut files = small();
+    let layers = ["actor.cnn.0", "actor.cnn.1", "actor.mlp.0", "actor.mlp.1"];
+    for name in layers.map(|layer| format!("{layer}.weight")) {
+        files.weights = fill(&files.weights, &name, 1e30);
+    }
+    files.weights = fill(&files.weights, "actor.mlp.2.weight", 1e31);
+    assert_eq!(
+        load_error(&files),
+        "checkpoint.safetensors: every value is finite, but a probe forward pass gives action \
+         log-probabilities that are not; the largest weight is 1e31, in tensor \
+         `actor.mlp.2.weight`"
+    );
+}
+
+/// The critic overflows alone: its values are named.
+#[test]
+fn a_critic_that_overflows_is_refused() {
+    let mut files = small();
+    for name in [
+        "critic.cnn.0.weight",
+        "critic.mlp.0.weight",
+        "critic.mlp.2.weight",
+    ] {
+        files.weights = fill(&files.weights, name, 1e30);
+    }
+    let error = load_error(&files);
+    assert!(
+        error.contains("gives critic values that are not"),
+        "{error}"
+    );
+}
+
+/// A block of 7 on the paper's maps gives the same 25 x 25 images as the fitted 2 (so it
+/// cannot be told from the shapes); what it cannot give is an image wider than the field of
+/// view (at most 255) or a 1024-cell map's mini-map in blocks of 7 (147).
+#[test]
+fn a_mini_map_block_that_cannot_make_the_image_side_is_refused() {
+    let mut files = small();
+    files.metadata = set_config(&files.metadata, "mini_map_block", 7.into());
+    files.metadata = set_metadata(&files.metadata, "image_side", 300.into());
+    assert_eq!(
+        load_error(&files),
+        "checkpoint.json: image_side 300 is wider than any observation with mini_map_block 7: \
+         at most 255 (the field of view is at most 255, the mini-map of a map of at most 1024 \
+         cells a side in those blocks no wider)"
+    );
+    files.metadata = set_config(&files.metadata, "mini_map_block", serde_json::Value::Null);
+    let error = load_error(&files);
+    assert!(error.contains("mini_map_block null (fitted to the field of view): at most 255"));
+}
+
+#[test]
+fn more_agents_than_the_largest_map_has_cells_are_refused() {
+    let mut files = small();
+    let agents = serde_json::json!({"min": 4, "max": 1u64 << 40});
+    files.metadata = set_config(&files.metadata, "agents", agents);
+    assert_eq!(
+        load_error(&files),
+        "checkpoint.json: agents.max 1099511627776 is above 1048576, the cells of the largest \
+         map (agents stand on distinct cells; the network itself sets no limit)"
+    );
+}
+
+/// A current checkpoint relabelled version 1 is refused: its config has `mini_map_block`, which
+/// came after version 2. A version-1 file as its writers wrote it (without the field) is read.
+#[test]
+fn format_1_on_a_current_checkpoint_is_refused() {
+    let files = small();
+    let relabelled = set_metadata(&files.metadata, "format_version", 1.into());
+    let error = checkpoint::read_metadata(&relabelled)
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        error,
+        "checkpoint.json: format_version 1, but its config has `mini_map_block`, which only \
+         writers of format 2 write (read as version 1, the CNN-feature columns would be \
+         permuted)"
+    );
+    let mut json: serde_json::Value = serde_json::from_str(&relabelled).unwrap();
+    json["config"]
+        .as_object_mut()
+        .unwrap()
+        .remove("mini_map_block");
+    let metadata = checkpoint::read_metadata(&json.to_string()).unwrap();
+    assert_eq!(metadata.format_version, 1);
 }

@@ -278,7 +278,8 @@ fn shared_training(
     let Some((source, record)) = found else {
         return Ok(None);
     };
-    let (final_model, metadata) = stored_model(source, &record, (WEIGHTS_FILE, METADATA_FILE))?;
+    let (final_model, metadata) =
+        stored_model(source, &record, (WEIGHTS_FILE, METADATA_FILE), files)?;
     let log = source.cell_table(&record, TRAINING_FILE)?;
     let log = log.ok_or_else(|| StoreError::corrupt(source.root(), "a training log is gone"))?;
     let log = log.drop_many(store::schema::cell::COLUMNS);
@@ -296,13 +297,8 @@ fn shared_training(
     let mut best = None;
     if record.files.contains_key(BEST_WEIGHTS_FILE) {
         let names = (BEST_WEIGHTS_FILE, BEST_METADATA_FILE);
-        best = Some(stored_model(source, &record, names)?.0);
-        for name in [BEST_WEIGHTS_FILE, BEST_METADATA_FILE] {
-            files.push((name, source.cell_file(&record, name)?));
-        }
+        best = Some(stored_model(source, &record, names, files)?.0);
     }
-    files.push((WEIGHTS_FILE, source.cell_file(&record, WEIGHTS_FILE)?));
-    files.push((METADATA_FILE, source.cell_file(&record, METADATA_FILE)?));
     Ok(Some(TrainedModels {
         config: metadata.config,
         final_model,
@@ -310,16 +306,30 @@ fn shared_training(
     }))
 }
 
-/// The model of a finished cell's checkpoint files (weights, metadata), with its metadata.
+/// The model of a finished cell's checkpoint files (weights, metadata), with its metadata;
+/// the files, read once, pushed onto `files` under their names.
 fn stored_model(
     source: &Store,
     record: &CellRecord,
-    (weights, metadata): (&str, &str),
+    (weights, metadata): (&'static str, &'static str),
+    files: &mut Vec<(&'static str, Vec<u8>)>,
 ) -> Result<(ActorCritic<f32>, CheckpointMetadata), CellError> {
-    let metadata_bytes = source.cell_file(record, metadata)?;
-    let metadata = checkpoint::read_metadata(&String::from_utf8_lossy(&metadata_bytes))?;
-    let model = checkpoint::load_model(&metadata, &source.cell_file(record, weights)?)?;
-    Ok((model, metadata))
+    let (weights_bytes, metadata_bytes) = (
+        source.cell_file(record, weights)?,
+        source.cell_file(record, metadata)?,
+    );
+    let loaded = model_of(&weights_bytes, &metadata_bytes)?;
+    files.extend([(weights, weights_bytes), (metadata, metadata_bytes)]);
+    Ok(loaded)
+}
+
+/// The model of a checkpoint's weights and metadata, with its metadata.
+fn model_of(
+    weights: &[u8],
+    metadata: &[u8],
+) -> Result<(ActorCritic<f32>, CheckpointMetadata), CellError> {
+    let metadata = checkpoint::read_metadata(&String::from_utf8_lossy(metadata))?;
+    Ok((checkpoint::load_model(&metadata, weights)?, metadata))
 }
 
 /// A learned cell's finished training run.
@@ -365,8 +375,7 @@ impl Trained {
                 .validation
                 .convergence_frame(stopped, run.stop, run.cpu_seconds)?;
             files.push((CONVERGENCE_FILE, tables::parquet_bytes(&frame)?));
-            let metadata = checkpoint::read_metadata(&run.best.metadata)?;
-            best = Some(checkpoint::load_model(&metadata, &run.best.weights)?);
+            best = Some(model_of(&run.best.weights, run.best.metadata.as_bytes())?.0);
             files.push((BEST_WEIGHTS_FILE, run.best.weights));
             files.push((BEST_METADATA_FILE, run.best.metadata.into_bytes()));
         }
@@ -413,9 +422,10 @@ fn train_cell(
     advance(run.state().episodes_done * steps + evaluations.steps_played(config));
     let stop = loop {
         let done = run.state().episodes_done;
+        let played = evaluations.steps_played(config);
         let stop =
             evaluations.play_due(world, cell, learned, (run.state(), cpu_seconds), folder)?;
-        advance(evaluations.steps_played(config) - evaluations.steps_before);
+        advance(evaluations.steps_played(config) - played);
         if let Some(events) = run.events() {
             let (curve, validation) = (evaluations.curve.as_ref(), evaluations.validation.as_ref());
             events.write_evaluations(curve, validation, stop)?;
@@ -453,8 +463,6 @@ struct Evaluations {
     curve: Option<TestCurve>,
     validation: Option<Validation>,
     best: Option<BestPolicy>,
-    /// Environment steps played before the last call to `play_due`, for progress.
-    steps_before: u64,
 }
 
 impl Evaluations {
@@ -473,7 +481,6 @@ impl Evaluations {
             curve,
             validation,
             best,
-            steps_before: 0,
         })
     }
 
@@ -535,7 +542,6 @@ impl Evaluations {
         folder: &Path,
     ) -> Result<Option<Stop>, CellError> {
         let (key, config) = (cell.key.as_str(), &cell.config);
-        self.steps_before = self.steps_played(config);
         let done = state.episodes_done;
         let cap = state.config.episodes;
         if let Some(validation) = self.validation.as_mut()
@@ -642,7 +648,7 @@ pub fn stored_policy(
         Some(Checkpoint::Best) => (BEST_WEIGHTS_FILE, BEST_METADATA_FILE),
         _ => (WEIGHTS_FILE, METADATA_FILE),
     };
-    let (model, metadata) = stored_model(store, record, names)?;
+    let (model, metadata) = stored_model(store, record, names, &mut Vec::new())?;
     learned_policy(world, model, &metadata.config, learned)
 }
 

@@ -65,14 +65,10 @@ impl TestCurve {
     /// nothing was saved.
     pub fn resume(folder: &Path, every: u64, done: u64) -> Result<Self, StoreError> {
         let mut curve = Self::new(every);
-        let path = folder.join(TEST_CURVE_FILE);
-        if !path.exists() {
-            return Ok(curve);
+        if let Some(frame) = read_in_progress(folder, TEST_CURVE_FILE, "a run's test curve")? {
+            curve.points = points(&frame)?;
+            curve.points.retain(|p| p.training_episode <= done);
         }
-        let bytes = store::read(&path, MAX_FILE_BYTES, "a run's test curve")?;
-        let frame = tables::read_parquet(bytes)?;
-        curve.points = points(&frame)?;
-        curve.points.retain(|p| p.training_episode <= done);
         Ok(curve)
     }
 
@@ -132,11 +128,31 @@ impl TestCurve {
     /// Writes the curve beside the run in progress in `folder`.
     pub fn save(&self, folder: &Path, key: &str, config: &CellConfig) -> Result<(), StoreError> {
         let bytes = tables::parquet_bytes(&self.frame(key, config)?)?;
-        // The first play comes before the run's first save, which makes the folder.
-        std::fs::create_dir_all(folder).map_err(|e| StoreError::io(folder, e))?;
-        let path = folder.join(TEST_CURVE_FILE);
-        write_atomic(&path, &bytes).map_err(|e| StoreError::io(&path, e))
+        write_in_progress(folder, TEST_CURVE_FILE, &bytes)
     }
+}
+
+/// The table `name` saved beside a run in progress in `folder` (`what` it is, for messages);
+/// `None` when nothing was saved.
+pub(crate) fn read_in_progress(
+    folder: &Path,
+    name: &str,
+    what: &'static str,
+) -> Result<Option<DataFrame>, StoreError> {
+    let path = folder.join(name);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let bytes = store::read(&path, MAX_FILE_BYTES, what)?;
+    Ok(Some(tables::read_parquet(bytes)?))
+}
+
+/// Writes `bytes` as `name` beside a run in progress in `folder`, whole. The first play
+/// comes before the run's first save, which makes the folder, so this makes it too.
+pub(crate) fn write_in_progress(folder: &Path, name: &str, bytes: &[u8]) -> Result<(), StoreError> {
+    std::fs::create_dir_all(folder).map_err(|e| StoreError::io(folder, e))?;
+    let path = folder.join(name);
+    write_atomic(&path, bytes).map_err(|e| StoreError::io(&path, e))
 }
 
 /// Whether the policy after `done` of `total` training episodes is due a play every `every`

@@ -22,7 +22,6 @@ use plan::cell::CellConfig;
 use plan::scenario::stopping::StoppingRule;
 use policies::checkpoint;
 use policies::ppo::TrainingState;
-use store::atomic_file::write_atomic;
 use store::schema::convergence as run;
 use store::schema::validation::{CPU_SECONDS, TRAINING_EPISODE, VALIDATION_PENALTY, WALL_SECONDS};
 use store::tables::{self, cell_columns};
@@ -77,13 +76,11 @@ impl Validation {
     /// episodes (later ones belong to training the run repeats); none when nothing was saved.
     pub fn resume(folder: &Path, rule: StoppingRule, done: u64) -> Result<Self, StoreError> {
         let mut validation = Self::new(rule);
-        let path = folder.join(VALIDATION_FILE);
-        if !path.exists() {
-            return Ok(validation);
+        let what = "a run's validation curve";
+        if let Some(frame) = test_curve::read_in_progress(folder, VALIDATION_FILE, what)? {
+            validation.points = points(&frame)?;
+            validation.points.retain(|p| p.training_episode <= done);
         }
-        let bytes = store::read(&path, MAX_FILE_BYTES, "a run's validation curve")?;
-        validation.points = points(&tables::read_parquet(bytes)?)?;
-        validation.points.retain(|p| p.training_episode <= done);
         Ok(validation)
     }
 
@@ -171,9 +168,7 @@ impl Validation {
     /// Writes the curve beside the run in progress in `folder`.
     pub fn save(&self, folder: &Path, key: &str, config: &CellConfig) -> Result<(), StoreError> {
         let bytes = tables::parquet_bytes(&self.frame(key, config)?)?;
-        std::fs::create_dir_all(folder).map_err(|e| StoreError::io(folder, e))?;
-        let path = folder.join(VALIDATION_FILE);
-        write_atomic(&path, &bytes).map_err(|e| StoreError::io(&path, e))
+        test_curve::write_in_progress(folder, VALIDATION_FILE, &bytes)
     }
 
     /// The cell's one-row table of where the run stopped and why, after `cpu_seconds` of
@@ -247,16 +242,8 @@ impl BestPolicy {
     /// Writes the policy beside the run in progress (metadata last: readable metadata has
     /// its weights).
     pub fn save(&self, folder: &Path) -> Result<(), StoreError> {
-        std::fs::create_dir_all(folder).map_err(|e| StoreError::io(folder, e))?;
-        let files = [
-            (BEST_WEIGHTS_FILE, self.weights.as_slice()),
-            (BEST_METADATA_FILE, self.metadata.as_bytes()),
-        ];
-        for (name, bytes) in files {
-            let path = folder.join(name);
-            write_atomic(&path, bytes).map_err(|e| StoreError::io(&path, e))?;
-        }
-        Ok(())
+        test_curve::write_in_progress(folder, BEST_WEIGHTS_FILE, &self.weights)?;
+        test_curve::write_in_progress(folder, BEST_METADATA_FILE, self.metadata.as_bytes())
     }
 }
 

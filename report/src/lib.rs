@@ -20,13 +20,14 @@ pub mod judgement;
 pub mod markdown;
 pub mod motion;
 mod penalty;
+mod publish;
 mod test_curve;
 mod time_to_quality;
 mod training;
 mod transfer;
 pub mod verdicts;
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
@@ -83,7 +84,8 @@ pub const STORE_FOLDER: &str = "store";
 
 /// Writes the report of the sweep in `store` (a sweep's store or a table store) to
 /// `reports_root/<scenario>/`, with the store's tables as a table store in its `store/`, so
-/// that the report can be rebuilt, byte for byte, from the repository alone.
+/// that the report can be rebuilt, byte for byte, from the repository alone. The folder is
+/// written whole, by one writer at a time (`publish`).
 pub fn write_report(
     store: &Store,
     reports_root: &Path,
@@ -92,7 +94,7 @@ pub fn write_report(
     let manifest = store
         .manifest()?
         .ok_or_else(|| ReportError::NoSweep(store.root().to_owned()))?;
-    let mut report = ReportWriter::new(reports_root.join(&manifest.scenario))?;
+    let mut report = ReportWriter::new(reports_root, &manifest.scenario)?;
     report.heading(1, &format!("Report: {}", manifest.scenario));
     // The scenario as the sweep ran it, read once for what the experiment is, its claims and
     // its earlier verdicts.
@@ -173,7 +175,7 @@ pub fn write_report(
     if let Some(earlier) = &earlier {
         earlier::section(&mut report, earlier, &results)?;
     }
-    let store_bytes = store.write_table_store(&report.folder.join(STORE_FOLDER), &missing)?;
+    let store_bytes = store.write_table_store(&report.folder().join(STORE_FOLDER), &missing)?;
     report.finish(store_bytes)
 }
 
@@ -336,27 +338,30 @@ impl StoreTables {
 
 /// The report folder being written: the README's text, and its tables and figures.
 pub struct ReportWriter {
-    folder: PathBuf,
+    publication: publish::Publication,
     readme: String,
     tables: usize,
     figures: usize,
-    /// Every file this report wrote, so that `remove_stale` knows the rest.
-    written: HashSet<PathBuf>,
 }
 
 impl ReportWriter {
-    fn new(folder: PathBuf) -> Result<Self, ReportError> {
+    fn new(reports_root: &Path, name: &str) -> Result<Self, ReportError> {
+        let publication = publish::Publication::start(reports_root, name)?;
         for sub in ["tables", "figures"] {
-            let path = folder.join(sub);
+            let path = publication.fresh.join(sub);
             std::fs::create_dir_all(&path).map_err(|source| ReportError::Io { path, source })?;
         }
         Ok(Self {
-            folder,
+            publication,
             readme: String::new(),
             tables: 0,
             figures: 0,
-            written: HashSet::new(),
         })
+    }
+
+    /// Where the report is written until it is whole.
+    fn folder(&self) -> &Path {
+        &self.publication.fresh
     }
 
     fn heading(&mut self, level: usize, text: &str) {
@@ -423,41 +428,17 @@ impl ReportWriter {
     }
 
     fn write(&mut self, relative: &str, bytes: &[u8]) -> Result<(), ReportError> {
-        let path = self.folder.join(relative);
-        write_atomic(&path, bytes).map_err(|source| ReportError::Io {
-            path: path.clone(),
-            source,
-        })?;
-        self.written.insert(path);
-        Ok(())
+        let path = self.folder().join(relative);
+        write_atomic(&path, bytes).map_err(|source| ReportError::Io { path, source })
     }
 
-    /// Removes the tables and figures an earlier report left that this one did not write (a
-    /// figure no longer drawn, an SVG now too large), so the folder holds exactly what the
-    /// README shows. Runs last: a report that fails half way leaves the old one whole.
-    fn remove_stale(&self) -> Result<(), ReportError> {
-        let io = |path: &Path, source| ReportError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        for sub in ["tables", "figures"] {
-            let folder = self.folder.join(sub);
-            for entry in std::fs::read_dir(&folder).map_err(|e| io(&folder, e))? {
-                let path = entry.map_err(|e| io(&folder, e))?.path();
-                if path.is_file() && !self.written.contains(&path) {
-                    std::fs::remove_file(&path).map_err(|e| io(&path, e))?;
-                }
-            }
-        }
-        Ok(())
-    }
-
+    /// Writes the README and puts the whole folder in the last report's place: the folder
+    /// then holds exactly what the README shows, and nothing of an earlier report.
     fn finish(mut self, store_bytes: u64) -> Result<ReportSummary, ReportError> {
         let readme = std::mem::take(&mut self.readme);
         self.write("README.md", readme.as_bytes())?;
-        self.remove_stale()?;
         Ok(ReportSummary {
-            folder: self.folder,
+            folder: self.publication.swap_in()?,
             tables: self.tables,
             figures: self.figures,
             store_bytes,

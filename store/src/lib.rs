@@ -14,7 +14,7 @@
 //! OUT/cells/KEY/failed.json    why the cell's last run failed, until one succeeds
 //! OUT/{episodes,training,cells,summary,trajectories,snapshots,...}.{parquet,csv}
 //! OUT/tables.json              the cells those tables hold, and every table file's blake3
-//! OUT/tables.lock              locked while a sweep or a report writes the tables
+//! OUT/tables.lock              locked while a sweep writes the tables
 //! OUT/events/RUN/              TensorBoard events of the learned cells trained here
 //!                              (`engine::events`): a view, in no record and no hash
 //! ```
@@ -29,7 +29,8 @@
 //! once (`Verified`) and again only if its size or time changes, and every byte a reader is
 //! given is hashed as it is read. The sweep-level tables carry their hashes and the cells
 //! they were built from in `tables.json`; a reader builds them again from the verified cells
-//! when they do not match, and the scenario file is checked against the manifest's hash.
+//! when they do not match, in memory (`reader`: only a sweep writes a store), and the scenario
+//! file is checked against the manifest's hash.
 //!
 //! A *table store* (`table_store`) holds the manifest, scenario, maps and sweep tables
 //! without `cells/`: what a report carries to be rebuilt. It reads as a store whose cells are
@@ -41,6 +42,7 @@ pub mod columns;
 pub mod disturbance;
 pub mod lease;
 pub mod provenance;
+pub mod reader;
 pub mod record;
 pub mod schema;
 pub mod source_hash;
@@ -129,8 +131,16 @@ pub enum StoreError {
         "{folder} is a table store ({TABLE_STORE_FILE}): it keeps a sweep's tables, not {wanted}"
     )]
     TableOnly { folder: PathBuf, wanted: String },
-    #[error("{folder} is a symbolic link; a store's folders must be real folders inside it")]
-    LinkedFolder { folder: PathBuf },
+    /// A store's folder that is a symbolic link or a file.
+    #[error("{folder} is a {kind}; a store's folders must be real folders inside it")]
+    NotAFolder { folder: PathBuf, kind: &'static str },
+    #[error(
+        "{folder} holds a sweep (sweep.json) but neither its cells (cells/) nor a table store's \
+         marker ({TABLE_STORE_FILE}): its tables cannot be checked against anything, so no \
+         reader trusts them (a table store whose marker was removed, or a sweep whose cells \
+         were); `harness sweep` on its scenario with --out {folder} computes the cells again"
+    )]
+    Unverifiable { folder: PathBuf },
     #[error(
         "cell {key} has no {file}: it was taken from the tables of {tables}, which keep no \
          checkpoints (remove {folder} and run the sweep without --tables to compute it again)"
@@ -159,16 +169,24 @@ impl StoreError {
     }
 }
 
-/// Refuses a store's folder that is a symbolic link: writing through it would put the store's
-/// cells somewhere else (another sweep's store, a shared disk) where nothing expects them.
-fn real_folder(folder: &Path) -> Result<(), StoreError> {
-    let metadata = std::fs::symlink_metadata(folder).map_err(|e| StoreError::io(folder, e))?;
-    if metadata.file_type().is_symlink() {
-        return Err(StoreError::LinkedFolder {
-            folder: folder.to_owned(),
-        });
-    }
-    Ok(())
+/// Refuses a store's folder that is a symbolic link or a file, and says whether it is there: writing
+/// through a link would put the store's cells somewhere else (another sweep's store, a shared
+/// disk) where nothing expects them, and reading through one would take another store's
+/// numbers for this one's.
+fn real_folder(folder: &Path) -> Result<bool, StoreError> {
+    let metadata = match std::fs::symlink_metadata(folder) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(false),
+        found => found.map_err(|e| StoreError::io(folder, e))?,
+    };
+    let kind = match metadata.file_type() {
+        kind if kind.is_symlink() => "symbolic link",
+        kind if kind.is_dir() => return Ok(true),
+        _ => "file, not a folder",
+    };
+    Err(StoreError::NotAFolder {
+        folder: folder.to_owned(),
+        kind,
+    })
 }
 
 /// A sweep's output folder.
@@ -177,6 +195,9 @@ pub struct Store {
     root: PathBuf,
     /// The cell files this process has hashed, shared by the store's clones.
     verified: Arc<Mutex<Verified>>,
+    /// A reader's tables (`Store::reader`), which it holds instead of writing them; `None`
+    /// for the sweep that writes the store.
+    held: Option<Arc<Mutex<reader::HeldTables>>>,
 }
 
 /// Cell files found equal to their recorded hash, with the size and time they had then: a
@@ -188,6 +209,7 @@ impl Store {
         Self {
             root: root.to_owned(),
             verified: Arc::default(),
+            held: None,
         }
     }
 
@@ -250,8 +272,28 @@ impl Store {
             return Err(self.table_only("cells to compute or share"));
         }
         for folder in [self.root.join("cells"), self.root.join("maps")] {
-            std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
             real_folder(&folder)?;
+            std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
+        }
+        self.refuse_linked_cells()
+    }
+
+    /// Refuses a cell folder that is a symbolic link: a cache's or a store's cell is read and
+    /// written in the store's own `cells/`, as the folder itself is.
+    fn refuse_linked_cells(&self) -> Result<(), StoreError> {
+        let cells = self.root.join("cells");
+        let entries = std::fs::read_dir(&cells).map_err(|e| StoreError::io(&cells, e))?;
+        for entry in entries {
+            let entry = entry.map_err(|e| StoreError::io(&cells, e))?;
+            let kind = entry
+                .file_type()
+                .map_err(|e| StoreError::io(&entry.path(), e))?;
+            if kind.is_symlink() {
+                return Err(StoreError::NotAFolder {
+                    folder: entry.path(),
+                    kind: "symbolic link",
+                });
+            }
         }
         Ok(())
     }
@@ -352,6 +394,7 @@ impl Store {
         files: &[(&str, Vec<u8>)],
     ) -> Result<CellRecord, StoreError> {
         let folder = self.cell_folder(&record.key);
+        real_folder(&folder)?;
         std::fs::create_dir_all(&folder).map_err(|e| StoreError::io(&folder, e))?;
         for (name, bytes) in files {
             write(&folder.join(name), bytes)?;
@@ -435,23 +478,48 @@ impl Store {
     pub fn table(&self, name: &str) -> Result<DataFrame, StoreError> {
         let file = format!("{name}.parquet");
         let path = self.root.join(&file);
-        let bytes = read(&path, MAX_FILE_BYTES, "a store's file")?;
-        if let Some(listed) = self.table_hashes()?
-            && let Some(hash) = listed.tables.get(&file)
-            && blake3::hash(&bytes).to_hex().as_str() != hash
-        {
-            let problem = format!("does not match its blake3 in {TABLES_FILE}");
-            return Err(StoreError::corrupt(&path, problem));
-        }
+        let bytes = match self.held(&file) {
+            Some(Some(bytes)) => bytes,
+            Some(None) => {
+                let problem = "is not among the tables built from the sweep's finished cells";
+                return Err(StoreError::corrupt(&path, problem));
+            }
+            None => self.table_file(&file)?,
+        };
         tables::read_parquet(bytes).map_err(|e| StoreError::corrupt(&path, e))
     }
 
     /// A sweep-level table, or `None` when the sweep did not build it.
     pub fn optional_table(&self, name: &str) -> Result<Option<DataFrame>, StoreError> {
-        if !self.root.join(format!("{name}.parquet")).exists() {
-            return Ok(None);
+        let file = format!("{name}.parquet");
+        let present = match self.held(&file) {
+            Some(held) => held.is_some(),
+            None => self.root.join(&file).exists(),
+        };
+        present.then(|| self.table(name)).transpose()
+    }
+
+    /// The bytes of the table file `file` as this store gives it: held by a reader, else read
+    /// and, in a sweep's store, checked against the hash `tables.json` holds for it.
+    fn table_bytes(&self, file: &str) -> Result<Vec<u8>, StoreError> {
+        match self.held(file) {
+            Some(Some(bytes)) => Ok(bytes),
+            _ => self.table_file(file),
         }
-        self.table(name).map(Some)
+    }
+
+    /// The table file `file`, checked against the hash `tables.json` holds for it.
+    fn table_file(&self, file: &str) -> Result<Vec<u8>, StoreError> {
+        let path = self.root.join(file);
+        let bytes = read(&path, MAX_FILE_BYTES, "a store's file")?;
+        if let Some(listed) = self.table_hashes()?
+            && let Some(hash) = listed.tables.get(file)
+            && blake3::hash(&bytes).to_hex().as_str() != hash
+        {
+            let problem = format!("does not match its blake3 in {TABLES_FILE}");
+            return Err(StoreError::corrupt(&path, problem));
+        }
+        Ok(bytes)
     }
 
     /// The scenario file as run.
@@ -542,6 +610,10 @@ impl Store {
     /// interleave their table files and leave tables of different cells beside one
     /// `tables.json`. A writer that waits builds from every cell finished by then.
     pub fn lock_tables(&self) -> Result<TablesLock, StoreError> {
+        if self.held.is_some() {
+            // A reader writes no table file, and its own tables are its own.
+            return Ok(TablesLock { _locked: None });
+        }
         let path = self.root.join(TABLES_LOCK_FILE);
         let file = std::fs::OpenOptions::new()
             .write(true)
@@ -550,7 +622,9 @@ impl Store {
             .open(&path)
             .map_err(|e| StoreError::io(&path, e))?;
         file.lock().map_err(|e| StoreError::io(&path, e))?;
-        Ok(TablesLock { _locked: file })
+        Ok(TablesLock {
+            _locked: Some(file),
+        })
     }
 
     /// Writes the sweep-level tables built from the cells `cells` (`engine::aggregate`) and
@@ -560,6 +634,9 @@ impl Store {
         cells: Vec<String>,
         built: &[(&'static str, DataFrame)],
     ) -> Result<(), StoreError> {
+        if self.held.is_some() {
+            return self.hold_rebuilt(built);
+        }
         let mut listing = self.table_hashes()?.unwrap_or_default();
         listing.cells = cells;
         for (name, frame) in built {
@@ -572,6 +649,9 @@ impl Store {
 
     /// Writes a table of the sweep's own (`NAME.parquet` and `.csv`) and lists its hashes.
     pub fn write_table(&self, name: &str, frame: &DataFrame) -> Result<(), StoreError> {
+        if self.held.is_some() {
+            return self.hold(name, frame);
+        }
         let _tables = self.lock_tables()?;
         let mut listing = self.table_hashes()?.unwrap_or_default();
         listing
@@ -624,7 +704,8 @@ impl Store {
 
 /// The sweep-level tables held for one writer (`Store::lock_tables`); dropping it unlocks.
 pub struct TablesLock {
-    _locked: std::fs::File,
+    /// `None` for a reader, which writes no table file.
+    _locked: Option<std::fs::File>,
 }
 
 /// `tables.json`: the cells the sweep-level tables were built from and every table file's

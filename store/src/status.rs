@@ -86,6 +86,7 @@ pub fn sweep_status(dir: &Path) -> Result<SweepStatus, StatusError> {
     let mut manifests = Vec::new();
     for (name, store) in &stores {
         if let Some(manifest) = store.manifest()? {
+            store.check_cells_folder()?;
             manifests.push((name, manifest));
         }
     }

@@ -18,7 +18,7 @@
 //! files are checked against the marker whenever it is opened, as a cell's files are against
 //! its record. The CSV copies of the tables are left out: they hold the Parquet's rows.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Component, Path};
 
 use polars::prelude::DataFrame;
@@ -98,34 +98,27 @@ impl Store {
         read(&self.root.join(name), MAX_FILE_BYTES, "a store's file")
     }
 
-    /// Writes this store's tables, scenario and maps as a table store in `folder`, with
-    /// `missing` as the cells its tables lack (as its report lists them: for a table store,
-    /// its marker's), and returns the bytes it holds. Files an earlier
-    /// table store in `folder` left and this one does not list are removed. Nothing is copied
-    /// when `folder` is this table store itself (a report rebuilt in place).
+    /// Writes this store's tables, scenario and maps as a table store in `folder`, a fresh
+    /// one (a report's, written whole before it replaces the last), with `missing` as the cells
+    /// its tables lack (as its report lists them: for a table store, its marker's), and
+    /// returns the bytes it holds. A reader's tables are those it holds, not its files'.
     pub fn write_table_store(
         &self,
         folder: &Path,
         missing: &[MissingCell],
     ) -> Result<u64, StoreError> {
-        let names = self.table_store_files()?;
+        let maps = folder.join("maps");
+        std::fs::create_dir_all(&maps).map_err(|e| StoreError::io(&maps, e))?;
         let mut files = BTreeMap::new();
         let mut size = 0;
-        let same = same_folder(&self.root, folder);
-        if !same {
-            let maps = folder.join("maps");
-            std::fs::create_dir_all(&maps).map_err(|e| StoreError::io(&maps, e))?;
-        }
-        for name in &names {
-            let bytes = read(&self.root.join(name), MAX_FILE_BYTES, "a store's file")?;
-            if !same {
-                write(&folder.join(name), &bytes)?;
-            }
+        for name in self.table_store_files()? {
+            let bytes = match name.ends_with(".parquet") {
+                true => self.table_bytes(&name)?,
+                false => read(&self.root.join(&name), MAX_FILE_BYTES, "a store's file")?,
+            };
+            write(&folder.join(&name), &bytes)?;
             size += bytes.len() as u64;
-            files.insert(name.clone(), blake3::hash(&bytes).to_hex().to_string());
-        }
-        if same {
-            return Ok(size);
+            files.insert(name, blake3::hash(&bytes).to_hex().to_string());
         }
         let marker = TableStoreMarker {
             about: ABOUT.to_owned(),
@@ -134,19 +127,23 @@ impl Store {
         };
         let bytes = super::json_bytes(&marker);
         write(&folder.join(TABLE_STORE_FILE), &bytes)?;
-        remove_unlisted(folder, &marker.files)?;
         Ok(size + bytes.len() as u64)
     }
 
     /// What a table store of this store holds: a table store's own list, else the manifest,
     /// the scenario, every table of the sweep as Parquet (those the sweep builds, and those
-    /// the report keeps there, such as measured behaviour) and the maps.
+    /// the report keeps there, such as measured behaviour; a reader's own where it holds them)
+    /// and the maps.
     fn table_store_files(&self) -> Result<Vec<String>, StoreError> {
         if let Some(marker) = self.table_store()? {
             return Ok(marker.files.into_keys().collect());
         }
+        let mut tables: BTreeSet<String> = (self.files_in("", ".parquet")?.into_iter())
+            .filter(|name| self.held(name) != Some(None))
+            .collect();
+        tables.extend(self.held_files());
         let mut names = vec![MANIFEST_FILE.to_owned(), SCENARIO_FILE.to_owned()];
-        names.extend(self.files_in("", ".parquet")?);
+        names.extend(tables);
         names.extend(self.files_in("maps", ".txt")?);
         Ok(names)
     }
@@ -225,36 +222,6 @@ pub(super) fn record_of_row(
     })
 }
 
-/// Whether two paths name one folder (`b` may not exist yet).
-fn same_folder(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    }
-}
-
-/// Removes the files in `folder` and `folder/maps` that `files` does not list (nor the
-/// marker), so that the folder holds what its marker says.
-fn remove_unlisted(folder: &Path, files: &BTreeMap<String, String>) -> Result<(), StoreError> {
-    for sub in ["", "maps"] {
-        let dir = folder.join(sub);
-        if !dir.is_dir() {
-            continue;
-        }
-        let entries = std::fs::read_dir(&dir).map_err(|e| StoreError::io(&dir, e))?;
-        for entry in entries {
-            let path = entry.map_err(|e| StoreError::io(&dir, e))?.path();
-            let name = path.strip_prefix(folder).unwrap_or(&path);
-            let name = name.to_string_lossy().replace('\\', "/");
-            let listed = files.contains_key(&name) || name == TABLE_STORE_FILE;
-            if path.is_file() && !listed {
-                std::fs::remove_file(&path).map_err(|e| StoreError::io(&path, e))?;
-            }
-        }
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -292,7 +259,6 @@ mod tests {
             why: "failed: no space".to_owned(),
         }];
         let first = scratch("first");
-        std::fs::write(first.join("summary.parquet"), "an earlier table").unwrap();
         sweep.write_table_store(&first, &missing).unwrap();
         let copied = Store::new(&first);
         let marker = copied.table_store().unwrap().expect("a table store");
@@ -308,18 +274,23 @@ mod tests {
             "Parquet, maps, scenario, manifest: no CSV, no cells"
         );
         assert_eq!(marker.missing, missing);
-        assert!(
-            !first.join("summary.parquet").exists(),
-            "what it does not list is gone"
-        );
 
-        // Copied again, and rewritten in place: the same marker.
+        // Copied again: the same marker.
         let second = scratch("second");
         let size = copied.write_table_store(&second, &marker.missing).unwrap();
         let read = |dir: &Path| std::fs::read(dir.join(TABLE_STORE_FILE)).unwrap();
         assert!(read(&second) == read(&first), "the same marker");
-        let in_place = copied.write_table_store(&first, &marker.missing).unwrap();
-        assert_eq!(in_place + read(&first).len() as u64, size);
+        let tables = [
+            "episodes.parquet",
+            "maps/abc.txt",
+            "scenario.yaml",
+            "sweep.json",
+        ];
+        let copied_bytes: usize = tables
+            .map(|f| std::fs::read(second.join(f)).unwrap().len())
+            .iter()
+            .sum();
+        assert_eq!(size, (copied_bytes + read(&second).len()) as u64);
         assert_eq!(Store::new(&second).table_store().unwrap(), Some(marker));
 
         // It takes no sweep, and a changed file is named.

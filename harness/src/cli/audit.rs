@@ -26,7 +26,8 @@ pub struct AuditArgs {
 }
 
 pub fn run(args: AuditArgs) -> anyhow::Result<()> {
-    let store = Store::new(&args.store);
+    let store = Store::reader(&args.store);
+    store.check_readable()?;
     // The tables first: the rows below are drawn from the episodes table.
     let tables = audit_tables(&store)?;
     for line in &tables {

@@ -17,7 +17,7 @@ pub struct ClaimsArgs {
 }
 
 pub fn run(args: ClaimsArgs) -> anyhow::Result<()> {
-    let store = Store::new(&args.dir);
+    let store = Store::reader(&args.dir);
     anyhow::ensure!(
         store.manifest()?.is_some(),
         "{} holds no sweep (no sweep.json)",

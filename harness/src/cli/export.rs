@@ -1,6 +1,6 @@
 //! `harness export marl-eval DIR`: a finished sweep's test episodes in another tool's format.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
@@ -18,7 +18,7 @@ pub enum ExportCommand {
 pub struct MarlEvalArgs {
     /// A finished sweep's output folder.
     dir: PathBuf,
-    /// The JSON file to write [default: DIR/marl-eval.json].
+    /// The JSON file to write [default: DIR-marl-eval.json, beside DIR].
     #[arg(long)]
     to: Option<PathBuf>,
 }
@@ -30,11 +30,24 @@ pub fn run(command: ExportCommand) -> anyhow::Result<()> {
 }
 
 fn marl_eval(args: MarlEvalArgs) -> anyhow::Result<()> {
-    let json = engine::marl_eval::export(&Store::new(&args.dir))?;
-    let to = args.to.unwrap_or_else(|| args.dir.join("marl-eval.json"));
+    let store = Store::reader(&args.dir);
+    store.check_readable()?;
+    let json = engine::marl_eval::export(&store)?;
+    let to = match args.to {
+        Some(to) => to,
+        None => beside(&args.dir)?,
+    };
     let mut bytes = serde_json::to_vec_pretty(&json)?;
     bytes.push(b'\n');
     write_atomic(&to, &bytes).with_context(|| format!("writing {}", to.display()))?;
     println!("marl-eval: {}", to.display());
     Ok(())
+}
+
+/// The default file, beside the store and not in it: a reader writes nothing in the store it
+/// reads.
+fn beside(dir: &Path) -> anyhow::Result<PathBuf> {
+    let dir = std::path::absolute(dir).with_context(|| format!("{}", dir.display()))?;
+    let name = (dir.file_name()).with_context(|| format!("{} names no folder", dir.display()))?;
+    Ok(dir.with_file_name(format!("{}-marl-eval.json", name.to_string_lossy())))
 }

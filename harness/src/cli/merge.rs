@@ -16,7 +16,7 @@ pub struct MergeArgs {
 }
 
 pub fn run(args: MergeArgs) -> anyhow::Result<()> {
-    let shards: Vec<Store> = args.shards.iter().map(|s| Store::new(s)).collect();
+    let shards: Vec<Store> = args.shards.iter().map(|s| Store::reader(s)).collect();
     let report = merge(&Store::new(&args.out), &shards)?;
     println!(
         "merged {} shards into {}: {} of {} cells ({} copied)",

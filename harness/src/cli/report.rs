@@ -20,7 +20,7 @@ pub struct ReportArgs {
 }
 
 pub fn run(args: ReportArgs) -> anyhow::Result<()> {
-    let store = Store::new(&args.store);
+    let store = Store::reader(&args.store);
     tables_of_unfinished_sweep(&store)?;
     let summary = write_report(&store, &args.to, &EngineReplay)?;
     println!(
@@ -36,27 +36,54 @@ pub fn run(args: ReportArgs) -> anyhow::Result<()> {
 
 /// A sweep still running (or stopped) has no tables yet, and tables that do not match their
 /// hashes in `tables.json` are not read: they are built from the finished cells, every file
-/// verified, and the report names the missing ones.
+/// verified (held in memory by a reader's store, which writes nothing), and the report names
+/// the missing ones. Every call says where its tables came from and how many of the sweep's
+/// cells they hold, when not all: a verdict is only as complete as its cells.
 pub fn tables_of_unfinished_sweep(store: &Store) -> anyhow::Result<()> {
+    store.check_readable()?;
+    let root = store.root().display();
     let Some((finished, cells)) = engine::aggregate::build_missing_tables(store)? else {
-        return Ok(());
+        return say_how_many_cells(store);
     };
     anyhow::ensure!(
         finished > 0,
-        "{}: none of the sweep's {cells} cells has finished yet",
-        store.root().display()
+        "{root}: none of the sweep's {cells} cells has finished yet"
     );
+    let held = match store.is_reader() {
+        true => {
+            " (held in memory: a reader leaves the store as it is, and `harness sweep` writes them)"
+        }
+        false => "",
+    };
     match finished == cells {
         true => eprintln!(
-            "{}: its tables were built again from its {cells} cells, every file verified \
-             (they were absent, older than tables.json, or did not match its hashes)",
-            store.root().display()
+            "{root}: its tables were built again from its {cells} cells, every file \
+             verified{held}; they were absent, older than tables.json, or did not match its \
+             hashes"
         ),
         false => eprintln!(
-            "{}: the sweep has not finished; its tables are built from the {finished} of \
-             {cells} cells that have",
-            store.root().display()
+            "{root}: the sweep has not finished; its tables are built from the {finished} of \
+             {cells} cells that have{held}, and every verdict rests on those"
         ),
+    }
+    Ok(())
+}
+
+/// Says, when the store's tables hold fewer cells than its sweep (a table store's cells that
+/// failed or were not run, or a sweep that ended with failures), how many of how many every
+/// table and verdict rests on.
+fn say_how_many_cells(store: &Store) -> anyhow::Result<()> {
+    let Some(manifest) = store.manifest()? else {
+        return Ok(());
+    };
+    let cells = manifest.selected.as_ref().unwrap_or(&manifest.cells).len();
+    let held = store.table(store::schema::cells::TABLE)?.height();
+    if held < cells {
+        eprintln!(
+            "{}: the sweep has not finished; its tables hold {held} of its {cells} cells, and \
+             every verdict rests on those",
+            store.root().display()
+        );
     }
     Ok(())
 }

@@ -81,3 +81,36 @@ pub fn required_path(test: &str, name: &str, what: &str) -> Option<std::path::Pa
     }
     found
 }
+
+/// blake3 of every file under `folder`, by its path from there (a link by its target): what a
+/// command that must not change a folder is checked against.
+pub fn file_hashes(folder: &Path) -> std::collections::BTreeMap<String, String> {
+    let mut files = std::collections::BTreeMap::new();
+    let mut pending = vec![folder.to_owned()];
+    while let Some(next) = pending.pop() {
+        for entry in std::fs::read_dir(&next).unwrap().flatten() {
+            let path = entry.path();
+            let name = path.strip_prefix(folder).unwrap().display().to_string();
+            let kind = entry.file_type().unwrap();
+            if kind.is_dir() {
+                pending.push(path);
+            } else if kind.is_symlink() {
+                let target = std::fs::read_link(&path).unwrap();
+                files.insert(name, format!("a link to {}", target.display()));
+            } else {
+                let hash = blake3::hash(&std::fs::read(&path).unwrap());
+                files.insert(name, hash.to_hex().to_string());
+            }
+        }
+    }
+    files
+}
+
+/// Copies every file under `from` to the same place under `to`.
+pub fn copy_folder(from: &Path, to: &Path) {
+    for name in file_hashes(from).keys() {
+        let target = to.join(name);
+        std::fs::create_dir_all(target.parent().unwrap()).unwrap();
+        std::fs::copy(from.join(name), target).unwrap();
+    }
+}

@@ -249,7 +249,7 @@ fn flip_a_bit(path: &Path) {
 
 /// A finished store damaged three ways (a bit flipped in a cell's file, a top-level table
 /// altered, the scenario file swapped): every reader names what is wrong, nothing reads the
-/// damaged numbers, and a sweep or a report mends what it can.
+/// damaged numbers, and a sweep mends what it can (a reader writes nothing).
 #[test]
 fn a_damaged_cell_a_tampered_table_and_a_swapped_scenario_are_named_and_mended() {
     let dir = scratch("damaged-store");
@@ -313,7 +313,8 @@ fn a_damaged_cell_a_tampered_table_and_a_swapped_scenario_are_named_and_mended()
         "{mended}"
     );
 
-    // A top-level table altered: the audit names it, a report builds the tables again.
+    // A top-level table altered: the audit names it, a report builds the tables again (in
+    // memory), and a sweep writes them.
     flip_a_bit(&store.join("episodes.parquet"));
     let (code, printed) = audit();
     assert_eq!(code, Some(1), "{printed}");
@@ -328,6 +329,8 @@ fn a_damaged_cell_a_tampered_table_and_a_swapped_scenario_are_named_and_mended()
         printed.contains("built again from its 8 cells"),
         "{printed}"
     );
+    let (code, printed) = text(&sweep());
+    assert_eq!(code, Some(0), "{printed}");
     let (code, printed) = audit();
     assert_eq!(code, Some(0), "{printed}");
     assert!(printed.contains("same       table episodes"), "{printed}");

@@ -18,6 +18,7 @@ mod hostile_inputs;
 mod layers;
 mod learning;
 mod python;
+mod readers;
 mod report;
 mod run_command;
 mod run_level_claims;

@@ -469,8 +469,9 @@ impl Store {
         }
         let path = self.cell_folder(&record.key).join(file);
         let bytes = self.cell_file(record, file)?;
-        let frame = tables::read_parquet(bytes).map_err(|e| StoreError::corrupt(&path, e));
-        frame.map(Some)
+        let frame = tables::read_parquet(bytes).map_err(|e| StoreError::corrupt(&path, e))?;
+        let table = file.strip_suffix(".parquet").unwrap_or(file);
+        with_columns(frame, &path, table).map(Some)
     }
 
     /// A table of the sweep (`episodes`, `cells`, ...), read from its Parquet file and, in a
@@ -486,7 +487,8 @@ impl Store {
             }
             None => self.table_file(&file)?,
         };
-        tables::read_parquet(bytes).map_err(|e| StoreError::corrupt(&path, e))
+        let frame = tables::read_parquet(bytes).map_err(|e| StoreError::corrupt(&path, e))?;
+        with_columns(frame, &path, name)
     }
 
     /// A sweep-level table, or `None` when the sweep did not build it.
@@ -716,6 +718,19 @@ pub struct TableHashes {
     pub tables: BTreeMap<String, String>,
 }
 
+/// Refuses `frame`, read from `path` as table `name`, when it lacks a column the schema gives
+/// that table: a reader would otherwise fail on the column's name alone, naming no file.
+fn with_columns(frame: DataFrame, path: &Path, name: &str) -> Result<DataFrame, StoreError> {
+    let expected = schema::columns_of(name).unwrap_or_default();
+    match expected.iter().find(|c| frame.column(c).is_err()) {
+        None => Ok(frame),
+        Some(column) => Err(StoreError::corrupt(
+            path,
+            format!("has no column {column:?}, which the {name} table holds"),
+        )),
+    }
+}
+
 fn write(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
     write_atomic(path, bytes).map_err(|e| StoreError::io(path, e))
 }
@@ -744,6 +759,25 @@ fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, StoreErro
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_table_without_a_column_of_its_schema_is_refused_naming_the_file_and_the_column() {
+        let dir = std::env::temp_dir().join(format!("store-columns-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let store = Store::new(&dir);
+        let keys = polars::prelude::Column::new(schema::cell::KEY.into(), ["k"]);
+        store
+            .write_table("episodes", &DataFrame::new(1, vec![keys]).unwrap())
+            .unwrap();
+        assert_eq!(
+            store.table("episodes").unwrap_err().to_string(),
+            format!(
+                "{}: has no column \"map\", which the episodes table holds",
+                dir.join("episodes.parquet").display()
+            )
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn a_cells_folder_linked_elsewhere_is_refused_and_nothing_is_written_there() {

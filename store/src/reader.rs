@@ -162,11 +162,16 @@ mod tests {
             .write_table("behaviour_episodes", &frame(&[8, 9]))
             .unwrap();
         assert_eq!(listing(&dir), before, "no file written, no lock file made");
-        assert_eq!(reader.table("cells").unwrap(), frame(&[3]));
-        assert_eq!(reader.table("behaviour_episodes").unwrap(), frame(&[8, 9]));
+        let bytes = |values: &[u32]| tables::parquet_bytes(&frame(values)).unwrap();
+        assert_eq!(reader.table_bytes("cells.parquet").unwrap(), bytes(&[3]));
+        let measured = reader.table_bytes("behaviour_episodes.parquet").unwrap();
+        assert_eq!(measured, bytes(&[8, 9]));
         // The sweep's episodes on disk are not the rebuilt tables' (no cell made them).
         assert_eq!(reader.optional_table("episodes").unwrap(), None);
-        assert_eq!(written.table("episodes").unwrap(), frame(&[1, 2]));
+        assert_eq!(
+            written.table_file("episodes.parquet").unwrap(),
+            bytes(&[1, 2])
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

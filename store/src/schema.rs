@@ -457,3 +457,23 @@ pub mod behaviour_episodes {
         ]
     }
 }
+
+/// The header of the table stored as `NAME.parquet`; `None` for a name no table has.
+pub fn columns_of(name: &str) -> Option<Vec<&'static str>> {
+    Some(match name {
+        cells::TABLE => cells::columns(),
+        episodes::TABLE => episodes::columns(),
+        training::TABLE => training::columns(),
+        test_curve::TABLE => test_curve::columns(),
+        validation::TABLE => validation::columns(),
+        convergence::TABLE => convergence::columns(),
+        checkpoints::TABLE => checkpoints::columns(),
+        summary::TABLE => summary::columns(),
+        trajectories::TABLE => trajectories::columns(),
+        snapshots::TABLE => snapshots::columns(),
+        disturbed::TABLE => disturbed::columns(),
+        disturbed_steps::TABLE => disturbed_steps::columns(),
+        behaviour_episodes::TABLE => behaviour_episodes::columns(),
+        _ => return None,
+    })
+}

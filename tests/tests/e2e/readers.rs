@@ -150,6 +150,13 @@ fn a_store_whose_cells_folder_is_a_file_is_refused_by_every_reader() {
         ],
         &why,
     );
+    // A sweep says so too (it said "cells: File exists"), before it writes anything.
+    let before = file_hashes(&store);
+    let out = store.to_str().unwrap();
+    let sweep = ["sweep", &repo_file(TINY), "--out", out, "--no-report"];
+    let (code, text) = printed(&harness(&sweep));
+    assert_eq!((code, text.contains(&why)), (Some(1), true), "{text}");
+    assert_eq!(file_hashes(&store), before);
 }
 
 /// A store that lost one of its 8 cells: the claims and the report are built from the 7, in
@@ -295,4 +302,37 @@ fn a_cache_cell_that_is_a_link_is_refused_and_nothing_is_written_through_it() {
     );
     assert!(text.contains(&why), "{text}");
     assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0);
+}
+
+/// A table whose column was renamed, with its hash in `tables.json` to match: readers name the
+/// file, the table and the column (they named the column alone).
+#[test]
+fn a_table_without_a_column_is_refused_naming_the_file_and_the_column() {
+    let dir = scratch("readers-column");
+    let store = dir.join("store");
+    copy_folder(&reference_run(TINY), &store);
+    let path = store.join("episodes.parquet");
+    let mut episodes = ParquetReader::new(std::fs::File::open(&path).unwrap())
+        .finish()
+        .unwrap();
+    episodes
+        .rename("cumulative_penalty", "penalty".into())
+        .unwrap();
+    ParquetWriter::new(std::fs::File::create(&path).unwrap())
+        .finish(&mut episodes)
+        .unwrap();
+    let listing = store.join("tables.json");
+    let mut tables: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&listing).unwrap()).unwrap();
+    let hash = blake3::hash(&std::fs::read(&path).unwrap())
+        .to_hex()
+        .to_string();
+    tables["tables"]["episodes.parquet"] = serde_json::Value::String(hash);
+    std::fs::write(&listing, serde_json::to_vec(&tables).unwrap()).unwrap();
+    let calls = read_twice(&store, &scenario_with_a_claim(&dir));
+    let why = format!(
+        "{}: has no column \"cumulative_penalty\", which the episodes table holds",
+        path.display()
+    );
+    refused(&calls, &["claims", "report", "claims again"], &why);
 }

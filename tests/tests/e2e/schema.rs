@@ -10,26 +10,6 @@ use store::schema;
 use crate::common::repo_file;
 use crate::smoke::{TINY, reference_run};
 
-/// The schema's header of the table stored as `NAME.parquet`; `None` for a name it lacks.
-fn schema_of(name: &str) -> Option<Vec<&'static str>> {
-    Some(match name {
-        schema::cells::TABLE => schema::cells::columns(),
-        schema::episodes::TABLE => schema::episodes::columns(),
-        schema::training::TABLE => schema::training::columns(),
-        schema::test_curve::TABLE => schema::test_curve::columns(),
-        schema::validation::TABLE => schema::validation::columns(),
-        schema::convergence::TABLE => schema::convergence::columns(),
-        schema::checkpoints::TABLE => schema::checkpoints::columns(),
-        schema::summary::TABLE => schema::summary::columns(),
-        schema::trajectories::TABLE => schema::trajectories::columns(),
-        schema::snapshots::TABLE => schema::snapshots::columns(),
-        schema::disturbed::TABLE => schema::disturbed::columns(),
-        schema::disturbed_steps::TABLE => schema::disturbed_steps::columns(),
-        schema::behaviour_episodes::TABLE => schema::behaviour_episodes::columns(),
-        _ => return None,
-    })
-}
-
 /// Checks every `*.parquet` table in the store's root against the schema; returns the names
 /// of the tables checked.
 pub fn assert_tables_follow_the_schema(store: &Path) -> Vec<String> {
@@ -45,7 +25,7 @@ pub fn assert_tables_follow_the_schema(store: &Path) -> Vec<String> {
         else {
             continue;
         };
-        let expected = schema_of(name)
+        let expected = schema::columns_of(name)
             .unwrap_or_else(|| panic!("{}: a table the schema does not name", path.display()));
         let file = std::fs::File::open(&path).unwrap();
         let columns: Vec<String> = ParquetReader::new(file)

@@ -80,8 +80,8 @@ fn say_how_many_cells(store: &Store) -> anyhow::Result<()> {
     let held = store.table(store::schema::cells::TABLE)?.height();
     if held < cells {
         eprintln!(
-            "{}: the sweep has not finished; its tables hold {held} of its {cells} cells, and \
-             every verdict rests on those",
+            "{}: its tables hold {held} of the sweep's {cells} cells (the others failed or \
+             have not run), and every verdict rests on those",
             store.root().display()
         );
     }

@@ -47,7 +47,7 @@ fn read_twice(store: &Path, claims: &str) -> Vec<(String, Option<i32>, String)> 
         ),
         (
             "audit",
-            vec!["audit", dir, "--sample", "2", "--training-sample", "0"],
+            vec!["audit", dir, "--sample", "2", "--training-sample", "1"],
         ),
         ("status", vec!["status", dir]),
         ("export", vec!["export", "marl-eval", dir]),
@@ -123,40 +123,47 @@ fn a_table_store_without_its_marker_is_trusted_by_no_reader() {
         !dir.join("reader-output/reports/tiny").exists(),
         "no report published"
     );
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// A store whose `cells/` is a file: every reader says so, on every call.
+/// A store whose `cells/` is a file, or a link to another store's cells: every reader says
+/// so, on every call, and so does a sweep (it said "cells: File exists" for a file).
 #[test]
-fn a_store_whose_cells_folder_is_a_file_is_refused_by_every_reader() {
+fn a_store_whose_cells_folder_is_a_file_or_a_link_is_refused_by_every_reader() {
     let dir = scratch("readers-cells-file");
-    let store = dir.join("store");
-    copy_folder(&reference_run(TINY), &store);
-    std::fs::remove_dir_all(store.join("cells")).unwrap();
-    std::fs::write(store.join("cells"), "not a folder").unwrap();
-    let calls = read_twice(&store, &scenario_with_a_claim(&dir));
-    let why = format!(
-        "{}/cells is a file, not a folder; a store's folders must be real folders inside it",
-        store.display()
-    );
-    refused(
-        &calls,
-        &[
+    let elsewhere = dir.join("elsewhere");
+    copy_folder(&reference_run(TINY).join("cells"), &elsewhere);
+    let file = |cells: &Path| std::fs::write(cells, "not a folder").unwrap();
+    let link = |cells: &Path| std::os::unix::fs::symlink(&elsewhere, cells).unwrap();
+    let damages: [(&str, &dyn Fn(&Path)); 2] =
+        [("file, not a folder", &file), ("symbolic link", &link)];
+    for (kind, damage) in damages {
+        let store = dir.join(kind.replace([' ', ','], "-"));
+        copy_folder(&reference_run(TINY), &store);
+        std::fs::remove_dir_all(store.join("cells")).unwrap();
+        damage(&store.join("cells"));
+        let calls = read_twice(&store, &scenario_with_a_claim(&dir));
+        let why = format!(
+            "{}/cells is a {kind}; a store's folders must be real folders inside it",
+            store.display()
+        );
+        let readers = [
             "claims",
             "report",
             "audit",
             "status",
             "export",
             "claims again",
-        ],
-        &why,
-    );
-    // A sweep says so too (it said "cells: File exists"), before it writes anything.
-    let before = file_hashes(&store);
-    let out = store.to_str().unwrap();
-    let sweep = ["sweep", &repo_file(TINY), "--out", out, "--no-report"];
-    let (code, text) = printed(&harness(&sweep));
-    assert_eq!((code, text.contains(&why)), (Some(1), true), "{text}");
-    assert_eq!(file_hashes(&store), before);
+        ];
+        refused(&calls, &readers, &why);
+        let before = file_hashes(&store);
+        let out = store.to_str().unwrap();
+        let sweep = ["sweep", &repo_file(TINY), "--out", out, "--no-report"];
+        let (code, text) = printed(&harness(&sweep));
+        assert_eq!((code, text.contains(&why)), (Some(1), true), "{text}");
+        assert_eq!(file_hashes(&store), before);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A store that lost one of its 8 cells: the claims and the report are built from the 7, in
@@ -192,6 +199,21 @@ fn a_store_missing_a_cell_says_on_every_call_what_its_verdicts_rest_on() {
             _ => {}
         }
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// An intact store: every reader succeeds (the audit trains a run again) and leaves it as
+/// it is.
+#[test]
+fn an_intact_store_is_left_as_it_is_by_every_reader() {
+    let dir = scratch("readers-intact");
+    let store = dir.join("store");
+    copy_folder(&reference_run(TINY), &store);
+    for (name, code, text) in read_twice(&store, &scenario_with_a_claim(&dir)) {
+        assert_eq!(code, Some(0), "{name}: {text}");
+        assert!(!text.contains("built again"), "{name}: {text}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Every file of a report folder, the README without the line naming the code that wrote it.
@@ -267,6 +289,7 @@ fn two_reports_into_one_folder_at_once_never_leave_a_mix() {
         let left: Vec<_> = std::fs::read_dir(&shared).unwrap().flatten().collect();
         assert_eq!(left.len(), 1, "round {round}: only the report is left");
     }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A cache cell that is a symbolic link is refused before anything is written through it.
@@ -302,6 +325,7 @@ fn a_cache_cell_that_is_a_link_is_refused_and_nothing_is_written_through_it() {
     );
     assert!(text.contains(&why), "{text}");
     assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0);
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A table whose column was renamed, with its hash in `tables.json` to match: readers name the
@@ -335,4 +359,5 @@ fn a_table_without_a_column_is_refused_naming_the_file_and_the_column() {
         path.display()
     );
     refused(&calls, &["claims", "report", "claims again"], &why);
+    let _ = std::fs::remove_dir_all(&dir);
 }

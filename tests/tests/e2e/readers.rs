@@ -133,15 +133,15 @@ fn a_store_whose_cells_folder_is_a_file_or_a_link_is_refused_by_every_reader() {
     let dir = scratch("readers-cells-file");
     let elsewhere = dir.join("elsewhere");
     copy_folder(&reference_run(TINY).join("cells"), &elsewhere);
-    let file = |cells: &Path| std::fs::write(cells, "not a folder").unwrap();
-    let link = |cells: &Path| std::os::unix::fs::symlink(&elsewhere, cells).unwrap();
-    let damages: [(&str, &dyn Fn(&Path)); 2] =
-        [("file, not a folder", &file), ("symbolic link", &link)];
-    for (kind, damage) in damages {
+    for (kind, linked) in [("file, not a folder", false), ("symbolic link", true)] {
         let store = dir.join(kind.replace([' ', ','], "-"));
         copy_folder(&reference_run(TINY), &store);
         std::fs::remove_dir_all(store.join("cells")).unwrap();
-        damage(&store.join("cells"));
+        let cells = store.join("cells");
+        match linked {
+            true => std::os::unix::fs::symlink(&elsewhere, &cells).unwrap(),
+            false => std::fs::write(&cells, "not a folder").unwrap(),
+        }
         let calls = read_twice(&store, &scenario_with_a_claim(&dir));
         let why = format!(
             "{}/cells is a {kind}; a store's folders must be real folders inside it",

@@ -27,8 +27,7 @@ use plan::scenario::stopping::Checkpoint;
 use plan::scenario::{Learned, ScenarioPolicy};
 use store::adaptation::{self, Adaptation};
 use store::disturbance::{self, DisturbedRow};
-use store::provenance::{cpu_description, host_name, utc_timestamp};
-use store::provenance::{git_commit, sources};
+use store::provenance::{BuiltFrom, cpu_description, host_name, utc_timestamp};
 use store::schema;
 use store::tables::{self, EpisodeRow};
 use store::{
@@ -63,6 +62,7 @@ pub enum CellError {
 pub(crate) struct CellOrigin<'a> {
     pub scenario: &'a str,
     pub map_source: &'a str,
+    pub built_from: &'a BuiltFrom,
 }
 
 /// Training episodes between saves of a learned cell's run.
@@ -169,8 +169,8 @@ pub(crate) fn run_cell(
         map_source: origin.map_source.to_owned(),
         config: config.clone(),
         code_version: code_version(),
-        git_commit: git_commit().to_owned(),
-        sources: sources().to_owned(),
+        git_commit: origin.built_from.git_commit.clone(),
+        sources: origin.built_from.sources.clone(),
         host: host_name(),
         cpu: cpu_description(),
         kernels: policies::nn::matmul::INSTRUCTIONS.to_owned(),

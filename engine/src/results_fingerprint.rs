@@ -58,6 +58,8 @@ pub fn compute_for(
         // As a sweep writes them by default, so that the fingerprint also holds that events
         // move no bit.
         events: true,
+        // The fingerprint is of the cells' results, which the provenance is not part of.
+        built_from: Default::default(),
     };
     let report = run_sweep(&scenario, text, &store, &options)?;
     if !report.failed.is_empty() {

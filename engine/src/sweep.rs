@@ -17,6 +17,7 @@ use plan::code_version::code_version;
 use plan::scenario::Scenario;
 use plan::shard::Shard;
 use store::lease::exit_giving_back_leases;
+use store::provenance::BuiltFrom;
 use store::taken::TakenTables;
 use store::{CellRecord, Manifest, Store, StoreError};
 
@@ -34,6 +35,8 @@ pub struct SweepOptions {
     /// Whether each learned cell trained here writes TensorBoard events as it trains
     /// (`events::sweep_folder`).
     pub events: bool,
+    /// The code of the binary that runs the sweep, for each cell's record.
+    pub built_from: BuiltFrom,
 }
 
 /// What a sweep did.
@@ -300,6 +303,7 @@ fn run_cells(
         let origin = CellOrigin {
             scenario: scenario.name(),
             map_source: &map.source,
+            built_from: &options.built_from,
         };
         // The lease marks the cell as running until it is saved (or fails), and keeps
         // another sweep into this folder off it; that sweep may also have finished it since

@@ -2,3 +2,5 @@
 //! `main` as the binary.
 
 pub mod cli;
+pub mod provenance;
+pub mod source_hash;

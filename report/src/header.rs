@@ -33,20 +33,24 @@ pub struct HeaderTables<'a> {
     pub checkpoints: Option<&'a DataFrame>,
 }
 
-pub fn section(report: &mut ReportWriter, tables: &HeaderTables) -> Result<(), ReportError> {
+/// The header of a report written by the code at commit `writer`.
+pub fn section(
+    report: &mut ReportWriter,
+    tables: &HeaderTables,
+    writer: &str,
+) -> Result<(), ReportError> {
     report.heading(2, "How were the policies trained and tested?");
     let commits = match tables.cells {
         Some(cells) => distinct(strings(cells, cells::GIT_COMMIT)?),
         None => Vec::new(),
     };
-    let writer = store::provenance::git_commit().to_owned();
-    if let Some(warning) = dirty_warning(&commits, &writer) {
+    if let Some(warning) = dirty_warning(&commits, writer) {
         report.paragraph(&warning);
     }
     let code = format!(
         "- **Code**: cells computed at {}; this report written at {}.",
         commit_list(&commits),
-        commit_list(std::slice::from_ref(&writer))
+        commit_list(&[writer.to_owned()])
     );
     let testing = testing_line(tables.episodes)?;
     let lines = match tables.cells {

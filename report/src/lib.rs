@@ -34,6 +34,7 @@ use polars::prelude::*;
 
 use chart::{ChartError, Figure, render};
 use store::atomic_file::write_atomic;
+use store::provenance::BuiltFrom;
 use store::schema;
 use store::status::CellState;
 use store::{MissingCell, Store, StoreError, tables};
@@ -85,11 +86,13 @@ pub const STORE_FOLDER: &str = "store";
 /// Writes the report of the sweep in `store` (a sweep's store or a table store) to
 /// `reports_root/<scenario>/`, with the store's tables as a table store in its `store/`, so
 /// that the report can be rebuilt, byte for byte, from the repository alone. The folder is
-/// written whole, by one writer at a time (`publish`).
+/// written whole, by one writer at a time (`publish`). `writer` is the code writing it, which
+/// the header names beside the code that computed the cells.
 pub fn write_report(
     store: &Store,
     reports_root: &Path,
     replay: &dyn Replay,
+    writer: &BuiltFrom,
 ) -> Result<ReportSummary, ReportError> {
     let manifest = store
         .manifest()?
@@ -120,7 +123,7 @@ pub fn write_report(
         convergence: loaded.convergence.as_ref(),
         checkpoints: loaded.checkpoints.as_ref(),
     };
-    header::section(&mut report, &header)?;
+    header::section(&mut report, &header, &writer.git_commit)?;
     let missing = missing_cells(store)?;
     if !missing.is_empty() {
         report.paragraph(&missing_paragraph(&missing, manifest.cells.len()));

@@ -45,7 +45,6 @@ pub mod provenance;
 pub mod reader;
 pub mod record;
 pub mod schema;
-pub mod source_hash;
 pub mod status;
 pub mod table_store;
 pub mod tables;

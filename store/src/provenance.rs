@@ -1,6 +1,6 @@
 //! Where, when and from which code a result was computed, for the `cells` table: provenance
-//! only, never part of a key (`plan::code_version` is). `build.rs` sets the source hash
-//! (`source_hash`) and the git commit.
+//! only, never part of a key (`plan::code_version` is). The code comes from the binary
+//! (`BuiltFrom`); the host, the CPU and the time are read here.
 
 use std::time::{SystemTime, UNIX_EPOCH};
 
@@ -75,14 +75,16 @@ fn civil_from_days(days: i64) -> (i64, u32, u32) {
     (year, month, day)
 }
 
-/// The hash of the numeric sources the binary was built from, or empty outside a checkout.
-pub fn sources() -> &'static str {
-    env!("VPM_SOURCE_HASH")
-}
-
-/// The commit the binary was built from, or empty outside git.
-pub fn git_commit() -> &'static str {
-    env!("VPM_GIT_COMMIT")
+/// The code a binary was built from, recorded beside what it computes: facts of the build that
+/// the binary's own build script finds (the commit, the hash of the numeric sources) and hands
+/// down at run time, so that no library's build depends on the repository's HEAD and a commit
+/// rebuilds only the binary. Empty fields: built outside a checkout (or outside git).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct BuiltFrom {
+    /// `git describe --always --dirty` of the checkout.
+    pub git_commit: String,
+    /// The hash of the sources that can change a cell's numbers and of their locked crates.
+    pub sources: String,
 }
 
 #[cfg(test)]

@@ -16,7 +16,7 @@ pub struct CellRecord {
     pub config: CellConfig,
     pub code_version: String,
     pub git_commit: String,
-    /// The hash of the numeric sources that computed it (`provenance::sources`); empty in
+    /// The hash of the numeric sources that computed it (`provenance::BuiltFrom`); empty in
     /// records written before it was kept.
     #[serde(default)]
     pub sources: String,

@@ -22,7 +22,12 @@ pub struct ReportArgs {
 pub fn run(args: ReportArgs) -> anyhow::Result<()> {
     let store = Store::reader(&args.store);
     tables_of_unfinished_sweep(&store)?;
-    let summary = write_report(&store, &args.to, &EngineReplay)?;
+    let summary = write_report(
+        &store,
+        &args.to,
+        &EngineReplay,
+        &crate::provenance::built_from(),
+    )?;
     println!(
         "report: {} tables and {} figures in {}, and its store's tables in {} ({:.1} MB)",
         summary.tables,

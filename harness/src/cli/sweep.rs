@@ -80,6 +80,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
             .map(|folder| TakenTables::open(Store::new(folder)))
             .collect::<Result<_, _>>()?,
         events: !args.no_events,
+        built_from: crate::provenance::built_from(),
     };
     warn_of_cells_left_behind(&scenario, &out)?;
     let report = run_sweep(&scenario, &text, &Store::new(&out), &options)?;
@@ -126,6 +127,7 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
             &Store::new(&out),
             &args.report_to,
             &super::report::EngineReplay,
+            &options.built_from,
         ) {
             Ok(written) => println!(
                 "report: {} tables and {} figures in {}",

@@ -311,7 +311,7 @@ fn paths_into(name: &str, code: &str) -> Vec<Vec<String>> {
     paths
 }
 
-/// The provenance hash of a cell (`store::source_hash`) covers every module of the plan and
+/// The provenance hash of a cell (`harness::source_hash`) covers every module of the plan and
 /// the engine that running a cell reaches through its imports, from `engine::execution` on: a
 /// module left out could change a cell's numbers without changing the hash its record keeps.
 #[test]
@@ -355,7 +355,7 @@ fn the_numeric_sources_cover_every_module_a_cell_run_reaches() {
         reached.iter().any(|(name, _)| *name == "plan"),
         "a cell run reaches the plan (its configuration): the walk lost its way"
     );
-    let listed = store::source_hash::NUMERIC_SOURCES;
+    let listed = harness::source_hash::NUMERIC_SOURCES;
     let uncovered: Vec<String> = reached
         .iter()
         .map(|(name, module)| format!("{name}/src/{}", crates[name][module].0.display()))
@@ -369,6 +369,19 @@ fn the_numeric_sources_cover_every_module_a_cell_run_reaches() {
         uncovered.is_empty(),
         "running a cell reaches these, which NUMERIC_SOURCES leaves out:\n{uncovered:#?}"
     );
+}
+
+/// Only the binary's crate has a build script: it alone watches the repository (the commit,
+/// the numeric sources) and hands what it finds down at run time, so a commit or a change in a
+/// layer rebuilds the binary and what depends on that layer, never the layers below.
+#[test]
+fn only_the_binary_has_a_build_script() {
+    let scripts: Vec<&str> = CRATES
+        .iter()
+        .filter(|name| crate_src(name).join("../build.rs").exists())
+        .copied()
+        .collect();
+    assert_eq!(scripts, ["harness"]);
 }
 
 /// The workspace crates a crate's `[dependencies]` names in its Cargo.toml.

@@ -41,6 +41,19 @@ fn copy_folder(from: &Path, to: &Path) {
     }
 }
 
+/// Every cell record names the code of the binary that computed it, which the binary's build
+/// found and handed down (`harness::provenance`): the numeric sources' hash, and the commit.
+fn assert_records_name_the_build(store: &Path) {
+    let built = harness::provenance::built_from();
+    assert!(!built.sources.is_empty(), "the tests build inside the workspace");
+    for cell in std::fs::read_dir(store.join("cells")).unwrap() {
+        let text = std::fs::read_to_string(cell.unwrap().path().join("cell.json")).unwrap();
+        let record: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(record["sources"], built.sources.as_str(), "{text}");
+        assert_eq!(record["git_commit"], built.git_commit.as_str(), "{text}");
+    }
+}
+
 #[test]
 fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
     let dir = scratch("twice");
@@ -54,6 +67,7 @@ fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
     );
     let cells = finished_cells(&out);
     assert!(cells >= 2, "{first}");
+    assert_records_name_the_build(&out);
     let before = snapshot(&out.join("cells"));
     let second = sweep(TINY, &out, &[]);
     let expected =

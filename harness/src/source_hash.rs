@@ -7,7 +7,8 @@
 //! benchmarks, the command line, the docs, tests).
 //!
 //! `build.rs` includes this file as a module, so the binary's hash and this module's tests
-//! come from the same code.
+//! come from the same code. It lives in the binary's crate, the top, because it lists files of
+//! every layer that runs a cell.
 
 use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};

@@ -1,6 +1,7 @@
-//! Records the provenance kept beside every result (see `code_version.rs`): a hash of the
-//! sources that can change a result (`src/source_hash.rs`), and the git commit where git is
-//! available.
+//! Finds the provenance kept beside every result (`src/provenance.rs`): a hash of the sources
+//! that can change a result (`src/source_hash.rs`), and the git commit where git is available.
+//! The binary's build is the one place that watches the repository: the libraries are handed
+//! these at run time, so a commit rebuilds this crate alone.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

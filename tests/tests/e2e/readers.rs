@@ -199,6 +199,17 @@ fn a_store_missing_a_cell_says_on_every_call_what_its_verdicts_rest_on() {
             _ => {}
         }
     }
+    // The report's table store holds the 7: its claims say so on every call too.
+    let tables = dir.join("reader-output/reports/tiny/store");
+    for (name, code, text) in read_twice(&tables, &scenario_with_a_claim(&dir)) {
+        if name.starts_with("claims") || name == "report" {
+            assert_eq!(code, Some(0), "{name}: {text}");
+            assert!(
+                text.contains("its tables hold 7 of the sweep's 8 cells"),
+                "{name}: {text}"
+            );
+        }
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -14,8 +14,8 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use ndarray::Array2;
-use policies::nn::matmul::matmul;
-use policies::nn::{
+use nn::matmul::matmul;
+use nn::{
     ACTIONS, ActorCritic, AgentGraph, Architecture, ModelConfig, ModelWorkspace, Neighbours,
     OutputGradients,
 };

@@ -7,7 +7,9 @@ use std::hint::black_box;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use policies::{Baseline, PlanError, Policy};
+use baselines::{Baseline, BaselineError};
+
+use world::Policy;
 use world::{Action, Episode, Seed, World};
 
 use engine::episode::reset_episode;
@@ -26,7 +28,7 @@ pub fn measure(
     world: &Arc<World>,
     agents: usize,
     budget: Duration,
-) -> Result<(f64, Vec<DecisionTime>), PlanError> {
+) -> Result<(f64, Vec<DecisionTime>), BaselineError> {
     let step = world_step(world, agents, budget);
     let decisions = Baseline::ALL
         .into_iter()
@@ -37,7 +39,7 @@ pub fn measure(
                 seconds_per_step: decision(world, agents, policy.as_mut(), budget),
             })
         })
-        .collect::<Result<_, PlanError>>()?;
+        .collect::<Result<_, BaselineError>>()?;
     Ok((step, decisions))
 }
 

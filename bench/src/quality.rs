@@ -9,9 +9,11 @@
 
 use std::sync::Arc;
 
+use baselines::Baseline;
 use engine::episode::run_episode;
-use policies::ppo::{TrainError, Trainer, TrainingConfig};
-use policies::{ActionChoice, Baseline, LearnedPolicy, Policy};
+use learning::ppo::{TrainError, Trainer, TrainingConfig};
+use learning::{ActionChoice, LearnedPolicy};
+use world::Policy;
 use world::{Seed, World};
 
 use crate::cpu_clock::process_cpu_time;
@@ -52,9 +54,9 @@ pub enum Error {
     #[error(transparent)]
     Start(#[from] world::StartError),
     #[error(transparent)]
-    Plan(#[from] policies::PlanError),
+    Baseline(#[from] baselines::BaselineError),
     #[error(transparent)]
-    Config(#[from] policies::ppo::ConfigError),
+    Config(#[from] learning::ppo::ConfigError),
 }
 
 /// GCS's mean test penalty: the quality a run must reach.
@@ -107,7 +109,7 @@ pub fn time_to_quality(
 mod tests {
     use std::path::Path;
 
-    use policies::ppo::Profile;
+    use learning::ppo::Profile;
     use world::{Map, WorldParams};
 
     use super::*;

@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use policies::ppo::{ArchitectureName, NeighbourRule, TrainError, TrainingParams};
+use learning::ppo::{ArchitectureName, NeighbourRule, TrainError, TrainingParams};
 use world::{ImageGeometry, World};
 
 use crate::training::{self, Throughput};

@@ -8,7 +8,7 @@
 
 use std::sync::Arc;
 
-use policies::ppo::{
+use learning::ppo::{
     AgentCount, ArchitectureName, Profile, TrainError, Trainer, TrainingConfig, TrainingParams,
 };
 use world::World;

@@ -8,7 +8,9 @@ use std::hint::black_box;
 use std::sync::Arc;
 use std::time::Duration;
 
-use policies::{Policy, RandomPolicy};
+use baselines::RandomPolicy;
+
+use world::Policy;
 
 use crate::cpu_clock::thread_cpu_time;
 use world::reference::ReferenceEpisode;

@@ -9,8 +9,8 @@ use polars::prelude::*;
 use rayon::prelude::*;
 use world::{ParamError, Seed, StartError, World};
 
-use policies::checkpoint::{self, WEIGHTS_FILE};
-use policies::ppo::{ConfigError, TrainError, Trainer};
+use learning::checkpoint::{self, WEIGHTS_FILE};
+use learning::ppo::{ConfigError, TrainError, Trainer};
 
 use crate::aggregate::{AggregateError, tables_of};
 use crate::execution::{CellError, disturbed_test_episode, stored_policy, test_episode};

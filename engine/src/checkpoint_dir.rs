@@ -1,14 +1,14 @@
-//! A checkpoint folder on disk: the files of `policies::checkpoint`, written atomically, and
+//! A checkpoint folder on disk: the files of `learning::checkpoint`, written atomically, and
 //! the learned policy or training state read back from them.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use policies::checkpoint::{
+use learning::checkpoint::{
     self, CheckpointError, CheckpointMetadata, METADATA_FILE, OPTIMIZER_FILE, WEIGHTS_FILE,
 };
-use policies::ppo::{ConfigError, TrainingState};
-use policies::{ActionChoice, LearnedPolicy};
+use learning::ppo::{ConfigError, TrainingState};
+use learning::{ActionChoice, LearnedPolicy};
 use world::World;
 
 use store::atomic_file::write_atomic;

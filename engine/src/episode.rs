@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use crate::idleness::{Idleness, IdlenessTracker};
 use plan::disturbance::EpisodeDisturbance;
-use policies::Policy;
+use world::Policy;
 use world::{Action, Cell, Episode, Seed, StartError, World};
 
 /// The paper's metric for one episode, and the patrolling literature's.

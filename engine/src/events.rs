@@ -34,8 +34,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
+use learning::ppo::EpisodeRecord;
 use polars::prelude::{DataFrame, DataType, PolarsError};
-use policies::ppo::EpisodeRecord;
 use prost::Message;
 
 use crate::test_curve::TestCurve;

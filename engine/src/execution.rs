@@ -5,13 +5,15 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::{Instant, SystemTime};
 
-use polars::prelude::{Column, DataFrame};
-use policies::checkpoint::{
+use baselines::BaselineError;
+use learning::LearnedPolicy;
+use learning::checkpoint::{
     self, CheckpointError, CheckpointMetadata, METADATA_FILE, WEIGHTS_FILE,
 };
-use policies::nn::ActorCritic;
-use policies::ppo::{ConfigError, TrainError, Trainer, TrainingConfig, TrainingState};
-use policies::{LearnedPolicy, PlanError, Policy};
+use learning::ppo::{ConfigError, TrainError, Trainer, TrainingConfig, TrainingState};
+use nn::ActorCritic;
+use polars::prelude::{Column, DataFrame};
+use world::Policy;
 use world::{StartError, World};
 
 use crate::episode::{StepObserver, run_disturbed_episode};
@@ -39,7 +41,7 @@ use store::{
 #[derive(Debug, thiserror::Error)]
 pub enum CellError {
     #[error(transparent)]
-    Plan(#[from] PlanError),
+    Baseline(#[from] BaselineError),
     #[error(transparent)]
     Start(#[from] StartError),
     #[error(transparent)]
@@ -173,7 +175,7 @@ pub(crate) fn run_cell(
         sources: origin.built_from.sources.clone(),
         host: host_name(),
         cpu: cpu_description(),
-        kernels: policies::nn::matmul::INSTRUCTIONS.to_owned(),
+        kernels: nn::matmul::INSTRUCTIONS.to_owned(),
         started: utc_timestamp(started),
         finished: utc_timestamp(SystemTime::now()),
         wall_seconds: clock.elapsed().as_secs_f64() + earlier_training_seconds,

@@ -8,9 +8,10 @@
 
 use std::collections::BTreeSet;
 
+use learning::LearnedPolicy;
 use polars::prelude::*;
-use policies::{AttentionEdges, LearnedPolicy, Policy};
 use world::{Action, Cell, Episode, Seed, World};
+use world::{AttentionEdges, Policy};
 
 use store::StoreError;
 use store::tables::parquet_bytes;

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use policies::Policy;
+use world::Policy;
 use world::{Action, Cell, Episode, Seed};
 
 /// An actions file that cannot be replayed: a bad row, or no row at all.

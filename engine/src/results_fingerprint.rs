@@ -102,7 +102,7 @@ fn result_content(name: &str, bytes: Vec<u8>) -> Result<Vec<u8>, StoreError> {
         let not_results = std::iter::once(cell::KEY).chain(training::TIMING_COLUMNS);
         return tables::csv_bytes(&frame.drop_many(not_results));
     }
-    if name == policies::checkpoint::METADATA_FILE {
+    if name == learning::checkpoint::METADATA_FILE {
         let mut metadata: serde_json::Value = serde_json::from_slice(&bytes).unwrap_or_default();
         if let Some(fields) = metadata.as_object_mut() {
             fields.remove("wall_seconds");

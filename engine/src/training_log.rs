@@ -3,8 +3,8 @@
 
 use std::io::Cursor;
 
+use learning::ppo::EpisodeRecord;
 use polars::prelude::*;
-use policies::ppo::EpisodeRecord;
 use store::schema::training;
 
 /// One row per record.
@@ -75,7 +75,7 @@ pub fn append(
 
 #[cfg(test)]
 mod tests {
-    use policies::ppo::UpdateStats;
+    use learning::ppo::UpdateStats;
 
     use super::*;
 

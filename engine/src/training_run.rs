@@ -6,10 +6,10 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use polars::prelude::{DataFrame, PolarsError};
-use policies::ppo::{
+use learning::ppo::{
     ConfigError, EpisodeRecord, TrainError, Trainer, TrainingConfig, TrainingState,
 };
+use polars::prelude::{DataFrame, PolarsError};
 use world::World;
 
 use crate::checkpoint_dir::{self, CheckpointDirError};
@@ -179,7 +179,7 @@ impl TrainingRun {
 mod tests {
     use std::path::Path;
 
-    use policies::ppo::Profile;
+    use learning::ppo::Profile;
     use store::schema::training;
     use world::{Map, WorldParams};
 
@@ -222,7 +222,7 @@ mod tests {
     fn outcome(run: TrainingRun) -> (Vec<u8>, DataFrame) {
         let (state, log) = run.into_parts();
         let log = log.select(training_log::reproducible_columns()).unwrap();
-        (policies::checkpoint::save(&state).weights, log)
+        (learning::checkpoint::save(&state).weights, log)
     }
 
     #[test]

@@ -18,10 +18,10 @@ use std::path::Path;
 
 use polars::prelude::*;
 
+use learning::checkpoint;
+use learning::ppo::TrainingState;
 use plan::cell::CellConfig;
 use plan::scenario::stopping::StoppingRule;
-use policies::checkpoint;
-use policies::ppo::TrainingState;
 use store::schema::convergence as run;
 use store::schema::validation::{CPU_SECONDS, TRAINING_EPISODE, VALIDATION_PENALTY, WALL_SECONDS};
 use store::tables::{self, cell_columns};

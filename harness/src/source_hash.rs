@@ -13,16 +13,20 @@
 use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 
-/// Sources, relative to the workspace root, whose change can change a cell's numbers: the two
-/// numeric crates, the statistics and the store, and the modules of the plan and the engine
+/// Sources, relative to the workspace root, whose change can change a cell's numbers: the
+/// numeric crates (the world, the network library, the baselines, learning), the statistics and the store, and the modules of the plan and the engine
 /// that running a cell reaches through its imports
 /// (`tests/tests/e2e/layers.rs` checks that none is left out: the scenario resolves a policy's
 /// training configuration, the store writes the result files, the statistics the summary).
-pub const NUMERIC_SOURCES: [&str; 25] = [
+pub const NUMERIC_SOURCES: [&str; 29] = [
     "world/src",
     "world/Cargo.toml",
-    "policies/src",
-    "policies/Cargo.toml",
+    "nn/src",
+    "nn/Cargo.toml",
+    "baselines/src",
+    "baselines/Cargo.toml",
+    "learning/src",
+    "learning/Cargo.toml",
     "plan/src/cell.rs",
     "plan/src/code_version.rs",
     "plan/src/disturbance.rs",
@@ -50,7 +54,7 @@ pub const NUMERIC_SOURCES: [&str; 25] = [
 pub(crate) const LOCK_FILE: &str = "Cargo.lock";
 
 /// The packages whose locked dependencies, transitively, can change a result.
-const NUMERIC_PACKAGES: [&str; 2] = ["world", "policies"];
+const NUMERIC_PACKAGES: [&str; 4] = ["world", "nn", "baselines", "learning"];
 
 /// The first 16 hex digits of blake3 over the numeric sources (path and contents, in path
 /// order) and the lock file's entries of the numeric crates' dependencies; empty where none of
@@ -259,7 +263,7 @@ mod tests {
         );
         let mut previous = original;
         for file in [
-            "policies/src/nn/matmul/kernel.rs",
+            "nn/src/matmul/kernel.rs",
             "world/src/lib.rs",
             "engine/src/execution.rs",
         ] {
@@ -291,7 +295,9 @@ mod tests {
             .collect();
         for name in [
             "world",
-            "policies",
+            "nn",
+            "baselines",
+            "learning",
             "wide",
             "rand_pcg",
             "ndarray",

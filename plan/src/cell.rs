@@ -2,7 +2,7 @@
 //! N_train, training seed) plus its evaluations at every N_test; a baseline does not train,
 //! so its cells have no N_train.
 
-use policies::ppo::{ConfigError, TrainingConfig};
+use learning::ppo::{ConfigError, TrainingConfig};
 use serde::{Deserialize, Serialize};
 use world::Seed;
 

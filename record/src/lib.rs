@@ -15,7 +15,7 @@ use rerun::external::re_entity_db::EntityDb;
 use rerun::external::re_log_encoding::DecoderApp;
 use world::{Episode, World};
 
-use policies::{AttentionEdges, Policy};
+use world::{AttentionEdges, Policy};
 
 use engine::execution::{CellError, observed_test_episode, stored_policy};
 use store::{Store, StoreError};

@@ -58,10 +58,10 @@ use std::time::SystemTime;
 use polars::prelude::{DataFrame, PolarsError};
 
 use crate::atomic_file::write_atomic;
+use learning::checkpoint::WEIGHTS_FILE;
 pub(crate) use lease::Liveness;
 pub use lease::{Lease, LeaseHolder};
 use plan::scenario::Output;
-use policies::checkpoint::WEIGHTS_FILE;
 pub use record::{CellFailure, CellRecord, Manifest};
 pub(crate) use table_store::TABLE_STORE_FILE;
 pub use table_store::{MissingCell, TableStoreMarker};

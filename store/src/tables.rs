@@ -10,8 +10,8 @@ use super::StoreError;
 use super::record::CellRecord;
 use crate::atomic_file::write_atomic;
 use crate::schema::{cell, cells, episodes};
+use learning::checkpoint::WEIGHTS_FILE;
 use plan::cell::CellConfig;
-use policies::checkpoint::WEIGHTS_FILE;
 
 /// One test episode's result.
 #[derive(Clone, Copy, Debug, PartialEq)]

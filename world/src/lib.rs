@@ -3,7 +3,8 @@
 //! A map of free and obstacle cells, agents with a square field of view blocked by obstacles,
 //! and a penalty per free cell that falls by D each step it is unseen (floor -Rmax) and is reset
 //! to 0 when seen. `World` holds what never changes (map, parameters, precomputed visibility)
-//! and is shared between threads; `Episode` holds one run's state and steps without allocating.
+//! and is shared between threads; `Episode` holds one run's state and steps without allocating;
+//! a `Policy` chooses the agents' actions.
 
 pub mod episode;
 pub mod input;
@@ -14,6 +15,7 @@ pub mod palette;
 pub mod params;
 pub mod paths;
 pub mod penalty;
+pub mod policy;
 pub mod reference;
 pub mod seed;
 pub mod visibility;
@@ -25,5 +27,6 @@ pub use map::{Cell, Map, MapError, MapErrorKind};
 pub use observation::{Channels, ImageGeometry, ObservationConfig, Observer};
 pub use params::{ParamError, WorldParams};
 pub use penalty::PenaltyGrid;
+pub use policy::{AttentionEdges, Policy};
 pub use seed::Seed;
 pub use visibility::Visibility;

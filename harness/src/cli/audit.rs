@@ -124,7 +124,7 @@ fn show_platforms(store: &Store, lines: &[AuditLine], trained: &[TrainingAuditLi
     let here = platform(
         &provenance::host_name(),
         &provenance::cpu_description(),
-        policies::nn::matmul::INSTRUCTIONS,
+        nn::matmul::INSTRUCTIONS,
     );
     println!("re-run on {here}");
     let keys: BTreeSet<&str> = lines

@@ -11,7 +11,7 @@ use bench::quality;
 use bench::scale::{self, ScaleSetup};
 use bench::training;
 use bench::world_steps::{PYTHON_STEPS_PER_SECOND, measure};
-use policies::ppo::{ArchitectureName, Profile, TrainingConfig, TrainingParams};
+use learning::ppo::{ArchitectureName, Profile, TrainingConfig, TrainingParams};
 use stats::median_with_infinities;
 use world::World;
 

@@ -4,13 +4,15 @@ use std::collections::BTreeSet;
 use std::path::PathBuf;
 
 use anyhow::Context;
+use baselines::Baseline;
 use engine::checkpoint_dir;
 use engine::episode::run_episode;
 use engine::probe::ProbingPolicy;
 use engine::replay::{ReplayPolicy, parse_actions, parse_starts, read_actions_text};
 use engine::trace::Trace;
-use policies::{ActionChoice, Baseline, Policy};
+use learning::ActionChoice;
 use store::atomic_file::write_atomic;
+use world::Policy;
 use world::Seed;
 
 use super::WorldArgs;

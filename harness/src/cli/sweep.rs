@@ -3,9 +3,9 @@
 use std::path::PathBuf;
 
 use engine::sweep::{SweepOptions, run_sweep};
+use learning::ppo::Profile;
 use plan::scenario::Scenario;
 use plan::shard::Shard;
-use policies::ppo::Profile;
 use report::write_report;
 use store::Store;
 use store::taken::TakenTables;

@@ -7,9 +7,10 @@ mod run_folder;
 use std::path::PathBuf;
 
 use anyhow::Context;
+use baselines::RandomPolicy;
 use indicatif::{ProgressBar, ProgressStyle};
-use policies::ppo::{AgentCount, EpisodeRecord, Profile, TrainingConfig, TrainingState};
-use policies::{ActionChoice, LearnedPolicy, RandomPolicy};
+use learning::ppo::{AgentCount, EpisodeRecord, Profile, TrainingConfig, TrainingState};
+use learning::{ActionChoice, LearnedPolicy};
 use world::Seed;
 
 use super::WorldArgs;
@@ -221,7 +222,7 @@ fn test(
 ) -> anyhow::Result<()> {
     let agents = args.test_agents.unwrap_or(state.config.agents.max);
     let seed = Seed::new(state.seed).child(u64::MAX);
-    let evaluate = |policy: &mut dyn policies::Policy| {
+    let evaluate = |policy: &mut dyn world::Policy| {
         mean_penalty(
             world,
             agents,

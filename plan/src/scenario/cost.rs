@@ -2,7 +2,7 @@
 //! balancing and Slurm time limits. An estimate, never part of a result: recalibrating it moves
 //! no bit, so no key (`results_fingerprint`).
 
-use policies::ppo::ArchitectureName;
+use learning::ppo::ArchitectureName;
 
 use super::{Learned, WorldConfig};
 

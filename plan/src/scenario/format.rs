@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use policies::ppo::Profile;
+use learning::ppo::Profile;
 use serde::{Deserialize, Serialize};
 use serde_saphyr::{Location, Spanned};
 

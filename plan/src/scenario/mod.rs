@@ -258,9 +258,9 @@ mod tests {
         assert_eq!(cells[2].config.n_train, Some(2));
         assert_eq!(cells[2].config.policy.label(), "ma-ppo@fast");
         let training = cells[2].config.training_config().unwrap().unwrap();
-        assert_eq!(training.agents, policies::ppo::AgentCount::fixed(2));
+        assert_eq!(training.agents, learning::ppo::AgentCount::fixed(2));
         assert_eq!((training.episodes, training.steps_per_episode), (5, 10));
-        assert_eq!(training.network, policies::ppo::Network::Compact);
+        assert_eq!(training.network, learning::ppo::Network::Compact);
         assert!(cells[0].config.training_config().is_none());
         let keys: std::collections::HashSet<_> = cells.iter().map(|c| &c.key).collect();
         assert_eq!(keys.len(), cells.len());

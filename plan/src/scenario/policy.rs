@@ -8,8 +8,9 @@
 
 use std::collections::BTreeMap;
 
-use policies::ppo::{AgentCount, ArchitectureName, ConfigError, Profile, TrainingConfig};
-use policies::{ActionChoice, Baseline, UnknownBaseline};
+use baselines::{Baseline, UnknownBaseline};
+use learning::ActionChoice;
+use learning::ppo::{AgentCount, ArchitectureName, ConfigError, Profile, TrainingConfig};
 use serde::{Deserialize, Serialize};
 use world::Channels;
 

@@ -115,7 +115,7 @@ impl Scenario {
     /// The planning memory of a baseline's cell on map `map_index` (none for one that does not
     /// plan).
     fn planning_bytes(&self, map_index: usize, policy: &super::ScenarioPolicy) -> u64 {
-        use policies::Baseline;
+        use baselines::Baseline;
         let plans = matches!(
             policy,
             super::ScenarioPolicy::Baseline(

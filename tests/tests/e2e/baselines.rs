@@ -4,9 +4,10 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use baselines::Baseline;
+use baselines::Tspc;
 use engine::episode::run_episode;
-use policies::Tspc;
-use policies::{Baseline, Policy};
+use world::Policy;
 use world::paths::move_between;
 use world::{Map, Seed, World, WorldParams};
 

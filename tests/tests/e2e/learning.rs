@@ -4,9 +4,10 @@
 use std::path::Path;
 use std::sync::Arc;
 
+use baselines::RandomPolicy;
 use engine::episode::mean_penalty;
-use policies::ppo::{Profile, Trainer, TrainingConfig};
-use policies::{ActionChoice, LearnedPolicy, RandomPolicy};
+use learning::ppo::{Profile, Trainer, TrainingConfig};
+use learning::{ActionChoice, LearnedPolicy};
 use world::{Map, Seed, World, WorldParams};
 
 const AGENTS: usize = 2;
@@ -39,7 +40,7 @@ fn the_fast_profile_halves_randoms_penalty_on_a_small_two_room_map() {
     assert_eq!(records.len(), 400);
 
     let test_seed = Seed::new(2024);
-    let evaluate = |policy: &mut dyn policies::Policy| {
+    let evaluate = |policy: &mut dyn world::Policy| {
         mean_penalty(&world, AGENTS, policy, STEPS, TEST_EPISODES, test_seed).unwrap()
     };
     let random = evaluate(&mut RandomPolicy::new());

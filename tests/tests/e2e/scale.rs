@@ -6,8 +6,8 @@ use std::path::Path;
 use std::sync::Arc;
 
 use engine::episode::mean_penalty;
-use policies::ppo::{Profile, Trainer, TrainingConfig};
-use policies::{ActionChoice, LearnedPolicy};
+use learning::ppo::{Profile, Trainer, TrainingConfig};
+use learning::{ActionChoice, LearnedPolicy};
 use world::{Map, Seed, World, WorldParams};
 
 /// 100 x 100 with rows of shelves (2 cells deep, gaps every 20 cells).

@@ -45,7 +45,10 @@ fn copy_folder(from: &Path, to: &Path) {
 /// found and handed down (`harness::provenance`): the numeric sources' hash, and the commit.
 fn assert_records_name_the_build(store: &Path) {
     let built = harness::provenance::built_from();
-    assert!(!built.sources.is_empty(), "the tests build inside the workspace");
+    assert!(
+        !built.sources.is_empty(),
+        "the tests build inside the workspace"
+    );
     for cell in std::fs::read_dir(store.join("cells")).unwrap() {
         let text = std::fs::read_to_string(cell.unwrap().path().join("cell.json")).unwrap();
         let record: serde_json::Value = serde_json::from_str(&text).unwrap();

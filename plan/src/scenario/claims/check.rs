@@ -10,7 +10,7 @@ use super::format::{
 };
 use super::{Behaviour, Claim, ClaimTest, GCS, Pair, Point, RANDOM, Scale, Tolerance};
 use crate::scenario::ScenarioError;
-use policies::ppo::Profile;
+use learning::ppo::Profile;
 
 /// What a scenario offers claims to name.
 pub(crate) struct ClaimContext {

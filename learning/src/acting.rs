@@ -1,0 +1,44 @@
+//! What every learned actor does at a step, in training and in tests alike: read an action
+//! from the policy's distribution, and put the agents into the attention graph.
+
+use rand::RngExt;
+use rand_pcg::Pcg64Mcg;
+use world::Cell;
+
+use nn::{AgentGraph, CategoricalBatch, Neighbours};
+
+/// How an action is read from the policy's distribution.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ActionChoice {
+    /// Drawn from the distribution (training, and the paper's tests).
+    Sampled,
+    /// The most probable action.
+    Greedy,
+}
+
+impl ActionChoice {
+    /// The action of batch row `row`; draws from `stream` only when sampling.
+    pub fn pick(self, policy: &CategoricalBatch<f32>, row: usize, stream: &mut Pcg64Mcg) -> usize {
+        match self {
+            ActionChoice::Sampled => policy.sample(row, stream.random::<f64>()),
+            ActionChoice::Greedy => {
+                let log_probs = policy.log_probs();
+                let row = log_probs.row(row);
+                // The first of equal maxima, so ties break the same way everywhere.
+                (0..row.len()).fold(0, |best, a| if row[a] > row[best] { a } else { best })
+            }
+        }
+    }
+}
+
+/// Appends one group (the agents of one environment at one step) to an attention graph.
+pub fn push_agents(
+    graph: &mut AgentGraph,
+    rule: Neighbours,
+    positions: &[Cell],
+    scratch: &mut Vec<[f64; 2]>,
+) {
+    scratch.clear();
+    scratch.extend(positions.iter().map(|c| [c.x as f64, c.y as f64]));
+    graph.push_group(rule, scratch);
+}

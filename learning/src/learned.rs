@@ -1,0 +1,202 @@
+//! MA-G-PPO and MA-PPO as policies: observations of every agent, one batched forward pass of
+//! the actor, an action per agent. The weights are shared by all agents, so a policy trained
+//! with N agents runs with any number.
+
+use rand_pcg::Pcg64Mcg;
+use world::seed::purpose;
+use world::{Action, Episode, Observer, Seed, World};
+
+use crate::acting::{ActionChoice, push_agents};
+use crate::ppo::config::{ArchitectureName, ConfigError, TrainingConfig};
+use nn::Real;
+use nn::{ActorCritic, AgentGraph, Architecture, ModelWorkspace, Neighbours};
+use world::{AttentionEdges, Policy};
+
+/// A trained actor driving every agent of an episode.
+#[derive(Debug)]
+pub struct LearnedPolicy {
+    name: &'static str,
+    model: ActorCritic<f32>,
+    neighbours: Neighbours,
+    choice: ActionChoice,
+    observer: Observer,
+    workspace: ModelWorkspace<f32>,
+    graph: AgentGraph,
+    observations: Vec<f32>,
+    points: Vec<[f64; 2]>,
+    streams: Vec<Pcg64Mcg>,
+    /// Actor and critic outputs for [`LearnedPolicy::inspect_last_step`].
+    inspection: ModelWorkspace<f32>,
+}
+
+/// What the network saw and answered at one step, for every agent: the inputs and outputs
+/// another implementation of the network must reproduce.
+pub struct Inspection<'a> {
+    /// Every agent's observation, `[agents, channels, side, side]` flat (NCHW).
+    pub observations: &'a [f32],
+    pub channels: usize,
+    pub side: usize,
+    /// Every agent's action probabilities, `[agents, 5]` (stay, +y, -x, -y, +x).
+    pub probabilities: Vec<f32>,
+    /// Every agent's value estimate.
+    pub values: &'a [f32],
+}
+
+impl LearnedPolicy {
+    /// Fails when the model was built for images of another side than `world` gives.
+    pub fn new(
+        world: &World,
+        model: ActorCritic<f32>,
+        config: &TrainingConfig,
+        choice: ActionChoice,
+    ) -> Result<Self, ConfigError> {
+        let observer = Observer::new(world, config.observation_config());
+        let expected = model.config().image_side;
+        if observer.side() != expected {
+            return Err(ConfigError::Invalid {
+                field: "network",
+                reason: format!(
+                    "the model was trained on {expected} x {expected} images; map `{}` with \
+                     L = {} gives {s} x {s}",
+                    world.map().name(),
+                    world.params().fov(),
+                    s = observer.side()
+                ),
+            });
+        }
+        let name = match config.architecture {
+            ArchitectureName::MaGPpo => "ma-g-ppo",
+            ArchitectureName::MaPpo => "ma-ppo",
+        };
+        Ok(LearnedPolicy {
+            name,
+            model,
+            neighbours: config.neighbours.to_nn(),
+            choice,
+            observer,
+            workspace: ModelWorkspace::default(),
+            graph: AgentGraph::new(),
+            observations: Vec::new(),
+            points: Vec::new(),
+            streams: Vec::new(),
+            inspection: ModelWorkspace::default(),
+        })
+    }
+
+    /// The observations of the last [`Policy::act`] and the whole network's outputs on them:
+    /// the actor's probabilities and the critic's values, on the same attention graph.
+    pub fn inspect_last_step(&mut self) -> Inspection<'_> {
+        self.model
+            .forward(&mut self.inspection, &self.observations, &self.graph);
+        let probabilities = self
+            .inspection
+            .policy()
+            .log_probs()
+            .iter()
+            .map(|l| l.exp_portable())
+            .collect();
+        let shape = self.model.config().observation_shape();
+        Inspection {
+            observations: &self.observations,
+            channels: shape.channels,
+            side: shape.height,
+            probabilities,
+            values: self.inspection.values(),
+        }
+    }
+}
+
+impl Policy for LearnedPolicy {
+    fn name(&self) -> &str {
+        self.name
+    }
+
+    fn attention(&self) -> Option<AttentionEdges> {
+        if self.model.config().architecture == Architecture::MaPpo {
+            return None;
+        }
+        let weights = self.workspace.attention().attention_weights();
+        let heads = weights.nrows() as f32;
+        let mut edges = Vec::with_capacity(self.graph.neighbour_rows().len());
+        for agent in 0..self.graph.agents() {
+            for (edge, neighbour) in self.graph.edges_of(agent) {
+                let weight = weights.column(edge).sum() / heads;
+                edges.push((agent, neighbour, weight));
+            }
+        }
+        Some(edges)
+    }
+
+    fn reset(&mut self, episode: &Episode, seed: Seed) {
+        let policy = seed.child(purpose::POLICY);
+        self.streams = (0..episode.agents() as u64)
+            .map(|agent| policy.child(agent).rng())
+            .collect();
+        self.observations
+            .resize(episode.agents() * self.observer.per_agent(), 0.0);
+    }
+
+    fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
+        self.observer.write(episode, &mut self.observations);
+        self.graph.clear();
+        push_agents(
+            &mut self.graph,
+            self.neighbours,
+            episode.positions(),
+            &mut self.points,
+        );
+        if episode.messages_disturbed() {
+            // A lost robot sends nothing, a link down carries nothing.
+            self.graph
+                .retain_from(0, |agent, neighbour| episode.hears(agent, neighbour));
+        }
+        self.model
+            .forward_policy(&mut self.workspace, &self.observations, &self.graph);
+        let policy = self.workspace.policy();
+        for (row, (action, stream)) in actions.iter_mut().zip(&mut self.streams).enumerate() {
+            *action = Action::ALL[self.choice.pick(policy, row, stream)];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use world::{Map, WorldParams};
+
+    use super::*;
+    use crate::ppo::Profile;
+
+    /// Who hears agent 2: the two others, until it is lost; then nobody, while the others
+    /// still hear each other; with every link down, nobody hears anybody.
+    #[test]
+    fn a_lost_robot_or_a_link_down_carries_no_message() {
+        let rows = vec![".".repeat(30); 30].join("\n");
+        let map = Map::parse_text("open", &rows, Path::new("open.txt")).unwrap();
+        let world = World::new(map, WorldParams::paper());
+        let config = TrainingConfig::profile(Profile::Paper)
+            .with_overrides(&["network=compact"])
+            .unwrap();
+        let side = Observer::new(&world, config.observation_config()).side();
+        let model_config = config.model_config(side).unwrap();
+        let model = ActorCritic::new(&model_config, &mut Seed::new(1).rng()).unwrap();
+        let mut policy = LearnedPolicy::new(&world, model, &config, ActionChoice::Greedy).unwrap();
+        let mut episode = Episode::new(world, 3).unwrap();
+        episode.reset(Seed::new(2));
+        policy.reset(&episode, Seed::new(3));
+        let mut actions = [Action::Stay; 3];
+        let senders = |policy: &LearnedPolicy| -> Vec<usize> {
+            let edges = policy.attention().unwrap();
+            edges.iter().map(|&(_, neighbour, _)| neighbour).collect()
+        };
+        policy.act(&episode, &mut actions);
+        assert_eq!(senders(&policy), [1, 2, 0, 2, 0, 1]);
+        episode.stop(2);
+        policy.act(&episode, &mut actions);
+        assert_eq!(senders(&policy), [1, 0, 0, 1]);
+        episode.set_links(world::Links::new(None, 1.0, Seed::new(4)).unwrap());
+        policy.act(&episode, &mut actions);
+        assert!(senders(&policy).is_empty());
+    }
+}

@@ -1,0 +1,12 @@
+//! The learned policies, MA-G-PPO and MA-PPO: PPO's training (`ppo`: rollouts, the update, its
+//! profiles), checkpoints in safetensors that PyTorch loads (`checkpoint`), and the trained
+//! network acting as a `world::Policy` (`LearnedPolicy`), on the network library `nn`. The
+//! façade is what the plan and the engine build and act with; `ppo` and `checkpoint` are what
+//! the engine, the benches and PyTorch interop reach into.
+mod acting;
+pub mod checkpoint;
+mod learned;
+pub mod ppo;
+
+pub use acting::ActionChoice;
+pub use learned::{Inspection, LearnedPolicy};

@@ -52,6 +52,24 @@ pub struct TrainingRun {
     events: Option<EventLog>,
 }
 
+/// Removes the temporary files that writes cut short left in `folder` (`write_atomic`'s
+/// `.NAME.PID.N.tmp`: an interrupt or a kill between a file's write and its rename). A run is
+/// started or continued by the one process that writes its folder (a sweep holds the cell's
+/// lease; `harness train` refuses a folder that holds another run), so every temporary there
+/// is a dead write's. Best effort: one that stays is never read.
+fn remove_temporaries(folder: &Path) {
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with('.') && name.ends_with(".tmp") {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 impl TrainingRun {
     /// A fresh run saved in `folder`.
     pub fn start(
@@ -60,6 +78,7 @@ impl TrainingRun {
         config: TrainingConfig,
         seed: u64,
     ) -> Result<Self, TrainingRunError> {
+        remove_temporaries(folder);
         Ok(Self {
             folder: folder.to_owned(),
             trainer: Trainer::new(world, config, seed)?,
@@ -74,6 +93,7 @@ impl TrainingRun {
         world: Arc<World>,
         overrides: &[String],
     ) -> Result<Self, TrainingRunError> {
+        remove_temporaries(folder);
         let mut state = checkpoint_dir::read_state(folder)?;
         state.config = state.config.with_overrides(overrides)?;
         let path = folder.join(LOG_FILE);

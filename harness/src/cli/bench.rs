@@ -88,12 +88,12 @@ struct QualityArgs {
 struct ScaleArgs {
     /// The small map, measured with `--small-agents` agents.
     #[arg(long, default_value = "scenarios/maps/open.txt")]
-    small_map: String,
+    small_map: std::path::PathBuf,
     #[arg(long, default_value_t = 4)]
     small_agents: usize,
     /// The large map, measured with each of `--large-agents`.
     #[arg(long, default_value = "scenarios/maps/warehouse.txt")]
-    large_map: String,
+    large_map: std::path::PathBuf,
     #[arg(long, value_delimiter = ',', default_values_t = [4, 16, 50])]
     large_agents: Vec<usize>,
     /// T of a training episode.
@@ -142,6 +142,8 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         Some(BenchTarget::Quality(quality)) => return run_quality(&quality),
         None => {}
     }
+    positive(&[("--agents", args.agents as u64)])?;
+    anyhow::ensure!(args.seconds > 0.0, "--seconds must be positive");
     let world_args = args.world.as_ref().context("--map is required")?;
     let world = world_args.load()?;
     world
@@ -175,6 +177,15 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Refuses a count of 0, naming its flag: a measurement of no agent, episode or step measures
+/// nothing, and its ratios come out as NaN (0 / 0) or blame another flag.
+fn positive(counts: &[(&str, u64)]) -> anyhow::Result<()> {
+    for &(flag, count) in counts {
+        anyhow::ensure!(count >= 1, "{flag} must be positive");
+    }
+    Ok(())
+}
+
 fn print_decision_times(world: &Arc<World>, agents: usize, budget: Duration) -> anyhow::Result<()> {
     let (step, decisions) = policy::measure(world, agents, budget)?;
     println!(
@@ -195,7 +206,9 @@ fn print_decision_times(world: &Arc<World>, agents: usize, budget: Duration) -> 
 }
 
 fn run_training(args: &TrainingArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(args.rounds >= 1, "--rounds must be positive");
+    positive(&[("--rounds", args.rounds)])?;
+    let smallest = args.agents.iter().min().copied().unwrap_or(0);
+    positive(&[("--agents", smallest as u64)])?;
     let world = args.world.load()?;
     for &agents in &args.agents {
         world
@@ -238,9 +251,14 @@ fn run_training(args: &TrainingArgs) -> anyhow::Result<()> {
 }
 
 fn run_quality(args: &QualityArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(args.every >= 1, "--every must be positive");
-    anyhow::ensure!(args.seeds >= 1, "--seeds must be positive");
-    anyhow::ensure!(args.test_episodes >= 1, "--test-episodes must be positive");
+    positive(&[
+        ("--agents", args.agents as u64),
+        ("--episodes", args.episodes),
+        ("--every", args.every),
+        ("--test-episodes", args.test_episodes),
+        ("--test-steps", args.test_steps as u64),
+        ("--seeds", args.seeds),
+    ])?;
     let world = args.world.load()?;
     world
         .map()
@@ -329,8 +347,13 @@ fn run_quality(args: &QualityArgs) -> anyhow::Result<()> {
 }
 
 fn run_scale(args: &ScaleArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(args.rounds >= 1, "--rounds must be positive");
-    anyhow::ensure!(args.steps >= 1, "--steps must be positive");
+    let smallest = (args.large_agents.iter().min().copied()).unwrap_or(0);
+    positive(&[
+        ("--rounds", args.rounds),
+        ("--steps", args.steps as u64),
+        ("--small-agents", args.small_agents as u64),
+        ("--large-agents", smallest as u64),
+    ])?;
     anyhow::ensure!(args.radius >= 0.0, "--radius must be >= 0");
     let setup = ScaleSetup {
         steps_per_episode: args.steps,
@@ -383,8 +406,10 @@ fn run_scale(args: &ScaleArgs) -> anyhow::Result<()> {
 }
 
 fn run_network(args: &NetworkArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(args.agents >= 1, "--agents must be positive");
-    anyhow::ensure!(args.repeats >= 1, "--repeats must be positive");
+    positive(&[
+        ("--agents", args.agents as u64),
+        ("--repeats", args.repeats as u64),
+    ])?;
     let bench = NetworkBench {
         agents: args.agents,
         threads: args.threads.unwrap_or_else(rayon::current_num_threads),

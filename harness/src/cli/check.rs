@@ -29,9 +29,13 @@ pub struct CheckArgs {
     pilot: Option<PathBuf>,
 }
 
+/// The most cells `check` lists one by one. A scenario past the limits (`--no-limits`) may
+/// expand to a billion cells, whose list alone would not fit in memory; above this many, the
+/// totals come from the scenario's numbers ([`Scenario::size`]) and no cell is listed.
+const MOST_LISTED_CELLS: u64 = Limits::DEFAULT.cells;
+
 pub fn run(args: CheckArgs) -> anyhow::Result<()> {
     let scenario = Scenario::load_within(&args.scenario, &limits(args.no_limits))?;
-    let cells = scenario.cells();
     println!(
         "scenario {} ({}): {} maps, {} policies, N_train {:?}, N_test {:?}, {} repetitions, {} test episodes",
         scenario.name(),
@@ -43,6 +47,31 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         scenario.repetitions(),
         scenario.test_episodes()
     );
+    let size = scenario.size();
+    let totals = match size.cells <= MOST_LISTED_CELLS {
+        true => list_cells(&scenario, args.cache.as_deref()),
+        false => unlisted(size, args.cache.is_some()),
+    };
+    print_totals(&scenario, &totals, args.jobs);
+    match &args.pilot {
+        Some(store) => pilot::print(scenario.claims(), store),
+        None => Ok(()),
+    }
+}
+
+/// What the cells cost together, and what a cache saves of it.
+struct Totals {
+    cells: u64,
+    cost: Cost,
+    cached_cells: usize,
+    shared_runs: usize,
+    /// The CPU time of the costliest cell, which bounds the wall time from below.
+    longest: f64,
+}
+
+/// Prints every cell and its cost (nothing for a cell `cache` holds, the tests alone for one
+/// whose training run it holds), and returns their totals.
+fn list_cells(scenario: &Scenario, cache: Option<&std::path::Path>) -> Totals {
     println!(
         "{:>5}  {:<20}  {:<12}  {:<16}  {:>7}  {:>3}  {:>17}  {:>15}  {:>10}",
         "cell",
@@ -55,7 +84,7 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         "env steps",
         "est. CPU"
     );
-    let cache = args.cache.as_deref().map(Store::new);
+    let cache = cache.map(Store::new);
     let cached = |key: &str| cache.as_ref().is_some_and(|c| c.finished(key).is_some());
     // A learned cell whose training run the cache holds (it differs in its tests) only tests.
     let trained = |cell: &plan::cell::SweepCell| {
@@ -63,22 +92,27 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         (cache.as_ref().zip(identity))
             .is_some_and(|(c, id)| c.trained_run(&id, &cell.key).is_some())
     };
-    let mut total = Cost::default();
-    let (mut cached_cells, mut shared_runs) = (0, 0);
-    let mut longest = 0.0f64;
+    let cells = scenario.cells();
+    let mut totals = Totals {
+        cells: cells.len() as u64,
+        cost: Cost::default(),
+        cached_cells: 0,
+        shared_runs: 0,
+        longest: 0.0,
+    };
     for cell in &cells {
         let c = &cell.config;
         let in_cache = cached(&cell.key);
-        cached_cells += usize::from(in_cache);
+        totals.cached_cells += usize::from(in_cache);
         let shared = !in_cache && trained(cell);
-        shared_runs += usize::from(shared);
+        totals.shared_runs += usize::from(shared);
         let cost = match (in_cache, shared) {
             (true, _) => Cost::default(),
             (false, true) => c.test_cost(),
             (false, false) => c.cost(),
         };
-        total = total + cost;
-        longest = longest.max(cost.cpu_seconds());
+        totals.cost = totals.cost + cost;
+        totals.longest = totals.longest.max(cost.cpu_seconds());
         println!(
             "{:>5}  {:<20}  {:<12}  {:<16}  {:>7}  {:>3}  {:>17}  {:>15}  {:>10}",
             cell.index,
@@ -96,10 +130,37 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
             }
         );
     }
+    totals
+}
+
+/// The totals of a scenario too large to list, from its numbers; says so, and that a cache
+/// is not looked into (that needs every cell's key).
+fn unlisted(size: plan::scenario::Size, cache: bool) -> Totals {
+    println!(
+        "cells: {} are more than the {MOST_LISTED_CELLS} listed one by one; the totals come \
+         from the scenario's numbers{}",
+        size.cells,
+        match cache {
+            true => ", and the cache is not looked into",
+            false => "",
+        }
+    );
+    Totals {
+        cells: size.cells,
+        cost: size.cost,
+        cached_cells: 0,
+        shared_runs: 0,
+        longest: 0.0,
+    }
+}
+
+/// The totals, the peak memory and the wall time on `jobs` cores (default: one per core).
+fn print_totals(scenario: &Scenario, totals: &Totals, jobs: Option<u16>) {
+    let total = totals.cost;
     println!(
         "total: {} cells, {} training episodes, {} test episodes, {} env steps, \
          about {} of CPU (a rough estimate)",
-        cells.len(),
+        totals.cells,
         total.training_episodes,
         total.test_episodes,
         total.env_steps,
@@ -118,22 +179,20 @@ pub fn run(args: CheckArgs) -> anyhow::Result<()> {
         "memory: about {:.2} GB at the peak (the sweep's tables, its maps' worlds and its two largest training runs or plans)",
         scenario.size().memory_bytes as f64 / 1e9
     );
-    let jobs = args.jobs.map_or_else(
+    let jobs = jobs.map_or_else(
         || std::thread::available_parallelism().map_or(1, usize::from),
         usize::from,
     );
     // Cells run one per core; the longest cell bounds the wall time from below.
-    let wall = (total.cpu_seconds() / jobs as f64).max(longest);
+    let wall = (total.cpu_seconds() / jobs as f64).max(totals.longest);
     println!(
-        "cached: {cached_cells} of {} cells, and {shared_runs} more take a cached training run; \
-         the rest take about {} on {jobs} cores (`--jobs {jobs}`)",
-        cells.len(),
+        "cached: {} of {} cells, and {} more take a cached training run; the rest take about \
+         {} on {jobs} cores (`--jobs {jobs}`)",
+        totals.cached_cells,
+        totals.cells,
+        totals.shared_runs,
         duration(wall)
     );
-    match &args.pilot {
-        Some(store) => pilot::print(scenario.claims(), store),
-        None => Ok(()),
-    }
 }
 
 /// A rough duration, in the unit that reads best.

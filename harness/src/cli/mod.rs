@@ -141,7 +141,7 @@ impl Command {
 pub struct WorldArgs {
     /// Map file: text grid, or polygon YAML as FILE or FILE#NAME.
     #[arg(long)]
-    pub map: String,
+    pub map: std::path::PathBuf,
     /// Side L of the square field of view (odd).
     #[arg(long, default_value_t = world::params::PAPER_FOV)]
     pub fov: usize,
@@ -155,7 +155,7 @@ pub struct WorldArgs {
 
 impl WorldArgs {
     /// `map` with the paper's L, D and Rmax.
-    pub fn paper(map: &str) -> Self {
+    pub fn paper(map: &std::path::Path) -> Self {
         WorldArgs {
             map: map.to_owned(),
             fov: world::params::PAPER_FOV,

@@ -80,7 +80,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             let replay: Box<dyn Policy> = Box::new(ReplayPolicy::new(rows));
             (EpisodePolicy::Any(replay), steps)
         }
-        None => (episode_policy(&args, &world)?, args.steps.unwrap_or(2000)),
+        None => {
+            let steps = args.steps.unwrap_or(2000);
+            (episode_policy(&args, &world, steps)?, steps)
+        }
     };
     let mut trace = args.trace.as_ref().map(|_| Trace::new(args.agents));
     let outcome = run_episode(
@@ -144,10 +147,12 @@ impl EpisodePolicy {
     }
 }
 
-/// The `--policy`, probing the `--probe-steps` when `--probe` is given.
+/// The `--policy`, probing the `--probe-steps` when `--probe` is given; the episode plays
+/// `steps` steps.
 fn episode_policy(
     args: &RunArgs,
     world: &std::sync::Arc<world::World>,
+    steps: usize,
 ) -> anyhow::Result<EpisodePolicy> {
     if args.probe.is_none() {
         return Ok(EpisodePolicy::Any(policy_by_name(args, world)?));
@@ -158,16 +163,29 @@ fn episode_policy(
             args.policy
         )
     })?;
-    let steps = args
-        .probe_steps
-        .split(',')
-        .map(|s| s.trim().parse::<usize>())
-        .collect::<Result<BTreeSet<_>, _>>()
-        .map_err(|e| anyhow::anyhow!("--probe-steps `{}`: {e}", args.probe_steps))?;
+    let probed = probe_steps(&args.probe_steps, steps)?;
     let policy = checkpoint_dir::load_policy(&dir, world, action_choice(args))?;
     Ok(EpisodePolicy::Probing(Box::new(ProbingPolicy::new(
-        policy, steps,
+        policy, probed,
     ))))
+}
+
+/// The steps of `--probe-steps`, each one the episode of `steps` steps plays: a step past its
+/// end would never be probed, and the file would silently lack its rows.
+fn probe_steps(list: &str, steps: usize) -> anyhow::Result<BTreeSet<usize>> {
+    let probed = (list.split(','))
+        .map(|s| s.trim().parse::<usize>())
+        .collect::<Result<BTreeSet<_>, _>>()
+        .map_err(|e| anyhow::anyhow!("--probe-steps `{list}`: {e}"))?;
+    let past: Vec<String> = (probed.range(steps..)).map(usize::to_string).collect();
+    anyhow::ensure!(
+        past.is_empty(),
+        "--probe-steps `{list}`: {} past the episode's last step, {} (--steps {steps}; the \
+         first is 0)",
+        past.join(", "),
+        steps - 1
+    );
+    Ok(probed)
 }
 
 /// How a checkpoint policy picks its actions: `--greedy` or sampled.

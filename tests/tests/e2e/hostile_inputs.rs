@@ -17,9 +17,27 @@ const TIMEOUT: Duration = Duration::from_secs(20);
 /// Runs the harness in `dir` and returns its output, or fails the test if it runs past
 /// [`TIMEOUT`] (killing it first).
 fn harness_in(dir: &Path, args: &[&str]) -> Output {
-    let child = Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
-        .args(args)
-        .current_dir(dir)
+    let mut command = Command::new(env!("CARGO_BIN_EXE_harness-e2e"));
+    command.args(args);
+    finished(command.current_dir(dir), args)
+}
+
+/// [`harness_in`] under an address-space limit of `kb` KiB (`ulimit -v`). Without a
+/// backtrace: symbolising one reads the binary's debug information, which the limit may not
+/// allow, and the allocation failure then deadlocks on the backtrace's lock.
+fn harness_limited(dir: &Path, kb: u64, args: &[&str]) -> Output {
+    let mut command = Command::new("sh");
+    command
+        .env_remove("RUST_BACKTRACE")
+        .env_remove("RUST_LIB_BACKTRACE");
+    let script = format!("ulimit -v {kb} && exec \"$0\" \"$@\"");
+    command.args(["-c", &script, env!("CARGO_BIN_EXE_harness-e2e")]);
+    finished(command.args(args).current_dir(dir), args)
+}
+
+/// The output of `command`, killed and failing the test past [`TIMEOUT`].
+fn finished(command: &mut Command, args: &[&str]) -> Output {
+    let child = command
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -345,4 +363,193 @@ fn a_damaged_cell_a_tampered_table_and_a_swapped_scenario_are_named_and_mended()
         printed.contains("is not the scenario this sweep ran"),
         "{printed}"
     );
+}
+
+#[test]
+fn a_probe_step_past_the_episodes_end_is_refused() {
+    let inputs = Inputs::new("hostile-probe-steps");
+    let map = repo_file("scenarios/maps/open.txt");
+    let probe = inputs.path("probe.parquet");
+    let mut args = vec!["run", "--map", &map, "--agents", "2", "--steps", "10"];
+    args.extend(["--policy", "checkpoint:nowhere", "--probe", &probe]);
+    args.extend(["--probe-steps", "0,500"]);
+    inputs.refused(
+        &args,
+        "--probe-steps `0,500`: 500 past the episode's last step, 9 (--steps 10; the first is 0)",
+    );
+}
+
+#[test]
+fn a_benchmark_of_no_agent_episode_or_step_is_refused_naming_its_flag() {
+    let inputs = Inputs::new("hostile-bench-counts");
+    let map = repo_file("scenarios/maps/open.txt");
+    for flag in ["--agents", "--episodes", "--test-steps"] {
+        inputs.refused(
+            &["bench", "quality", "--map", &map, flag, "0"],
+            &format!("{flag} must be positive"),
+        );
+    }
+    inputs.refused(
+        &["bench", "--map", &map, "--agents", "0"],
+        "--agents must be positive",
+    );
+}
+
+/// A scenario of 4 billion cells (`repetitions: 1000000000` under `--no-limits`): its list
+/// would take hundreds of gigabytes, so `check` gives its totals from the scenario's numbers,
+/// in the memory of a small one (it aborted at 3.2 GB).
+#[test]
+fn check_gives_the_totals_of_a_billion_repetitions_without_listing_them() {
+    let dir = scratch("hostile-billion-repetitions");
+    let tiny = std::fs::read_to_string(repo_file("tests/tests/tiny.yaml")).unwrap();
+    let scenario = dir.join("billion.yaml");
+    let billion = tiny.replace("repetitions: 2\n", "repetitions: 1000000000\n");
+    std::fs::write(&scenario, billion).unwrap();
+    let args = ["check", scenario.to_str().unwrap(), "--no-limits"];
+    let printed = crate::common::succeed(harness_limited(&dir, 1 << 20, &args));
+    assert!(
+        printed.contains(
+            "cells: 4000000000 are more than the 100000 listed one by one; the totals come \
+             from the scenario's numbers"
+        ),
+        "{printed}"
+    );
+    assert!(printed.contains("total: 4000000000 cells"), "{printed}");
+}
+
+/// The address space a sweep asks for is what it takes: the tiny sweep at `--jobs 1` runs
+/// under a limit of the estimate it gives when refused (its peak measured with
+/// `MALLOC_ARENA_MAX=1`, so that `VmPeak` shows what a limit must allow, was 92 MB, and its
+/// resident peak 62 MB: the estimate stays below twice the former; it was 467 MB), and at
+/// `--jobs 2` under that limit it advises `--jobs 1`.
+#[test]
+fn a_sweep_runs_under_the_address_space_it_asks_for() {
+    let dir = scratch("hostile-address-space");
+    let (tiny, out) = (repo_file("tests/tests/tiny.yaml"), dir.join("store"));
+    let sweep = |kb: u64, jobs: &str| {
+        let args = [
+            "sweep",
+            &tiny,
+            "--out",
+            out.to_str().unwrap(),
+            "--no-report",
+        ];
+        let output = harness_limited(&dir, kb, &[&args[..], &["--jobs", jobs]].concat());
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        (output.status.code(), stderr)
+    };
+    let (code, refused) = sweep(80 << 10, "1");
+    assert_eq!(code, Some(1), "{refused}");
+    let estimate: u64 = (refused.split("would take about ").nth(1))
+        .and_then(|rest| rest.split(" MB at --jobs 1").next())
+        .and_then(|mb| mb.parse().ok())
+        .unwrap_or_else(|| panic!("no estimate in: {refused}"));
+    assert!(refused.contains("raise the limit"), "{refused}");
+    assert!(estimate < 2 * 92, "{estimate} MB: {refused}");
+    let limit = (estimate + 1) << 10;
+    let (code, advised) = sweep(limit, "2");
+    assert_eq!(code, Some(1), "{advised}");
+    assert!(
+        advised.contains(&format!(
+            "raise the limit, or run --jobs 1 (about {estimate} MB)"
+        )),
+        "{advised}"
+    );
+    let (code, ran) = sweep(limit, "1");
+    assert_eq!(code, Some(0), "{ran}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Ctrl-C while the report is written: the report is finished (whole), and the sweep exits
+/// with 130 and says that it was stopped (it exited 0 without a word).
+#[test]
+fn ctrl_c_during_the_report_is_answered() {
+    let dir = scratch("hostile-sigint-report");
+    let (out, reports) = (dir.join("store"), dir.join("reports"));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
+        .args(["sweep", &repo_file("tests/tests/tiny.yaml"), "--jobs", "2"])
+        .args(["--out".as_ref(), out.as_os_str()])
+        .args(["--report-to".as_ref(), reports.as_os_str()])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("harness starts");
+    let started = std::time::Instant::now();
+    while !reports.exists() && child.try_wait().unwrap().is_none() {
+        assert!(started.elapsed() < TIMEOUT * 3, "no report began");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    // SAFETY: `child` is our own child, not yet reaped.
+    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("sweep stopped by SIGINT"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// An empty path is refused naming its flag (it said `Error: : cannot read`), as every path
+/// flag's is, and a polygon map of no cell names the map and its size.
+#[test]
+fn an_empty_path_and_a_map_of_no_cell_are_named() {
+    let inputs = Inputs::new("hostile-empty-paths");
+    for (args, flag) in [
+        (&["run", "--map", "", "--agents", "2"][..], "'--map <MAP>'"),
+        (&["check", ""][..], "'<SCENARIO>'"),
+    ] {
+        let output = harness_in(&inputs.work, args);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{stderr}");
+        let expected = format!("a value is required for {flag} but none was supplied");
+        assert!(stderr.contains(&expected), "{stderr}");
+    }
+    let maps = inputs.path("maps.yaml");
+    std::fs::write(&maps, "room:\n  size: [0, 0]\n  polygons: []\n").unwrap();
+    inputs.refused(
+        &["run", "--map", &maps, "--agents", "2", "--steps", "5"],
+        &format!(
+            "{maps}: map \"room\": `size: [0, 0]` has a side of 0 cells; each side must be 1 to \
+             1024"
+        ),
+    );
+}
+
+#[test]
+fn a_map_path_that_is_not_utf8_is_read_as_other_paths_are() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = scratch("hostile-map-bytes");
+    let open = repo_file("scenarios/maps/open.txt");
+    let named = dir.join(std::ffi::OsStr::from_bytes(b"open-\xff.txt"));
+    std::fs::copy(&open, &named).unwrap();
+    let penalty = |map: &std::ffi::OsStr| {
+        let output = Command::new(env!("CARGO_BIN_EXE_harness-e2e"))
+            .args(["run".as_ref(), "--map".as_ref(), map])
+            .args(["--agents", "2", "--steps", "5"])
+            .output()
+            .unwrap();
+        crate::common::succeed(output)
+    };
+    assert_eq!(penalty(named.as_os_str()), penalty(open.as_ref()));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A temporary file that an interrupted write left in a training run's folder is removed
+/// when the run goes on (it stayed there for good).
+#[test]
+fn a_resumed_training_run_removes_the_temporaries_an_interrupt_left() {
+    let dir = scratch("hostile-training-temporaries");
+    let (map, out) = (repo_file("scenarios/maps/open.txt"), dir.join("run"));
+    let train = |extra: &[&str]| {
+        let mut args = vec!["train", "--map", &map, "--fov", "7", "--agents", "2"];
+        args.extend(["--episodes", "2", "--out", out.to_str().unwrap()]);
+        args.extend(["--set", "network=compact", "--set", "steps_per_episode=10"]);
+        crate::common::succeed(harness_in(&dir, &[&args[..], extra].concat()))
+    };
+    train(&["--until", "1"]);
+    let left = out.join(".checkpoint.safetensors.4242.0.tmp");
+    std::fs::write(&left, b"half a file").unwrap();
+    train(&["--resume"]);
+    assert!(!left.exists(), "{} stayed", left.display());
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -53,6 +53,15 @@ pub enum MapErrorKind {
     TooFewFreeCells { free: usize, agents: usize },
     #[error("the map is {width} x {height}; a side may be at most {max}", max = super::MAX_SIDE)]
     TooLarge { width: usize, height: usize },
+    #[error(
+        "map {map:?}: `size: [{width}, {height}]` has a side of 0 cells; each side must be 1 to {max}",
+        max = super::MAX_SIDE
+    )]
+    ZeroSide {
+        map: String,
+        width: usize,
+        height: usize,
+    },
     #[error("{0}")]
     Yaml(String),
     #[error("no map named {name:?} in this file (it has: {available})")]

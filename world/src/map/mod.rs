@@ -23,14 +23,20 @@ pub const MAX_TEXT_MAP_BYTES: u64 = (MAX_SIDE * (MAX_SIDE + 2) + 4096) as u64;
 /// names its maps, so a `#` is part of the file's name (`a#b.txt`) unless what comes before it
 /// is a polygon file (the last such `#`, so a name may hold one), and a path that exists whole
 /// is read whole.
-fn split_map_name(spec: &str) -> (&Path, Option<&str>) {
-    if Path::new(spec).exists() {
-        return (Path::new(spec), None);
+fn split_map_name(spec: &Path) -> (&Path, Option<&str>) {
+    use std::os::unix::ffi::OsStrExt;
+    if spec.exists() {
+        return (spec, None);
     }
-    spec.rmatch_indices('#')
-        .map(|(at, _)| (Path::new(&spec[..at]), Some(&spec[at + 1..])))
+    let bytes = spec.as_os_str().as_bytes();
+    let at_hashes = (0..bytes.len()).rev().filter(|&at| bytes[at] == b'#');
+    at_hashes
+        .filter_map(|at| {
+            let file = Path::new(std::ffi::OsStr::from_bytes(&bytes[..at]));
+            Some((file, Some(std::str::from_utf8(&bytes[at + 1..]).ok()?)))
+        })
         .find(|(file, _)| is_polygon_file(file))
-        .unwrap_or((Path::new(spec), None))
+        .unwrap_or((spec, None))
 }
 
 /// Whether `path` names a polygon map file (by its extension, `.yaml` or `.yml`).
@@ -156,9 +162,10 @@ impl Map {
     }
 
     /// Loads a map file by its extension: `.yaml`/`.yml` polygon files hold one or more named
-    /// maps (pick one with `path#name`), anything else is the text format.
-    pub fn load(spec: &str) -> Result<Self, MapError> {
-        let (path, name) = split_map_name(spec);
+    /// maps (pick one with `path#name`), anything else is the text format. A path is any
+    /// bytes the system takes (not only UTF-8), as every other path the harness reads.
+    pub fn load(spec: impl AsRef<Path>) -> Result<Self, MapError> {
+        let (path, name) = split_map_name(spec.as_ref());
         if is_polygon_file(path) {
             polygon::load_polygon_map(path, name)
         } else {
@@ -302,7 +309,7 @@ mod tests {
 
     #[test]
     fn only_a_polygon_file_is_split_at_its_hash() {
-        let split = |spec| split_map_name(spec);
+        let split = |spec: &'static str| split_map_name(Path::new(spec));
         assert_eq!(
             split("maps.yaml#room"),
             (Path::new("maps.yaml"), Some("room"))

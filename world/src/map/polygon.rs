@@ -81,12 +81,14 @@ fn yaml_error_line(error: &serde_saphyr::Error) -> Option<usize> {
 
 fn rasterise(name: &str, spec: &PolygonMap, source: &Path) -> Result<Map, MapError> {
     let [width, height] = spec.size;
-    if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
-        return Err(MapError::new(
-            source,
-            None,
-            MapErrorKind::TooLarge { width, height },
-        ));
+    if width == 0 || height == 0 {
+        let map = name.to_owned();
+        let kind = MapErrorKind::ZeroSide { map, width, height };
+        return Err(MapError::new(source, None, kind));
+    }
+    if width > MAX_SIDE || height > MAX_SIDE {
+        let kind = MapErrorKind::TooLarge { width, height };
+        return Err(MapError::new(source, None, kind));
     }
     for (i, polygon) in spec.polygons.iter().enumerate() {
         check_polygon(name, i, polygon, source)?;

@@ -48,7 +48,7 @@ pub struct Asked<'a> {
 /// its content (the sweep's map hash), and the world parameters.
 pub fn world_record(args: &WorldArgs, world: &World) -> Settings {
     let record = json!({
-        "map": args.map,
+        "map": args.map.to_string_lossy(),
         "map_hash": map_hash(world.map()),
         "fov": args.fov,
         "decay": args.decay,

@@ -85,6 +85,15 @@ impl Running {
         self.observer.write(&self.episode, out);
     }
 
+    /// The memory of this environment's own state (its world aside, which all share).
+    pub fn heap_bytes(&self) -> usize {
+        let actions = std::mem::size_of_val(self.actions.as_slice());
+        std::mem::size_of::<Self>()
+            + self.episode.heap_bytes()
+            + self.observer.heap_bytes()
+            + actions
+    }
+
     /// Floats in all the agents' observations.
     pub fn observation_len(&self) -> usize {
         self.episode.agents() * self.observer.per_agent()

@@ -5,6 +5,7 @@
 mod env;
 mod episode;
 mod maps;
+mod memory;
 mod render;
 mod threads;
 mod vector;
@@ -39,5 +40,6 @@ fn _core(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(lost_robots, module)?)?;
     let names: Vec<&str> = maps::PAPER_MAPS.iter().map(|(name, _)| *name).collect();
     module.add("PAPER_MAPS", names)?;
+    module.add("DEFAULT_MAX_MEMORY", memory::DEFAULT_MAX_MEMORY)?;
     Ok(())
 }

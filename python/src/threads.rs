@@ -4,13 +4,26 @@
 //! a world is built in a pool of its own call, and a vector of environments keeps a pool that
 //! it builds again when it finds itself in another process.
 
-use pyo3::PyResult;
+use std::sync::Arc;
+
 use pyo3::exceptions::PyRuntimeError;
+use pyo3::{PyResult, Python};
 use rayon::{ThreadPool, ThreadPoolBuilder};
 
-/// Runs `work` (and the rayon work it starts) in a pool made for this call and ended after it.
-pub fn in_own_pool<T: Send>(work: impl FnOnce() -> T + Send) -> PyResult<T> {
-    Ok(new_pool()?.install(work))
+/// Builds a world in a pool made for this call and ended after it, its visibility in parts
+/// with Python's signals checked between them: Ctrl-C ends a build of minutes (L = 255 on a
+/// large map) with `KeyboardInterrupt`, where one uninterrupted call would ignore it to the
+/// end. The GIL is released while a part runs.
+pub fn build_world(
+    py: Python<'_>,
+    map: world::Map,
+    params: world::WorldParams,
+) -> PyResult<Arc<world::World>> {
+    let pool = new_pool()?;
+    world::World::new_in_parts(map, params, |part| {
+        py.detach(|| pool.install(part));
+        py.check_signals()
+    })
 }
 
 /// A pool that belongs to the process that built it: used from a forked child, it is

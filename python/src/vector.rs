@@ -10,6 +10,7 @@ use world::Seed;
 
 use crate::env::image_shape;
 use crate::episode::{Running, check_observation_size};
+use crate::memory;
 use crate::threads::ProcessPool;
 use crate::world_spec::World;
 
@@ -27,13 +28,20 @@ pub struct VectorEnv {
 impl VectorEnv {
     /// `n` environments of `n_agents` agents in `world`, episodes of `steps` steps (T).
     #[new]
-    #[pyo3(signature = (world, n, n_agents, steps = 2000))]
-    fn new(world: PyRef<'_, World>, n: usize, n_agents: usize, steps: usize) -> PyResult<Self> {
+    #[pyo3(signature = (world, n, n_agents, steps = 2000, max_memory = Some(memory::DEFAULT_MAX_MEMORY)))]
+    fn new(
+        world: PyRef<'_, World>,
+        n: usize,
+        n_agents: usize,
+        steps: usize,
+        max_memory: Option<u64>,
+    ) -> PyResult<Self> {
         if n == 0 {
             return Err(PyValueError::new_err("n (environments) must be at least 1"));
         }
         let first = Running::new(&world, n_agents, steps).map_err(PyValueError::new_err)?;
         check_observation_size(n, first.observation_len()).map_err(PyValueError::new_err)?;
+        check_memory(n, &first, &world, max_memory)?;
         Ok(Self {
             envs: vec![first; n],
             pool: ProcessPool::new()?,
@@ -85,6 +93,21 @@ impl VectorEnv {
     fn positions(&self) -> Vec<Vec<(u16, u16)>> {
         self.envs.iter().map(Running::positions).collect()
     }
+}
+
+/// Refuses `n` copies of `first` and their observations, with the `world` they share, above
+/// `max_memory`.
+fn check_memory(n: usize, first: &Running, world: &World, max_memory: Option<u64>) -> PyResult<()> {
+    let each = (first.heap_bytes() + first.observation_len() * std::mem::size_of::<f32>()) as u64;
+    let shared = world.heap_bytes();
+    let what = || {
+        format!(
+            "{n} environments of {each} bytes each (episode, observer, observations) and \
+             their world's {shared} bytes"
+        )
+    };
+    let bytes = each.saturating_mul(n as u64).saturating_add(shared);
+    memory::check(what, bytes, max_memory)
 }
 
 impl VectorEnv {

@@ -10,7 +10,7 @@ use world::observation::AGENT_CODE;
 use world::penalty::OBSTACLE_CODE;
 use world::{Channels, ObservationConfig, WorldParams};
 
-use crate::{maps, threads};
+use crate::{maps, memory, threads};
 
 /// A map with L, D and Rmax, and what the agents observe of it.
 #[pyclass(module = "vpm_world._core", frozen)]
@@ -19,6 +19,8 @@ pub struct World {
     pub observation: ObservationConfig,
     /// The `map` argument as given, so that a pickled world is rebuilt from it.
     spec: String,
+    /// The limit the world was built under, kept for its pickled copies.
+    max_memory: Option<u64>,
 }
 
 #[pymethods]
@@ -35,8 +37,11 @@ impl World {
         channels = "both",
         mark_others_on_mini = false,
         mini_map_block = None,
+        max_memory = Some(memory::DEFAULT_MAX_MEMORY),
     ))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
+        py: Python<'_>,
         map: &str,
         fov: usize,
         decay: f32,
@@ -44,6 +49,7 @@ impl World {
         channels: &str,
         mark_others_on_mini: bool,
         mini_map_block: Option<usize>,
+        max_memory: Option<u64>,
     ) -> PyResult<Self> {
         let params = WorldParams::new(fov, decay, rmax).map_err(value_error)?;
         let channels = match channels {
@@ -61,15 +67,20 @@ impl World {
         }
         let spec = map;
         let map = maps::load(spec).map_err(PyValueError::new_err)?;
+        let (width, height) = (map.width(), map.height());
+        let what = || format!("a {width} x {height} world with fov={fov} (its visibility table)");
+        let bytes = world::World::bytes_for(width, height, fov);
+        memory::check(what, bytes, max_memory)?;
         let observation = ObservationConfig {
             channels,
             mark_others_on_mini,
             mini_map_block,
         };
         Ok(Self {
-            world: threads::in_own_pool(|| world::World::new(map, params))?,
+            world: threads::build_world(py, map, params)?,
             observation,
             spec: spec.to_owned(),
+            max_memory,
         })
     }
 
@@ -84,6 +95,7 @@ impl World {
         keywords.set_item("channels", channels_name(self.observation.channels))?;
         keywords.set_item("mark_others_on_mini", self.observation.mark_others_on_mini)?;
         keywords.set_item("mini_map_block", self.observation.mini_map_block)?;
+        keywords.set_item("max_memory", self.max_memory)?;
         Ok(((self.spec.clone(),), keywords))
     }
 
@@ -132,6 +144,15 @@ impl World {
     fn observation_bounds(&self) -> (f32, f32) {
         let rmax = self.world.params().rmax();
         (-1.0, AGENT_CODE.max(OBSTACLE_CODE) / rmax)
+    }
+}
+
+impl World {
+    /// The memory of the world's tables, as [`world::World::bytes_for`] estimated it.
+    pub fn heap_bytes(&self) -> u64 {
+        let map = self.world.map();
+        let fov = self.world.params().fov();
+        world::World::bytes_for(map.width(), map.height(), fov)
     }
 }
 

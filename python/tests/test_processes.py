@@ -123,3 +123,27 @@ def test_a_vector_env_pickles():
     assert np.array_equal(restored.reset(2), vector.reset(2))
     actions = np.full((3, 2), 4)
     assert np.array_equal(restored.step(actions)[0], vector.step(actions)[0])
+
+
+def supersuit_rewards(num_cpus: int) -> np.ndarray:
+    """The rewards of 6 steps of SuperSuit's common recipe: the environment as a vector of its
+    agents, two copies of it concatenated, in `num_cpus` subprocesses (0: in this one)."""
+    import supersuit
+
+    env = vpm_world.ParallelEnv("open", 2, steps=5, fov=11, channels="local")
+    vector = supersuit.pettingzoo_env_to_vec_env_v1(env)
+    vector = supersuit.concat_vec_envs_v1(vector, 2, num_cpus=num_cpus, base_class="gymnasium")
+    try:
+        observations, _ = vector.reset(seed=3)
+        assert observations.shape == (4, 1, 11, 11)
+        rewards = []
+        for _ in range(6):  # past T = 5: the vector resets the episodes itself
+            _, reward, _, _, _ = vector.step(np.ones(vector.num_envs, dtype=np.int64))
+            rewards.append(reward)
+        return np.array(rewards)
+    finally:
+        vector.close()
+
+
+def test_supersuit_steps_the_environments_in_two_processes_as_in_one():
+    assert np.array_equal(supersuit_rewards(num_cpus=2), supersuit_rewards(num_cpus=0))

@@ -55,6 +55,10 @@ impl Action {
     }
 }
 
+/// A map's own tables per cell: an obstacle flag (1 byte) and, for a free cell, its
+/// coordinates in the list of free cells (4 bytes).
+const MAP_BYTES_PER_CELL: u64 = 5;
+
 /// Everything about a world that does not change during an episode.
 #[derive(Debug)]
 pub struct World {
@@ -67,6 +71,29 @@ impl World {
     /// Precomputes visibility; share the result between episodes and threads.
     pub fn new(map: Map, params: WorldParams) -> Arc<Self> {
         let visibility = Visibility::compute(&map, params.fov());
+        Self::with_visibility(map, params, visibility)
+    }
+
+    /// [`World::new`], its visibility computed in parts that `run_part` runs and may stop
+    /// ([`Visibility::compute_in_parts`]).
+    pub fn new_in_parts<E>(
+        map: Map,
+        params: WorldParams,
+        run_part: impl FnMut(&mut (dyn FnMut() + Send)) -> Result<(), E>,
+    ) -> Result<Arc<Self>, E> {
+        let visibility = Visibility::compute_in_parts(&map, params.fov(), run_part)?;
+        Ok(Self::with_visibility(map, params, visibility))
+    }
+
+    /// What a world of `width` x `height` cells and field of view `fov` holds before it is
+    /// built: its visibility windows, and the map's own tables (obstacles, free cells).
+    pub fn bytes_for(width: usize, height: usize, fov: usize) -> u64 {
+        let cells = width * height;
+        let tables = (cells as u64).saturating_mul(MAP_BYTES_PER_CELL);
+        Visibility::bytes_for(cells, fov).saturating_add(tables)
+    }
+
+    fn with_visibility(map: Map, params: WorldParams, visibility: Visibility) -> Arc<Self> {
         Arc::new(Self {
             map,
             params,
@@ -251,6 +278,16 @@ impl Episode {
 
     pub fn agents(&self) -> usize {
         self.positions.len()
+    }
+
+    /// The memory of this episode's own state (the world aside, which episodes share), so that
+    /// a caller about to clone it many times can say what that would take before it does.
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        let agents = size_of_val(self.positions.as_slice())
+            + size_of_val(self.stopped.as_slice())
+            + self.seeing.capacity() * std::mem::size_of::<Cell>();
+        agents + size_of_val(self.occupied.as_slice()) + self.penalty.heap_bytes()
     }
 
     /// Steps taken since the last reset (0 right after it).

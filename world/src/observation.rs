@@ -148,6 +148,14 @@ impl Observer {
         self.config.channels.count()
     }
 
+    /// The memory of the observer's buffers (the mini-map image and its column bounds).
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.mini.as_slice())
+            + size_of_val(self.column_low.as_slice())
+            + size_of_val(self.column_high.as_slice())
+    }
+
     /// Floats per agent: channels x S x S.
     pub fn per_agent(&self) -> usize {
         self.channels() * self.side() * self.side()

@@ -57,6 +57,14 @@ pub struct PenaltyGrid {
 }
 
 impl PenaltyGrid {
+    /// The memory of the grid's tables (penalties, floors and the seen mask).
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.codes.as_slice())
+            + size_of_val(self.floor.as_slice())
+            + size_of_val(self.seen.words.as_slice())
+    }
+
     pub fn new(map: &Map, params: &WorldParams) -> Self {
         let pad = params.half_fov().max(1);
         // Rows are updated in whole groups of LANES cells, so the right border is wide enough

@@ -10,6 +10,11 @@ use rayon::prelude::*;
 
 use crate::map::{Cell, Map};
 
+/// The cells of a part of [`Visibility::compute_in_parts`]: at the largest L (255) on an open
+/// map a part takes a fraction of a second on a few cores, so an interrupt is answered at once,
+/// while each part still has work for every thread.
+pub const CELLS_PER_PART: usize = 4096;
+
 /// Which free cells each cell sees, as one bitset per field-of-view window.
 ///
 /// Window row r, column c of the cell at (x, y) is the cell (x - h + c, y - h + r), h = (L-1)/2;
@@ -26,6 +31,24 @@ pub struct Visibility {
 impl Visibility {
     /// Computes every free cell's window; obstacle cells get empty windows.
     pub fn compute(map: &Map, fov: usize) -> Self {
+        let whole = Self::compute_in_parts(map, fov, |part| {
+            part();
+            Ok::<(), std::convert::Infallible>(())
+        });
+        let Ok(visibility) = whole;
+        visibility
+    }
+
+    /// [`Visibility::compute`] in parts of [`CELLS_PER_PART`] cells, each handed to
+    /// `run_part` to run (in a pool of its choice) and followed by its verdict: an error ends
+    /// the computation. A large table takes minutes, and a caller that must answer an
+    /// interrupt (Python's Ctrl-C) checks for it between parts. The windows do not depend on
+    /// the parts.
+    pub fn compute_in_parts<E>(
+        map: &Map,
+        fov: usize,
+        mut run_part: impl FnMut(&mut (dyn FnMut() + Send)) -> Result<(), E>,
+    ) -> Result<Self, E> {
         let words_per_row = fov.div_ceil(64);
         let per_cell = fov * words_per_row;
         debug_assert_eq!(
@@ -34,20 +57,25 @@ impl Visibility {
         );
         let mut bits = vec![0u64; map.width() * map.height() * per_cell];
         let obstacles = ObstacleCounts::new(map);
-        bits.par_chunks_mut(per_cell)
-            .enumerate()
-            .for_each(|(index, window)| {
-                let from = map.cell(index);
-                if map.is_free(from) {
-                    fill_window(map, &obstacles, from, fov, words_per_row, window);
-                }
-            });
-        Self {
+        let parts = bits.chunks_mut(CELLS_PER_PART * per_cell).enumerate();
+        for (part, windows) in parts {
+            run_part(&mut || {
+                let first = part * CELLS_PER_PART;
+                let windows = windows.par_chunks_mut(per_cell).enumerate();
+                windows.for_each(|(offset, window)| {
+                    let from = map.cell(first + offset);
+                    if map.is_free(from) {
+                        fill_window(map, &obstacles, from, fov, words_per_row, window);
+                    }
+                });
+            })?;
+        }
+        Ok(Self {
             width: map.width(),
             fov,
             words_per_row,
             bits,
-        }
+        })
     }
 
     /// Memory the windows take: L x ceil(L / 64) words per cell of the map.
@@ -222,6 +250,40 @@ mod tests {
 
     fn sees(map: &Map, a: (u16, u16), b: (u16, u16)) -> bool {
         segment_clear(map, Cell::new(a.0, a.1), Cell::new(b.0, b.1))
+    }
+
+    #[test]
+    fn a_computation_in_parts_fills_every_window_and_stops_at_the_first_refusal() {
+        // 3 parts of CELLS_PER_PART cells, the last one short; a wall with a door.
+        let (side, fov) = (111, 9);
+        let row = |y: usize| -> String {
+            let wall = |x: usize| x == side / 2 && y != side / 2;
+            (0..side).map(|x| if wall(x) { '#' } else { '.' }).collect()
+        };
+        let m = map(&(0..side).map(|y| row(y) + "\n").collect::<String>());
+        let mut parts = 0;
+        let whole = Visibility::compute_in_parts(&m, fov, |part| {
+            part();
+            parts += 1;
+            Ok::<(), ()>(())
+        });
+        assert_eq!(parts, (side * side).div_ceil(CELLS_PER_PART));
+        let (whole, obstacles) = (whole.unwrap(), ObstacleCounts::new(&m));
+        for index in 0..side * side {
+            let mut window = vec![0; fov * whole.words_per_row];
+            let from = m.cell(index);
+            if m.is_free(from) {
+                fill_window(&m, &obstacles, from, fov, whole.words_per_row, &mut window);
+            }
+            assert_eq!(whole.window(from), window, "{from:?}");
+        }
+        parts = 0;
+        let stopped = Visibility::compute_in_parts(&m, fov, |part| {
+            part();
+            parts += 1;
+            Err(())
+        });
+        assert_eq!((stopped, parts), (Err(()), 1));
     }
 
     #[test]

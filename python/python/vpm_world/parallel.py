@@ -33,6 +33,9 @@ class ParallelEnv(_ParallelEnv):
     are lost. They stay on their cells and no longer see; each is terminated at step ``at``
     and leaves ``agents``.
 
+    ``max_memory`` (bytes; None for no limit): a world whose tables would take more (L = 255
+    on a large map) is refused with ``MemoryError`` and the figure before it is built.
+
     Pickling (and ``copy.deepcopy``) copies the environment's specification, its constructor's
     arguments, not the episode in progress: the copy is a new environment, to be reset.
     """
@@ -43,16 +46,18 @@ class ParallelEnv(_ParallelEnv):
                  decay: float = 1.0, rmax: float = 400.0, steps: int = 2000,
                  channels: str = "both", mark_others_on_mini: bool = False,
                  mini_map_block: int | None = None, lose: dict | None = None,
-                 render_mode: str | None = None):
+                 render_mode: str | None = None,
+                 max_memory: int | None = _core.DEFAULT_MAX_MEMORY):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self._spec = dict(map=map, n_agents=n_agents, fov=fov, decay=decay, rmax=rmax,
                           steps=steps, channels=channels,
                           mark_others_on_mini=mark_others_on_mini,
-                          mini_map_block=mini_map_block, lose=lose, render_mode=render_mode)
+                          mini_map_block=mini_map_block, lose=lose, render_mode=render_mode,
+                          max_memory=max_memory)
         self.world = _core.World(map, fov=fov, decay=decay, rmax=rmax, channels=channels,
                                  mark_others_on_mini=mark_others_on_mini,
-                                 mini_map_block=mini_map_block)
+                                 mini_map_block=mini_map_block, max_memory=max_memory)
         self._env = _core.Env(self.world, n_agents, steps)
         self._lose = _check_lose(lose, n_agents)
         self.render_mode = render_mode

@@ -18,15 +18,19 @@ class VectorEnv:
     returns the observations (``n x n_agents x C x S x S``, float32), each environment's
     reward (``n``, the team's, <= 0) and whether the episodes have run their ``steps``.
 
+    ``max_memory`` (bytes; None for no limit) bounds the world and the environments together:
+    above it the constructor raises ``MemoryError`` with the figure before building them.
+
     Pickling copies the specification (the constructor's arguments), not the episodes.
     """
 
     def __init__(self, n: int, map: str = "open", n_agents: int = 4, *, steps: int = 2000,
-                 **world):
-        self.world = _core.World(map, **world)
-        self._core = _core.VectorEnv(self.world, n, n_agents, steps)
+                 max_memory: int | None = _core.DEFAULT_MAX_MEMORY, **world):
+        self.world = _core.World(map, max_memory=max_memory, **world)
+        self._core = _core.VectorEnv(self.world, n, n_agents, steps, max_memory)
         self.n, self.n_agents, self.steps = n, n_agents, steps
-        self._spec = dict(n=n, map=map, n_agents=n_agents, steps=steps, **world)
+        self._spec = dict(n=n, map=map, n_agents=n_agents, steps=steps, max_memory=max_memory,
+                          **world)
 
     def __reduce__(self):
         return functools.partial(type(self), **self._spec), ()

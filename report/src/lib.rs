@@ -317,6 +317,7 @@ impl StoreTables {
             behaviours: Some(behaviours),
             disturbed: self.disturbed.as_ref(),
             test_curve: self.test_curve.as_ref(),
+            convergence: self.convergence.as_ref(),
         };
         let mut results = verdicts::evaluate(claims, &recorded)?;
         if let Some(convergence) = &self.convergence {

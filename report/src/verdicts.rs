@@ -208,13 +208,18 @@ pub struct Recorded<'a> {
     pub disturbed: Option<&'a DataFrame>,
     /// The learned runs' test penalty along training (`faster`).
     pub test_curve: Option<&'a DataFrame>,
+    /// Where each run trained until converged stopped, and why (the budget rule).
+    pub convergence: Option<&'a DataFrame>,
 }
 
 /// Every claim's verdict.
 pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult>, ReportError> {
     let samples = samples(recorded.episodes)?;
     let disturbed = DisturbedSamples::new(recorded.disturbed)?;
-    let trained = recorded.training.map(trained_episodes).transpose()?;
+    let trained = recorded
+        .training
+        .map(|training| trained_runs(training, recorded.convergence))
+        .transpose()?;
     // Read only for `faster` claims.
     let timed = claims
         .iter()
@@ -246,56 +251,46 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
         .iter()
         .map(|claim| {
             let seed = named_seed(&format!("claim\0{}", claim.id));
-            let short = claim
-                .budget
-                .and_then(|budget| short_of_budget(claim, budget, trained.as_ref()));
-            let judged: Judged = match (&claim.test, short) {
-                (_, Some(text)) => (Verdict::NotTested, text).into(),
-                (ClaimTest::NotTested { reason }, None) => {
-                    (Verdict::NotTested, reason.clone()).into()
-                }
-                (ClaimTest::Lower { pair }, None) => lower(sides(pair), pair, seed)?,
-                (ClaimTest::Within { pair, tolerance }, None) => tolerated(
+            let judged: Judged = match &claim.test {
+                ClaimTest::NotTested { reason } => (Verdict::NotTested, reason.clone()).into(),
+                ClaimTest::Lower { pair } => lower(sides(pair), pair, seed)?,
+                ClaimTest::Within { pair, tolerance } => tolerated(
                     sides(pair),
                     (pair, &samples),
                     *tolerance,
                     seed,
                     Tolerated::Within,
                 )?,
-                (ClaimTest::NotWorse { pair, tolerance }, None) => tolerated(
+                ClaimTest::NotWorse { pair, tolerance } => tolerated(
                     sides(pair),
                     (pair, &samples),
                     *tolerance,
                     seed,
                     Tolerated::NotWorse,
                 )?,
-                (ClaimTest::GapGrows { pair }, None) => gap_grows(sides(pair), pair, seed)?.into(),
-                (ClaimTest::EveryRunLower { pair }, None) => {
+                ClaimTest::GapGrows { pair, scale } => {
+                    gap_grows(sides(pair), pair, *scale, seed)?.into()
+                }
+                ClaimTest::EveryRunLower { pair } => {
                     per_point(sides(pair), pair, seed, |a, b, _, seed| {
                         let (test, text) = every_run_lower(a, b, seed)?;
                         Ok((test, text, None))
                     })?
                 }
-                (
-                    ClaimTest::AdaptsBetter {
-                        a,
-                        b,
-                        disturbance,
-                        points,
-                        ..
-                    },
-                    None,
-                ) => adapts_better(&disturbed, (a, b), disturbance, points, seed)?.into(),
-                (
-                    ClaimTest::Faster {
-                        a,
-                        b,
-                        reference,
-                        points,
-                        ratio,
-                    },
-                    None,
-                ) => match &curves {
+                ClaimTest::AdaptsBetter {
+                    a,
+                    b,
+                    disturbance,
+                    points,
+                    ..
+                } => adapts_better(&disturbed, (a, b), disturbance, points, seed)?.into(),
+                ClaimTest::Faster {
+                    a,
+                    b,
+                    reference,
+                    points,
+                    ratio,
+                } => match &curves {
                     Some(curves) => time_to_quality::faster(
                         curves,
                         &samples,
@@ -306,19 +301,16 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                     .into(),
                     None => (Verdict::NoData, "no test_curve table".to_owned()).into(),
                 },
-                (ClaimTest::DiagonalBest { policy, map, n }, None) => {
+                ClaimTest::DiagonalBest { policy, map, n } => {
                     diagonal_best(&samples, policy, map, n, seed)?
                 }
-                (
-                    ClaimTest::CurveBelow {
-                        a,
-                        b,
-                        map,
-                        n_train,
-                        episodes,
-                    },
-                    None,
-                ) => {
+                ClaimTest::CurveBelow {
+                    a,
+                    b,
+                    map,
+                    n_train,
+                    episodes,
+                } => {
                     let table = recorded
                         .training
                         .map(|t| curve_samples(t, map, *n_train, *episodes));
@@ -327,14 +319,11 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                         None => (Verdict::NoData, "no training table".to_owned()).into(),
                     }
                 }
-                (
-                    ClaimTest::Behaviour {
-                        policy,
-                        point,
-                        expected,
-                    },
-                    None,
-                ) => behaviour(
+                ClaimTest::Behaviour {
+                    policy,
+                    point,
+                    expected,
+                } => behaviour(
                     recorded.behaviours.unwrap_or_default(),
                     policy,
                     point,
@@ -342,14 +331,23 @@ pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult
                 )
                 .into(),
             };
+            let judged = match claim_pair(&claim.test).and_then(|p| p.at_episode) {
+                Some(at) => Judged {
+                    ours: format!(
+                        "after {at} training episodes (test curves): {}",
+                        judged.ours
+                    ),
+                    ..judged
+                },
+                None => judged,
+            };
             let Judged {
                 verdict,
                 ours,
                 power,
-            } = judged;
-            let ours = match claim_pair(&claim.test).and_then(|p| p.at_episode) {
-                Some(at) => format!("after {at} training episodes (test curves): {ours}"),
-                None => ours,
+            } = match claim.budget {
+                Some(budget) => held_to_budget(judged, trained_for(claim, budget, &trained)),
+                None => judged,
             };
             Ok(ClaimResult {
                 id: claim.id.clone(),
@@ -369,48 +367,122 @@ fn claim_pair(test: &ClaimTest) -> Option<&Pair> {
         ClaimTest::Lower { pair }
         | ClaimTest::Within { pair, .. }
         | ClaimTest::NotWorse { pair, .. }
-        | ClaimTest::GapGrows { pair }
+        | ClaimTest::GapGrows { pair, .. }
         | ClaimTest::EveryRunLower { pair } => Some(pair),
         _ => None,
     }
 }
 
-/// Each learned policy's training episodes per run: the fewest any of its runs logged.
-fn trained_episodes(training: &DataFrame) -> Result<HashMap<String, u64>, ReportError> {
-    let mut fewest: HashMap<String, u64> = HashMap::new();
-    for (policy, episodes) in episodes_per_run(training)? {
-        let entry = fewest.entry(policy).or_insert(episodes as u64);
-        *entry = (*entry).min(episodes as u64);
-    }
-    Ok(fewest)
+/// How a learned policy's runs trained: the fewest episodes any of them logged, and for runs
+/// trained until converged, how many the stopping rule ended and how many their cap did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Trained {
+    episodes: u64,
+    until_converged: Option<Stops>,
 }
 
-/// The verdict's text when a learned policy of the claim trained fewer episodes than the
-/// budget the statement names.
-fn short_of_budget(
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Stops {
+    converged: usize,
+    capped: usize,
+}
+
+/// Each learned policy's `Trained`, from the training table and the convergence table's runs.
+fn trained_runs(
+    training: &DataFrame,
+    convergence: Option<&DataFrame>,
+) -> Result<HashMap<String, Trained>, ReportError> {
+    let mut trained: HashMap<String, Trained> = HashMap::new();
+    for (policy, episodes) in episodes_per_run(training)? {
+        let entry = trained.entry(policy).or_insert(Trained {
+            episodes: episodes as u64,
+            until_converged: None,
+        });
+        entry.episodes = entry.episodes.min(episodes as u64);
+    }
+    if let Some(table) = convergence {
+        use store::schema::convergence as run;
+        let stops = strings(table, run::STOP)?;
+        for (policy, stop) in strings(table, cell::POLICY)?.into_iter().zip(stops) {
+            let runs = trained.entry(policy).or_default();
+            let counts = runs.until_converged.get_or_insert_with(Stops::default);
+            match stop == run::CONVERGED {
+                true => counts.converged += 1,
+                false => counts.capped += 1,
+            }
+        }
+    }
+    Ok(trained)
+}
+
+/// Whether the learned policies of a claim meet the training the statement assumes: every
+/// result of the paper comes from policies trained its 30,000 episodes, so a claim about them
+/// holds runs to that budget, or to convergence (the stopping rule says when a run has
+/// learned what it will; a run its cap ended is counted and named, not hidden). `Ok` says how
+/// each policy met it, `Err` which fell short; with no training table nothing can tell.
+fn trained_for(
     claim: &Claim,
     budget: u64,
-    trained: Option<&HashMap<String, u64>>,
-) -> Option<String> {
+    trained: &Option<HashMap<String, Trained>>,
+) -> Result<String, String> {
     let Some(trained) = trained else {
-        return Some(format!(
-            "the statement assumes {budget} training episodes; the store keeps no training \
-             table to tell how long the runs trained"
+        return Err(format!(
+            "the statement assumes {budget} training episodes or convergence; the store keeps \
+             no training table to tell how long the runs trained"
         ));
     };
-    let short: Vec<String> = claim_policies(&claim.test)
-        .into_iter()
-        .filter_map(|policy| {
-            let episodes = trained.get(policy)?;
-            (*episodes < budget).then(|| format!("{policy} trained {episodes}"))
-        })
-        .collect();
-    (!short.is_empty()).then(|| {
-        format!(
-            "not tested at this budget: the statement assumes {budget} training episodes; {}",
-            short.join(", ")
-        )
-    })
+    let mut met = Vec::new();
+    let mut short = Vec::new();
+    for policy in claim_policies(&claim.test) {
+        match trained.get(policy) {
+            None => {}
+            Some(Trained {
+                until_converged: Some(stops),
+                ..
+            }) => met.push(format!(
+                "{policy} trained until converged: {} of {} runs converged, {} capped",
+                stops.converged,
+                stops.converged + stops.capped,
+                stops.capped
+            )),
+            Some(Trained { episodes, .. }) if *episodes >= budget => {
+                met.push(format!("{policy} trained {episodes} episodes"))
+            }
+            Some(Trained { episodes, .. }) => {
+                short.push(format!("{policy} trained {episodes}, not until converged"))
+            }
+        }
+    }
+    match short.is_empty() {
+        true => Ok(met.join("; ")),
+        false => Err(format!(
+            "not tested at this budget: the statement assumes {budget} training episodes or \
+             convergence; {}",
+            short.join("; ")
+        )),
+    }
+}
+
+/// A claim's judgement under the budget rule: as judged, saying how its runs met the budget,
+/// or "not tested" with what the shorter runs showed beside the reason, so that a reader
+/// still sees them (and no seeds are priced for a question they cannot answer).
+fn held_to_budget(judged: Judged, met: Result<String, String>) -> Judged {
+    match met {
+        Ok(how) if how.is_empty() => judged,
+        Ok(how) => Judged {
+            ours: format!("{} ({how})", judged.ours),
+            ..judged
+        },
+        Err(short) => Judged {
+            verdict: Verdict::NotTested,
+            ours: format!(
+                "{short}; these runs: {} ({})",
+                judged.verdict.name(),
+                judged.ours
+            ),
+            power: Vec::new(),
+        },
+    }
 }
 
 /// The policies a claim names.
@@ -694,19 +766,27 @@ fn slope(values: &[f64]) -> f64 {
     least_squares_slope(&positions, values).unwrap_or(f64::NAN)
 }
 
-/// The gaps `mean(b) - mean(a)` of consecutive (a, b) units.
-fn gaps(units: &[Vec<f64>]) -> Result<Vec<f64>, StatsError> {
+/// The gaps `mean(b) - mean(a)` of consecutive (a, b) units, each over `mean(b)` where the
+/// scale is b's (`Scale::B`: 1 - a / b, a trend in the ratio).
+fn gaps(units: &[Vec<f64>], scale: Scale) -> Result<Vec<f64>, StatsError> {
     units
         .chunks_exact(2)
-        .map(|ab| mean_difference(&ab[1], &ab[0]))
+        .map(|ab| {
+            let gap = mean_difference(&ab[1], &ab[0])?;
+            match scale {
+                Scale::B => Ok(gap / mean(&ab[1])?),
+                Scale::Absolute | Scale::Random => Ok(gap),
+            }
+        })
         .collect()
 }
 
-/// The gap b - a grows along the points: the slope's interval above 0 supports, below 0
-/// contradicts (one statistic, so no correction).
+/// The gap b - a (over b's mean, with `Scale::B`) grows along the points: the slope's
+/// interval above 0 supports, below 0 contradicts (one statistic, so no correction).
 fn gap_grows(
     samples: Sides,
     pair: &Pair,
+    scale: Scale,
     seed: world::Seed,
 ) -> Result<(Verdict, String), ReportError> {
     let found = match pairs(samples, pair) {
@@ -714,18 +794,22 @@ fn gap_grows(
         Err(missing) => return Ok((Verdict::NoData, missing)),
     };
     let all: Vec<&Sample> = found.iter().flat_map(|&(a, b)| [a, b]).collect();
-    let statistic = |units: &[Vec<f64>]| Ok(-slope(&gaps(units)?));
+    let statistic = |units: &[Vec<f64>]| Ok(-slope(&gaps(units, scale)?));
     let boot = bootstrap_of(&all, &statistic, seed)?;
     let (low, high) = boot.interval(CONFIDENCE)?;
     let units: Vec<Vec<f64>> = all.iter().map(|s| s.units()).collect::<Result<_, _>>()?;
     let along: Vec<String> = pair
         .points
         .iter()
-        .zip(gaps(&units)?)
+        .zip(gaps(&units, scale)?)
         .map(|(p, g)| format!("{}: {}", point_label_trained(p), number(g)))
         .collect();
+    let gap = match scale {
+        Scale::B => "(b - a) / b",
+        Scale::Absolute | Scale::Random => "b - a",
+    };
     let text = format!(
-        "b - a {}; slope {} {} per step",
+        "{gap} {}; slope {} {} per step",
         along.join(", "),
         number(-boot.estimate),
         interval(-high, -low, number)
@@ -904,8 +988,10 @@ pub const RULE: &str = "Each of the scenario's claims with our numbers and a ver
      same runs under two conditions are drawn as pairs. A point is supported when its \
      interval excludes the claim's opposite; a claim is supported when every point is, \
      contradicted when Holm's correction over its points (family-wise 5 %) finds a point \
-     whose interval excludes the claim, inconclusive otherwise, and not tested where its \
-     training runs are shorter than the budget the statement names. P(a < b) is the \
+     whose interval excludes the claim, inconclusive otherwise, and not tested where the \
+     statement assumes a training budget (the paper's 30,000 episodes) that its runs neither \
+     trained nor were trained until converged: then what those runs show follows the reason. \
+     P(a < b) is the \
      probability that a run of a (an episode, for a baseline) has a lower penalty than one \
      of b. *detectable* is the smallest true difference the comparison would find four times \
      in five at the spread its runs showed (from the interval's width): a smaller one can go \
@@ -1159,7 +1245,7 @@ mod tests {
     }
 
     #[test]
-    fn a_statement_beyond_the_runs_budget_is_not_tested() {
+    fn a_claim_is_tested_on_runs_that_trained_the_budget_or_converged() {
         let claim = Claim {
             id: "after-30k".into(),
             paper: String::new(),
@@ -1168,15 +1254,54 @@ mod tests {
             },
             budget: Some(30_000),
         };
-        let trained = HashMap::from([("ma-g-ppo@fast".to_owned(), 800)]);
-        let text = short_of_budget(&claim, 30_000, Some(&trained)).unwrap();
-        assert!(text.contains("ma-g-ppo@fast trained 800"), "{text}");
-        let long = HashMap::from([("ma-g-ppo@fast".to_owned(), 30_000)]);
-        assert_eq!(short_of_budget(&claim, 30_000, Some(&long)), None);
+        let runs = |episodes, until_converged| {
+            Some(HashMap::from([(
+                "ma-g-ppo@fast".to_owned(),
+                Trained {
+                    episodes,
+                    until_converged,
+                },
+            )]))
+        };
+        let short = trained_for(&claim, 30_000, &runs(800, None)).unwrap_err();
         assert!(
-            short_of_budget(&claim, 30_000, None).is_some(),
+            short.contains("ma-g-ppo@fast trained 800, not until converged"),
+            "{short}"
+        );
+        let long = trained_for(&claim, 30_000, &runs(30_000, None)).unwrap();
+        assert_eq!(long, "ma-g-ppo@fast trained 30000 episodes");
+        let stops = Stops {
+            converged: 4,
+            capped: 1,
+        };
+        let converged = trained_for(&claim, 30_000, &runs(900, Some(stops))).unwrap();
+        assert!(converged.contains("until converged: 4 of 5 runs converged, 1 capped"));
+        assert!(
+            trained_for(&claim, 30_000, &None).is_err(),
             "no table: cannot tell"
         );
+        let judged = || Judged::from((Verdict::Supported, "a below b".to_owned()));
+        let held = held_to_budget(judged(), Err(short));
+        assert_eq!(held.verdict, Verdict::NotTested);
+        assert!(
+            held.ours.ends_with("these runs: supported (a below b)"),
+            "{}",
+            held.ours
+        );
+        let met = held_to_budget(judged(), Ok(long));
+        assert_eq!(
+            met.verdict,
+            Verdict::Supported,
+            "a budget met judges as it stands"
+        );
+        assert!(met.ours.ends_with("(ma-g-ppo@fast trained 30000 episodes)"));
+    }
+
+    #[test]
+    fn a_scaled_gap_is_a_share_of_b() {
+        let units = [vec![1.0], vec![4.0], vec![3.0], vec![4.0]];
+        assert_eq!(gaps(&units, Scale::Absolute).unwrap(), [3.0, 1.0]);
+        assert_eq!(gaps(&units, Scale::B).unwrap(), [0.75, 0.25]);
     }
 
     #[test]

@@ -465,12 +465,30 @@ mod tests {
                     gap_grows: {a: ma-ppo@fast, b: random, maps: [a], n_test: 1, n: [2, 3]}\n  \
                     - id: scaled\n    not_worse: {a: ma-ppo@fast, b: random, maps: [a], n: [2], \
                     tolerance: 0.05, scale: random}\n  \
-                    - id: rooms\n    not_tested: rooms are not measured\n";
+                    - id: rooms\n    not_tested: rooms are not measured\n  \
+                    - id: ratio\n    \
+                    gap_grows: {a: ma-ppo@fast, b: random, maps: [a], n: [1, 2], n_train: 2, scale: b}\n";
         let s = parse(&with(good)).unwrap();
         use crate::scenario::claims::{ClaimTest, Scale};
-        let ClaimTest::GapGrows { pair } = &s.claims[0].test else {
+        let ClaimTest::GapGrows { pair, scale } = &s.claims[0].test else {
             panic!("{:?}", s.claims[0]);
         };
+        assert_eq!(
+            *scale,
+            Scale::Absolute,
+            "gaps as they are unless a scale is given"
+        );
+        assert!(
+            matches!(
+                &s.claims[3].test,
+                ClaimTest::GapGrows {
+                    scale: Scale::B,
+                    ..
+                }
+            ),
+            "{:?}",
+            s.claims[3]
+        );
         let points: Vec<(u32, u32)> = pair.points.iter().map(|p| (p.n_test, p.n_train)).collect();
         assert_eq!(
             points,
@@ -502,6 +520,10 @@ mod tests {
             (
                 "  - id: x\n    lower: {a: ma-ppo@fast, b: random, maps: [a], n_test: 1, n: [2], n_train: 2}\n",
                 "claims[0].lower.n_train: give n_test (a column, n listing N_train) or n_train",
+            ),
+            (
+                "  - id: x\n    gap_grows: {a: ma-ppo@fast, b: random, maps: [a], n: [1, 2], n_train: 2, scale: random}\n",
+                "claims[0].gap_grows.scale: a gap is scaled by b or absolute, not \"random\"",
             ),
             (
                 "  - id: x\n    budget: 0\n    lower: {a: ma-ppo@fast, b: random, maps: [a], n: [2]}\n",

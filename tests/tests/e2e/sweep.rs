@@ -922,6 +922,59 @@ fn every_committed_scenario_loads_and_the_rq_scenarios_share_their_common_cells(
     assert_eq!(shared("scenarios/rq3.yaml", "scenarios/rq1.yaml"), 10);
 }
 
+/// Every result of the paper comes from policies trained its 30,000 episodes, so every
+/// committed statement about its trained policies holds the runs to that budget (met too by
+/// training until converged): the rule applied evenly, not only where a sentence names the
+/// budget. Statements of ours ("Not the paper's", "(beyond the paper)") and those about
+/// training itself (curves, times to quality, a chosen episode) say their own.
+#[test]
+fn every_statement_about_the_papers_trained_policies_holds_runs_to_its_budget() {
+    use plan::scenario::claims::ClaimTest;
+    for folder in ["scenarios", "scenarios/paper"] {
+        for entry in std::fs::read_dir(crate::common::repo_file(folder))
+            .unwrap()
+            .flatten()
+        {
+            let path = entry.path();
+            if !(path.extension().is_some_and(|e| e == "yaml") && path.is_file()) {
+                continue;
+            }
+            let scenario = plan::scenario::Scenario::load(&path).unwrap();
+            let learned: Vec<String> = (scenario.policies().iter())
+                .filter(|p| p.learned().is_some())
+                .map(|p| p.label())
+                .collect();
+            for claim in scenario.claims() {
+                let ours = ["Not the paper's", "(beyond the paper)"]
+                    .iter()
+                    .any(|mark| claim.paper.starts_with(mark));
+                let about_training = match &claim.test {
+                    ClaimTest::Lower { pair }
+                    | ClaimTest::Within { pair, .. }
+                    | ClaimTest::NotWorse { pair, .. }
+                    | ClaimTest::GapGrows { pair, .. }
+                    | ClaimTest::EveryRunLower { pair } => pair.at_episode.is_some(),
+                    ClaimTest::CurveBelow { .. }
+                    | ClaimTest::Faster { .. }
+                    | ClaimTest::NotTested { .. } => true,
+                    _ => false,
+                };
+                let names_learned =
+                    (claim.test.policies().iter()).any(|p| learned.contains(&p.to_string()));
+                if names_learned && !ours && !about_training {
+                    assert_eq!(
+                        claim.budget,
+                        Some(30_000),
+                        "{}: claim {}",
+                        path.display(),
+                        claim.id
+                    );
+                }
+            }
+        }
+    }
+}
+
 /// The number before `word` in a sweep's summary line (`3 computed`).
 fn count_before(summary: &str, word: &str) -> usize {
     let at = summary

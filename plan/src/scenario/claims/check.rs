@@ -94,6 +94,7 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
         }
         ClaimTest::GapGrows {
             pair: checker.pair(pair, ".gap_grows", 2)?,
+            scale: gap_scale(pair)?,
         }
     } else if let Some(pair) = &spec.every_run_lower {
         checker.policy(&pair.a, ".every_run_lower.a".into(), true)?;
@@ -158,6 +159,22 @@ fn points(maps: &[String], n: &[u32], n_train: impl Fn(u32) -> u32) -> Vec<Point
     maps.iter()
         .flat_map(|map| n.iter().map(|&n_test| point(map, n_test)))
         .collect()
+}
+
+/// What a `gap_grows` claim divides its gaps by: nothing (`absolute`, the default) or b's
+/// mean at each point. Random's scale would measure the gap against a third policy, which no
+/// statement of the paper does.
+fn gap_scale(spec: &PairSpec) -> Result<Scale, Failure> {
+    let Some(name) = &spec.scale else {
+        return Ok(Scale::Absolute);
+    };
+    match Scale::parse(&name.value) {
+        Some(scale @ (Scale::B | Scale::Absolute)) => Ok(scale),
+        _ => {
+            let problem = format!("a gap is scaled by b or absolute, not {:?}", name.value);
+            Err(fail(name, ".gap_grows.scale".into(), problem))
+        }
+    }
 }
 
 fn fail<T>(value: &Spanned<T>, field: String, problem: String) -> Failure {

@@ -38,9 +38,10 @@ pub(crate) struct ClaimSpec {
     /// A statement of the paper the store cannot test, with the reason: it stays in the
     /// verdict table as "not tested".
     pub not_tested: Option<Spanned<String>>,
-    /// The training episodes the statement assumes (the paper's 30,000 where it says "after
-    /// 30k episodes" or "given sufficient training"): shorter training runs make it "not
-    /// tested at this budget".
+    /// The training episodes the statement assumes: the paper's 30,000 on every statement
+    /// about its trained policies, since every result it reports comes from such policies.
+    /// Runs that trained fewer and were not trained until converged make it "not tested at
+    /// this budget".
     #[serde(default)]
     pub budget: Option<Spanned<u64>>,
 }
@@ -66,6 +67,8 @@ pub(crate) struct PairSpec {
     pub tolerance: Option<Spanned<f64>>,
     /// What the tolerance is relative to: `b` (b's mean, the default: for penalties far from
     /// 0), `random` (Random's mean at the point: where b is near 0) or `absolute` (10^6).
+    /// For `gap_grows`, what each gap is divided by: `absolute` (the default) or `b`, so that
+    /// a trend in the ratio a / b is not mistaken for the fall of every penalty with N.
     #[serde(default)]
     pub scale: Option<Spanned<String>>,
     /// Take `a`'s (`b`'s) test episodes as played under this disturbance of the scenario.

@@ -6,8 +6,9 @@
 //! Verdicts rest on 95 % bootstrap intervals whose unit is a learned policy's training run
 //! (`stats::resampling`): **supported** when every point's interval excludes the opposite of
 //! the claim, **contradicted** when Holm's correction over the points finds one whose interval
-//! excludes the claim, **inconclusive** otherwise, **not tested** where the training runs are
-//! shorter than the budget the statement names.
+//! excludes the claim, **inconclusive** otherwise, **not tested** where the statement names a
+//! training budget (the paper's 30,000 episodes, for a statement about its trained policies)
+//! that the runs neither trained nor were trained until converged.
 
 mod check;
 pub mod format;
@@ -25,7 +26,8 @@ pub struct Claim {
     /// The paper's words and numbers.
     pub paper: String,
     pub test: ClaimTest,
-    /// The training episodes the statement assumes, when it names them.
+    /// The training episodes the statement assumes, when it names them: runs trained that
+    /// many, or until converged, meet it.
     pub budget: Option<u64>,
 }
 
@@ -44,8 +46,11 @@ pub enum ClaimTest {
         pair: Pair,
         tolerance: Tolerance,
     },
+    /// `scale`: the gaps are divided by b's mean at each point (`Scale::B`, a trend in the
+    /// ratio a / b, for levels that fall with N), or taken as they are (`Scale::Absolute`).
     GapGrows {
         pair: Pair,
+        scale: Scale,
     },
     /// Every run of the learned `a` below `b` (see `format::ClaimSpec::every_run_lower`).
     EveryRunLower {
@@ -162,7 +167,7 @@ impl ClaimTest {
             ClaimTest::Lower { pair }
             | ClaimTest::Within { pair, .. }
             | ClaimTest::NotWorse { pair, .. }
-            | ClaimTest::GapGrows { pair }
+            | ClaimTest::GapGrows { pair, .. }
             | ClaimTest::EveryRunLower { pair } => vec![&pair.a, &pair.b],
             ClaimTest::DiagonalBest { policy, .. } | ClaimTest::Behaviour { policy, .. } => {
                 vec![policy]

@@ -69,5 +69,6 @@ def test_a_long_world_build_answers_ctrl_c(tmp_path):
         out, _ = child.communicate(timeout=30)
     except subprocess.TimeoutExpired:
         child.kill()
+        child.wait()
         pytest.fail("the build went on for 30 s after Ctrl-C")
     assert out.startswith("interrupted after"), out

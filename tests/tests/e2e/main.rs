@@ -15,7 +15,6 @@ mod docs;
 mod events;
 mod fingerprint;
 mod hostile_inputs;
-mod layers;
 mod learning;
 mod python;
 mod readers;

@@ -20,7 +20,7 @@ pub fn folder_cycles(modules: &CrateModules) -> Vec<String> {
         .filter(|(_, m)| !m.children.is_empty());
     let mut found = Vec::new();
     for (folder, _) in folders {
-        let graph = folder_graph(folder, &edges);
+        let graph = folder_graph(modules, folder, &edges);
         let place = match folder.is_empty() {
             true => modules.name.clone(),
             false => format!("{}::{}", modules.name, folder.join("::")),
@@ -36,15 +36,26 @@ pub fn folder_cycles(modules: &CrateModules) -> Vec<String> {
     found
 }
 
-/// The edges between the nodes of `folder`: its children and its own file.
+/// The edges between the nodes of `folder`: its children and its own file. A child written
+/// inline in the folder's own file (`mod avx2 { ... }`, code for one instruction set) is part
+/// of that file's node: a file is read, changed and reviewed whole.
 fn folder_graph(
+    modules: &CrateModules,
     folder: &ModulePath,
     edges: &BTreeMap<&ModulePath, BTreeSet<ModulePath>>,
 ) -> BTreeMap<String, BTreeSet<String>> {
+    let own_file = &modules.modules[folder].file;
+    let inline = |child: &String| {
+        let path = [folder.as_slice(), std::slice::from_ref(child)].concat();
+        modules
+            .modules
+            .get(&path)
+            .is_some_and(|m| m.file == *own_file)
+    };
     let node = |module: &ModulePath| match module.get(folder.len()) {
         _ if !module.starts_with(folder) => None,
-        Some(child) => Some(child.clone()),
-        None => Some(OWN_FILE.to_owned()),
+        Some(child) if !inline(child) => Some(child.clone()),
+        _ => Some(OWN_FILE.to_owned()),
     };
     let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
     for (from, targets) in edges {
@@ -181,6 +192,23 @@ mod tests {
         assert!(
             edges[&vec!["a".to_owned()]].contains(&vec!["b".to_owned()]),
             "{edges:?}"
+        );
+    }
+
+    #[test]
+    fn a_child_written_inline_is_part_of_its_file() {
+        let (_dir, modules) = scratch_crate(
+            "inline",
+            &[(
+                "lib.rs",
+                "pub struct Tile;\nmod avx2 { pub fn multiply(_: &super::Tile) {} }\n\
+                 pub fn multiply(t: &Tile) { avx2::multiply(t) }\n",
+            )],
+        );
+        assert!(
+            folder_cycles(&modules).is_empty(),
+            "{:?}",
+            folder_cycles(&modules)
         );
     }
 

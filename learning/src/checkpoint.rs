@@ -36,6 +36,7 @@ use crate::ppo::value_norm::ValueNorm;
 use nn::{ActorCritic, Adam, ModelConfig, NnError, ParamSlot, ParamSpec, ParamStore};
 
 pub use checks::{MAX_AGENTS, MAX_IMAGE_SIDE};
+pub use probe::Overflow;
 
 pub const WEIGHTS_FILE: &str = "checkpoint.safetensors";
 pub const OPTIMIZER_FILE: &str = "checkpoint.optimizer.safetensors";
@@ -169,15 +170,8 @@ pub enum CheckpointError {
          each) of the network in {METADATA_FILE}"
     )]
     TooSmall { bytes: usize, parameters: usize },
-    #[error(
-        "{WEIGHTS_FILE}: every value is finite, but a probe forward pass gives {output} that are \
-         not; the largest weight is {largest:e}, in tensor `{tensor}`"
-    )]
-    Overflow {
-        output: &'static str,
-        tensor: String,
-        largest: f32,
-    },
+    #[error("{WEIGHTS_FILE}: {0}")]
+    Overflow(#[from] probe::Overflow),
     #[error("{METADATA_FILE}: {0}")]
     Config(#[from] ConfigError),
     #[error("{METADATA_FILE}: the network cannot be built: {0}")]

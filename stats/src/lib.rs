@@ -9,34 +9,22 @@
 //! rather than mean ± 1.96 standard errors.
 
 mod distributions;
+mod error;
 pub mod grouping;
 mod multiplicity;
 pub mod power;
 mod resampling;
 
-use thiserror::Error;
 use world::Seed;
 
+pub use error::StatsError;
+use error::check;
 pub use multiplicity::holm;
 pub use resampling::{Block, Bootstrap, Pairing, Sample, Unit, UnitsStatistic, bootstrap};
 
 /// Resamples behind every interval in the reports: the 2.5 % and 97.5 % quantiles of 10,000
 /// means move by well under 1 % of their width between seeds.
 pub const RESAMPLES: usize = 10_000;
-
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum StatsError {
-    #[error("no values to summarise")]
-    Empty,
-    #[error("confidence must be strictly between 0 and 1, got {0}")]
-    Confidence(f64),
-    #[error("a bootstrap needs at least one resample")]
-    NoResamples,
-    #[error("paired samples must hold the same runs (and episodes) in the same order")]
-    Unpaired,
-    #[error("value {index} is {value}, not a finite number")]
-    NotFinite { index: usize, value: f64 },
-}
 
 /// A mean with a confidence interval around it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -162,19 +150,6 @@ fn sorted(values: &[f64]) -> Result<Vec<f64>, StatsError> {
     let mut sorted = values.to_vec();
     sorted.sort_unstable_by(f64::total_cmp);
     Ok(sorted)
-}
-
-fn check(values: &[f64]) -> Result<(), StatsError> {
-    if values.is_empty() {
-        return Err(StatsError::Empty);
-    }
-    match values.iter().position(|value| !value.is_finite()) {
-        Some(index) => Err(StatsError::NotFinite {
-            index,
-            value: values[index],
-        }),
-        None => Ok(()),
-    }
 }
 
 #[cfg(test)]

@@ -31,8 +31,8 @@ use rand::RngExt;
 use rand_pcg::Pcg64Mcg;
 use world::Seed;
 
-use super::StatsError;
 use super::distributions::{normal_cdf, normal_quantile, t_cdf, t_quantile};
+use crate::error::{StatsError, check};
 
 /// What one draw of a sample is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -76,7 +76,7 @@ impl<'a> Sample<'a> {
     }
 
     fn check(&self) -> Result<(), StatsError> {
-        super::check(&self.strata.concat())
+        check(&self.strata.concat())
     }
 }
 

@@ -2,18 +2,30 @@
 //! each finite but together overflow (every weight 1e30, say) are refused at load instead of
 //! playing an episode whose every action probability is NaN.
 
-use super::CheckpointError;
 use nn::{ActorCritic, AgentGraph, ModelWorkspace, Neighbours, ParamSpec};
 
 /// Agents in the probe's one group: enough for the attention to mix several rows, few enough
 /// that the pass costs a fraction of the load.
 const PROBE_AGENTS: usize = 3;
 
+/// Weights that are each finite but overflow together: which output of the forward pass is not
+/// finite, and the tensor with the largest magnitude.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "every value is finite, but a probe forward pass gives {output} that are not; the largest \
+     weight is {largest:e}, in tensor `{tensor}`"
+)]
+pub struct Overflow {
+    pub output: &'static str,
+    pub tensor: String,
+    pub largest: f32,
+}
+
 /// Runs the probe: the policy's log-probabilities and entropies and the critic's values must
 /// all be finite. When they are not, every weight is finite (the load checked each), so no
 /// tensor is plainly bad; the error names the one with the largest magnitude, the likeliest
 /// cause.
-pub fn probe(model: &ActorCritic<f32>) -> Result<(), CheckpointError> {
+pub fn probe(model: &ActorCritic<f32>) -> Result<(), Overflow> {
     let Some(output) = non_finite_output(model) else {
         return Ok(());
     };
@@ -28,7 +40,7 @@ pub fn probe(model: &ActorCritic<f32>) -> Result<(), CheckpointError> {
         .map(|spec| (spec.name.clone(), magnitude(spec)))
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .unwrap_or_default();
-    Err(CheckpointError::Overflow {
+    Err(Overflow {
         output,
         tensor,
         largest,

@@ -16,42 +16,16 @@
 mod kernel;
 mod lanes;
 mod packed;
+mod scalar;
 
 use ndarray::{ArrayView2, ArrayViewMut2, Axis};
 use rayon::prelude::*;
 
 pub use kernel::{INSTRUCTIONS, TileKernel};
-pub use packed::PackingBuffers;
+pub use scalar::{PackingBuffers, Scalar};
 
 use super::buffer::ReusableBuffer;
 pub use lanes::{LANES, LaneSums};
-
-/// What the products need of a float: its arithmetic, the lanes of a dot product, a tile
-/// kernel and packing buffers. The layers' float (`real::Real`) extends it.
-pub trait Scalar:
-    num_traits::Float
-    + ndarray::LinalgScalar
-    + std::ops::AddAssign
-    + std::fmt::Debug
-    + Default
-    + Send
-    + Sync
-    + TileKernel
-    + PackingBuffers
-    + 'static
-{
-    /// Partial sums of a dot product, one per lane.
-    type Lanes: LaneSums<Self>;
-}
-
-impl Scalar for f32 {
-    /// One AVX2 register.
-    type Lanes = wide::f32x8;
-}
-
-impl Scalar for f64 {
-    type Lanes = [f64; LANES];
-}
 
 /// Products with fewer multiply-adds than this run on the calling thread: below it, handing
 /// work to the pool costs more than it saves (the rollout's batches of a few agents, whose

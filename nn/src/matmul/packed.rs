@@ -7,13 +7,11 @@
 //! `KC` blocks through the output itself (see `kernel.rs`), so the bits depend on the operands
 //! alone: not on the CPU, its caches, the thread count or these constants.
 
-use std::cell::RefCell;
-
 use ndarray::{ArrayView2, ArrayViewMut2};
 use rayon::prelude::*;
 
-use super::Scalar;
 use super::kernel::{MR, NR, Panel, TILE, Tile};
+use super::scalar::Scalar;
 
 /// The depth of a packed block: a `KC x NR` panel of `b` (16 KiB) stays in L1.
 const KC: usize = 256;
@@ -419,27 +417,3 @@ unsafe fn pack<T: Scalar, const W: usize>(
         }
     }
 }
-
-/// Per-thread packing buffers of one float type, which grow to the largest block and are
-/// then reused, so a product allocates nothing once warm.
-pub trait PackingBuffers: Sized {
-    fn with_packing_buffers(f: impl FnOnce(&mut Vec<Self>, &mut Vec<Self>));
-}
-
-macro_rules! packing_buffers {
-    ($t:ty) => {
-        impl PackingBuffers for $t {
-            fn with_packing_buffers(f: impl FnOnce(&mut Vec<Self>, &mut Vec<Self>)) {
-                thread_local! {
-                    static BUFFERS: RefCell<(Vec<$t>, Vec<$t>)> = const {
-                        RefCell::new((Vec::new(), Vec::new()))
-                    };
-                }
-                BUFFERS.with_borrow_mut(|(a, b)| f(a, b));
-            }
-        }
-    };
-}
-
-packing_buffers!(f32);
-packing_buffers!(f64);

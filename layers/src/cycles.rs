@@ -196,6 +196,25 @@ mod tests {
     }
 
     #[test]
+    fn a_re_export_of_another_crate_is_no_edge_to_the_root() {
+        let (_dir, modules) = scratch_crate(
+            "reexport",
+            &[
+                ("lib.rs", "pub use engine::cpu_clock;\nmod bench;\n"),
+                (
+                    "bench.rs",
+                    "use crate::cpu_clock::thread_cpu_time;\npub fn f() { thread_cpu_time(); }\n",
+                ),
+            ],
+        );
+        assert!(
+            folder_cycles(&modules).is_empty(),
+            "{:?}",
+            folder_cycles(&modules)
+        );
+    }
+
+    #[test]
     fn a_child_written_inline_is_part_of_its_file() {
         let (_dir, modules) = scratch_crate(
             "inline",

@@ -74,12 +74,13 @@ impl CrateModules {
 
     /// The module that defines what `segments` (from the crate's root) names: the module
     /// itself for a module, for an item the module that defines it, through every re-export
-    /// (`pub use`) on the way; the last module reached for what it cannot follow further.
-    pub fn defining_module(&self, segments: &[String]) -> ModulePath {
+    /// (`pub use`) on the way; the last module reached for what it cannot follow further;
+    /// `None` where a re-export leads into another crate.
+    pub fn defining_module(&self, segments: &[String]) -> Option<ModulePath> {
         self.follow(segments, 0)
     }
 
-    fn follow(&self, segments: &[String], depth: usize) -> ModulePath {
+    fn follow(&self, segments: &[String], depth: usize) -> Option<ModulePath> {
         let mut here: ModulePath = Vec::new();
         for (i, segment) in segments.iter().enumerate() {
             let Some(module) = self.modules.get(&here) else {
@@ -90,23 +91,27 @@ impl CrateModules {
                 continue;
             }
             if module.items.contains(segment) || depth > 16 {
-                return here;
+                return Some(here);
             }
             let rest = &segments[i + 1..];
-            if let Some(Target::Local(to)) = module.imports.get(segment) {
-                return self.follow(&[to.as_slice(), rest].concat(), depth + 1);
+            match module.imports.get(segment) {
+                Some(Target::Local(to)) => {
+                    return self.follow(&[to.as_slice(), rest].concat(), depth + 1);
+                }
+                Some(Target::Extern(..)) => return None,
+                None => {}
             }
             let through_glob = module.globs.iter().find_map(|glob| match glob {
                 Target::Local(to) => {
                     let path = [to.as_slice(), &segments[i..]].concat();
-                    let found = self.follow(&path, depth + 1);
+                    let found = self.follow(&path, depth + 1)?;
                     (found != *to).then_some(found)
                 }
                 Target::Extern(..) => None,
             });
-            return through_glob.unwrap_or(here);
+            return Some(through_glob.unwrap_or(here));
         }
-        here
+        Some(here)
     }
 
     /// Each module's imports of other modules of this crate: the children it declares and the
@@ -119,7 +124,7 @@ impl CrateModules {
                 .iter()
                 .map(|c| [path.as_slice(), std::slice::from_ref(c)].concat());
             let named = module.refs.iter().filter_map(|target| match target {
-                Target::Local(segments) => Some(self.defining_module(segments)),
+                Target::Local(segments) => self.defining_module(segments),
                 Target::Extern(..) => None,
             });
             let targets: BTreeSet<ModulePath> =

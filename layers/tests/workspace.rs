@@ -108,7 +108,9 @@ fn reached_by(
         }
         Target::Extern(..) => return Vec::new(),
     };
-    let module = crates[name].defining_module(segments);
+    let Some(module) = crates[name].defining_module(segments) else {
+        return Vec::new();
+    };
     (0..=module.len())
         .map(|n| (name.to_owned(), module[..n].to_vec()))
         .collect()

@@ -4,8 +4,8 @@
 
 use polars::prelude::*;
 
-use super::StoreError;
 use super::tables::{cell_columns, column};
+use crate::StoreError;
 use crate::adaptation::Adaptation;
 use crate::schema::{disturbed, disturbed_steps, episodes};
 use plan::cell::CellConfig;

@@ -17,8 +17,9 @@ use std::sync::Mutex;
 
 use serde::{Deserialize, Serialize};
 
-use super::{Store, StoreError, json_bytes, read_json};
+use crate::files::{json_bytes, read_json};
 use crate::provenance::{host_name, utc_timestamp};
+use crate::{Store, StoreError};
 
 const LEASE_FILE: &str = "running.json";
 

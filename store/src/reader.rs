@@ -8,23 +8,16 @@
 //! file or a link, and a sweep's manifest with neither cells nor a table store's marker, whose
 //! tables nothing vouches for.
 
-use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::{Arc, MutexGuard};
 
 use polars::prelude::DataFrame;
 
-use super::{MANIFEST_FILE, Store, StoreError, real_folder, tables};
+use crate::files::real_folder;
+use crate::folder::HeldTables;
+use crate::layout::MANIFEST_FILE;
+use crate::{Store, StoreError, tables};
 use plan::scenario::Output;
-
-/// The tables a reader made, as Parquet bytes by file name.
-#[derive(Debug, Default)]
-pub(crate) struct HeldTables {
-    /// Whether the sweep's tables were built again from its cells: its table files on disk
-    /// are then none of the reader's, whether or not the cells made that table.
-    rebuilt: bool,
-    files: BTreeMap<String, Vec<u8>>,
-}
 
 /// Whether `file` is one of the tables a sweep builds from its cells (`engine::aggregate`).
 fn built_from_cells(file: &str) -> bool {
@@ -122,7 +115,7 @@ impl Store {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::TABLE_STORE_FILE;
+    use crate::layout::TABLE_STORE_FILE;
 
     fn scratch(name: &str) -> std::path::PathBuf {
         let dir = std::env::temp_dir().join(format!("store-reader-{name}-{}", std::process::id()));

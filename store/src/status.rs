@@ -4,7 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::{CellFailure, LeaseHolder, Liveness, Store, StoreError};
+use crate::lease::Liveness;
+use crate::{CellFailure, LeaseHolder, Store, StoreError};
 
 /// Where a Slurm output folder's tasks keep their stores.
 pub const SHARDS_FOLDER: &str = "shards";

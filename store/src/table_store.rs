@@ -25,15 +25,11 @@ use polars::prelude::DataFrame;
 use serde::{Deserialize, Serialize};
 
 use super::columns::{f64s, strings};
-use super::{
-    CellRecord, MANIFEST_FILE, MAX_FILE_BYTES, SCENARIO_FILE, Store, StoreError, read, read_json,
-    write,
-};
+use crate::files::{MAX_FILE_BYTES, json_bytes, read, read_json, write};
+use crate::layout::{MANIFEST_FILE, SCENARIO_FILE, TABLE_STORE_FILE};
 use crate::schema::{cell, cells};
+use crate::{CellRecord, Store, StoreError};
 use plan::scenario::Output;
-
-/// The file that makes a folder a table store.
-pub(crate) const TABLE_STORE_FILE: &str = "table-store.json";
 
 /// `table-store.json`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -125,7 +121,7 @@ impl Store {
             missing: missing.to_vec(),
             files,
         };
-        let bytes = super::json_bytes(&marker);
+        let bytes = json_bytes(&marker);
         write(&folder.join(TABLE_STORE_FILE), &bytes)?;
         Ok(size + bytes.len() as u64)
     }
@@ -317,7 +313,7 @@ mod tests {
         };
         std::fs::write(
             dir.join(TABLE_STORE_FILE),
-            super::super::json_bytes(&marker),
+            crate::files::json_bytes(&marker),
         )
         .unwrap();
         let error = Store::new(&dir).table_store().unwrap_err().to_string();

@@ -6,9 +6,10 @@ use std::path::Path;
 
 use polars::prelude::*;
 
-use super::StoreError;
 use super::record::CellRecord;
+use crate::StoreError;
 use crate::atomic_file::write_atomic;
+use crate::layout::{EPISODES_FILE, TRAINING_FILE};
 use crate::schema::{cell, cells, episodes};
 use learning::checkpoint::WEIGHTS_FILE;
 use plan::cell::CellConfig;
@@ -157,9 +158,9 @@ pub fn cells_frame(records: &[CellRecord]) -> Result<DataFrame, StoreError> {
             cells::TRAINING_CONFIG.into(),
             column(records, |r| resolved_training(&r.config)),
         ),
-        Column::new(cells::EPISODES_HASH.into(), file_hash(super::EPISODES_FILE)),
+        Column::new(cells::EPISODES_HASH.into(), file_hash(EPISODES_FILE)),
         Column::new(cells::WEIGHTS_HASH.into(), file_hash(WEIGHTS_FILE)),
-        Column::new(cells::TRAINING_HASH.into(), file_hash(super::TRAINING_FILE)),
+        Column::new(cells::TRAINING_HASH.into(), file_hash(TRAINING_FILE)),
         Column::new(
             cells::CODE_VERSION.into(),
             column(records, |r| r.code_version.clone()),

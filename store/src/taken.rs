@@ -19,7 +19,8 @@ use super::columns::{optional_strings, strings};
 use super::schema::{cell, cells};
 use super::table_store::record_of_row;
 use super::tables::parquet_bytes;
-use super::{CellRecord, EPISODES_FILE, Store, StoreError, TRAINING_FILE, per_cell_file};
+use crate::layout::{EPISODES_FILE, TRAINING_FILE, per_cell_file};
+use crate::{CellRecord, Store, StoreError};
 use plan::scenario::Output;
 
 /// The files whose hashes the cells table keeps, by its column.
@@ -101,7 +102,7 @@ impl TakenTables {
         }
         self.check_hashes(key, &files)?;
         let hash = &record.config.map.hash;
-        super::write(
+        crate::files::write(
             &store.map_path(hash),
             self.source.map_text(hash)?.as_bytes(),
         )?;

@@ -465,7 +465,8 @@ fn trained_for(
 
 /// A claim's judgement under the budget rule: as judged, saying how its runs met the budget,
 /// or "not tested" with what the shorter runs showed beside the reason, so that a reader
-/// still sees them (and no seeds are priced for a question they cannot answer).
+/// still sees them. The points' power stays for `harness check --pilot`, which prices them
+/// as the pilot's budget gives them and says so.
 fn held_to_budget(judged: Judged, met: Result<String, String>) -> Judged {
     match met {
         Ok(how) if how.is_empty() => judged,
@@ -480,7 +481,7 @@ fn held_to_budget(judged: Judged, met: Result<String, String>) -> Judged {
                 judged.verdict.name(),
                 judged.ours
             ),
-            power: Vec::new(),
+            ..judged
         },
     }
 }

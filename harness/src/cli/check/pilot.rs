@@ -90,6 +90,12 @@ fn print_claim(result: &ClaimResult, seconds: &RunSeconds) -> Extra {
         }
         return Extra::new();
     }
+    if result.verdict == Verdict::NotTested {
+        println!(
+            "  its runs are short of the statement's budget: the runs below would decide the \
+             difference the pilot's budget shows, not the statement's"
+        );
+    }
     let mut claim = Extra::new();
     for point in &result.power {
         let extra = extra_runs(point);

@@ -418,7 +418,8 @@ fn trained_runs(
 /// Whether the learned policies of a claim meet the training the statement assumes: every
 /// result of the paper comes from policies trained its 30,000 episodes, so a claim about them
 /// holds runs to that budget, or to convergence (the stopping rule says when a run has
-/// learned what it will; a run its cap ended is counted and named, not hidden). `Ok` says how
+/// learned what it will). A run its cap ended before it converged, short of the budget, has
+/// neither: its policy is short, and the claim names how many runs were capped. `Ok` says how
 /// each policy met it, `Err` which fell short; with no training table nothing can tell.
 fn trained_for(
     claim: &Claim,
@@ -438,12 +439,21 @@ fn trained_for(
             None => {}
             Some(Trained {
                 until_converged: Some(stops),
-                ..
-            }) => met.push(format!(
+                episodes,
+            }) if stops.capped == 0 || *episodes >= budget => met.push(format!(
                 "{policy} trained until converged: {} of {} runs converged, {} capped",
                 stops.converged,
                 stops.converged + stops.capped,
                 stops.capped
+            )),
+            Some(Trained {
+                until_converged: Some(stops),
+                episodes,
+            }) => short.push(format!(
+                "{policy} trained until converged, but {} of {} runs reached their cap before \
+                 converging (the shortest trained {episodes})",
+                stops.capped,
+                stops.converged + stops.capped
             )),
             Some(Trained { episodes, .. }) if *episodes >= budget => {
                 met.push(format!("{policy} trained {episodes} episodes"))
@@ -1271,12 +1281,23 @@ mod tests {
         );
         let long = trained_for(&claim, 30_000, &runs(30_000, None)).unwrap();
         assert_eq!(long, "ma-g-ppo@fast trained 30000 episodes");
-        let stops = Stops {
+        let every_run = Stops {
+            converged: 5,
+            capped: 0,
+        };
+        let converged = trained_for(&claim, 30_000, &runs(900, Some(every_run))).unwrap();
+        assert!(converged.contains("until converged: 5 of 5 runs converged, 0 capped"));
+        let one_capped = Stops {
             converged: 4,
             capped: 1,
         };
-        let converged = trained_for(&claim, 30_000, &runs(900, Some(stops))).unwrap();
-        assert!(converged.contains("until converged: 4 of 5 runs converged, 1 capped"));
+        let capped = trained_for(&claim, 30_000, &runs(900, Some(one_capped))).unwrap_err();
+        assert!(
+            capped.contains("1 of 5 runs reached their cap before converging"),
+            "a capped run short of the budget is neither: {capped}"
+        );
+        let capped_at_budget = trained_for(&claim, 30_000, &runs(30_000, Some(one_capped)));
+        assert!(capped_at_budget.unwrap().contains("4 of 5 runs converged, 1 capped"));
         assert!(
             trained_for(&claim, 30_000, &None).is_err(),
             "no table: cannot tell"

@@ -1297,7 +1297,11 @@ mod tests {
             "a capped run short of the budget is neither: {capped}"
         );
         let capped_at_budget = trained_for(&claim, 30_000, &runs(30_000, Some(one_capped)));
-        assert!(capped_at_budget.unwrap().contains("4 of 5 runs converged, 1 capped"));
+        assert!(
+            capped_at_budget
+                .unwrap()
+                .contains("4 of 5 runs converged, 1 capped")
+        );
         assert!(
             trained_for(&claim, 30_000, &None).is_err(),
             "no table: cannot tell"

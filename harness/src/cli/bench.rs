@@ -15,7 +15,7 @@ use learning::ppo::{ArchitectureName, Profile, TrainingConfig, TrainingParams};
 use stats::median_with_infinities;
 use world::World;
 
-use super::WorldArgs;
+use super::world_args::WorldArgs;
 
 #[derive(clap::Args)]
 #[command(subcommand_negates_reqs = true)]

@@ -1,6 +1,7 @@
 //! `harness check FILE`: validates a scenario and prints its cells and their cost, and with
 //! `--pilot` the training runs its claims would need (`pilot`).
 
+mod cpu_time;
 mod pilot;
 
 use std::path::PathBuf;
@@ -8,6 +9,8 @@ use std::path::PathBuf;
 use plan::scenario::cost::Cost;
 use plan::scenario::{Limits, Scenario};
 use store::Store;
+
+pub use cpu_time::duration;
 
 #[derive(clap::Args)]
 pub struct CheckArgs {
@@ -193,16 +196,6 @@ fn print_totals(scenario: &Scenario, totals: &Totals, jobs: Option<u16>) {
         totals.shared_runs,
         duration(wall)
     );
-}
-
-/// A rough duration, in the unit that reads best.
-pub fn duration(seconds: f64) -> String {
-    match seconds {
-        s if s < 120.0 => format!("{s:.0} s"),
-        s if s < 7200.0 => format!("{:.0} min", s / 60.0),
-        s if s < 172_800.0 => format!("{:.1} h", s / 3600.0),
-        s => format!("{:.1} days", s / 86_400.0),
-    }
 }
 
 /// The size limits a command checks a scenario against.

@@ -15,7 +15,7 @@ use store::atomic_file::write_atomic;
 use world::Policy;
 use world::Seed;
 
-use super::WorldArgs;
+use super::world_args::WorldArgs;
 
 #[derive(clap::Args)]
 pub struct RunArgs {

@@ -13,7 +13,7 @@ use learning::ppo::{AgentCount, EpisodeRecord, Profile, TrainingConfig, Training
 use learning::{ActionChoice, LearnedPolicy};
 use world::Seed;
 
-use super::WorldArgs;
+use super::world_args::WorldArgs;
 use engine::episode::mean_penalty;
 use engine::training_run::TrainingRun;
 

@@ -14,7 +14,7 @@ use report::verdicts::{ClaimResult, Decision, PointPower};
 use report::{LearnedSetting, StoreTables, training_run_seconds};
 use store::Store;
 
-use super::duration;
+use super::cpu_time::duration;
 
 /// Further runs per learned setting: the most any point asks of it, since one more run of a
 /// setting serves every point that compares it.

@@ -19,7 +19,7 @@ use serde_json::{Map, Value, json};
 use store::atomic_file::write_atomic;
 use world::World;
 
-use crate::cli::WorldArgs;
+use crate::cli::world_args::WorldArgs;
 
 /// The record of the world a run trained in.
 pub const WORLD_FILE: &str = "world.json";

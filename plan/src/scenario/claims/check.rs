@@ -5,10 +5,10 @@ use std::path::Path;
 
 use serde_saphyr::Spanned;
 
+use super::claim::{Behaviour, Claim, ClaimTest, GCS, Pair, Point, RANDOM, Scale, Tolerance};
 use super::format::{
     AdaptationSpec, BehaviourSpec, ClaimSpec, CurveSpec, DiagonalSpec, FasterSpec, PairSpec,
 };
-use super::{Behaviour, Claim, ClaimTest, GCS, Pair, Point, RANDOM, Scale, Tolerance};
 use crate::scenario::ScenarioError;
 use learning::ppo::Profile;
 

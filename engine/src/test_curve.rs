@@ -273,7 +273,7 @@ mod tests {
         assert_eq!(curve.next_stop(80, 100), 100);
         assert!(curve.due(100, 100), "the end is always played");
         // The schedule's count is what the cost estimate counts.
-        use plan::scenario::cost::plays;
+        use plan::scenario::stopping::plays;
         assert_eq!(plays(100, 40), 4);
         assert_eq!(plays(80, 40), 3);
     }

@@ -4,6 +4,7 @@
 
 use learning::ppo::ArchitectureName;
 
+use super::stopping::plays;
 use super::{Learned, WorldConfig};
 
 /// What a cell or a sweep costs, in episodes and environment steps, and as estimated work.
@@ -53,13 +54,6 @@ pub(crate) mod work {
             super::ArchitectureName::MaPpo => INDEPENDENT_TRAINING_STEP,
         }
     }
-}
-
-/// How many times a run of `episodes` training episodes plays its test episodes for its test
-/// curve (`test_curve`): before training, after every `every` episodes and at the end (at
-/// most; rounds may merge two).
-pub fn plays(episodes: u64, every: u64) -> u64 {
-    episodes.div_ceil(every.max(1)) + 1
 }
 
 /// Test episodes played per N_test: each undisturbed, then once under every disturbance.

@@ -2,6 +2,7 @@
 //! into the grid of cells a sweep runs.
 
 mod check;
+mod checked;
 pub mod claims;
 pub mod cost;
 mod disturbance;
@@ -11,17 +12,19 @@ pub mod format;
 mod policy;
 mod size;
 pub mod stopping;
+mod world_config;
 pub(crate) mod yaml;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use serde::{Deserialize, Serialize};
-use world::{Map, WorldParams};
+use serde::Deserialize;
 
+pub use checked::{Scenario, ScenarioMap, map_hash};
 pub use error::ScenarioError;
 pub use format::Output;
 pub use policy::{Learned, ScenarioPolicy};
 pub use size::{Limits, Size};
+pub use world_config::WorldConfig;
 
 /// The largest scenario file read. A scenario may hold its maps inline, each up to a text
 /// map's limit ([`world::map::MAX_TEXT_MAP_BYTES`], a little over 1 MiB) plus indentation;
@@ -46,141 +49,6 @@ pub fn description_of_text(text: &str, file: &Path) -> Result<String, ScenarioEr
     }
     let spec: DescriptionOnly = yaml::from_yaml(text, file)?;
     Ok(spec.description)
-}
-
-/// A checked scenario: every map loaded, every value possible.
-#[derive(Debug)]
-pub struct Scenario {
-    pub(crate) name: String,
-    pub(crate) description: String,
-    /// The file it was read from, for messages.
-    pub(crate) file: PathBuf,
-    pub(crate) maps: Vec<ScenarioMap>,
-    pub(crate) world: WorldConfig,
-    pub(crate) policies: Vec<ScenarioPolicy>,
-    pub(crate) train_agents: Vec<u32>,
-    pub(crate) test_agents: Vec<u32>,
-    pub(crate) seed: u64,
-    pub(crate) repetitions: u32,
-    pub(crate) test_episodes: u32,
-    pub(crate) outputs: Vec<Output>,
-    /// What the test episodes are also played under, besides undisturbed.
-    pub(crate) disturbances: Vec<crate::disturbance::Disturbance>,
-    /// Checked against the scenario's maps, policies and agent counts.
-    pub(crate) claims: Vec<crate::scenario::claims::Claim>,
-    /// The verdicts of an earlier answer, for the report's "what changed".
-    pub(crate) earlier: Option<earlier::Earlier>,
-}
-
-/// A checked scenario is read, never changed: its fields are the plan's, its accessors
-/// everyone's.
-impl Scenario {
-    pub fn name(&self) -> &str {
-        &self.name
-    }
-
-    pub fn description(&self) -> &str {
-        &self.description
-    }
-
-    /// The file it was read from, for messages.
-    pub fn file(&self) -> &std::path::Path {
-        &self.file
-    }
-
-    pub fn maps(&self) -> &[ScenarioMap] {
-        &self.maps
-    }
-
-    pub fn world(&self) -> WorldConfig {
-        self.world
-    }
-
-    pub fn policies(&self) -> &[ScenarioPolicy] {
-        &self.policies
-    }
-
-    pub fn train_agents(&self) -> &[u32] {
-        &self.train_agents
-    }
-
-    pub fn test_agents(&self) -> &[u32] {
-        &self.test_agents
-    }
-
-    /// The root of the scenario's seed tree.
-    pub fn seed(&self) -> u64 {
-        self.seed
-    }
-
-    /// Training runs per (map, policy, N_train).
-    pub fn repetitions(&self) -> u32 {
-        self.repetitions
-    }
-
-    /// Test episodes per cell and N_test.
-    pub fn test_episodes(&self) -> u32 {
-        self.test_episodes
-    }
-
-    /// The sweep-level tables to build.
-    pub fn outputs(&self) -> &[Output] {
-        &self.outputs
-    }
-
-    /// What the test episodes are also played under, besides undisturbed.
-    pub fn disturbances(&self) -> &[crate::disturbance::Disturbance] {
-        &self.disturbances
-    }
-
-    /// Checked against the scenario's maps, policies and agent counts.
-    pub fn earlier(&self) -> Option<&earlier::Earlier> {
-        self.earlier.as_ref()
-    }
-
-    pub fn claims(&self) -> &[crate::scenario::claims::Claim] {
-        &self.claims
-    }
-}
-
-/// A map of the scenario with where it came from and the hash of its contents.
-#[derive(Debug)]
-pub struct ScenarioMap {
-    pub map: Map,
-    /// The map as the scenario names it (file spec as written, or `inline`).
-    pub source: String,
-    /// blake3 of the map's canonical text: what a cell's key depends on.
-    pub hash: String,
-}
-
-/// The world parameters shared by every cell of a scenario.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct WorldConfig {
-    pub fov: usize,
-    pub decay: f32,
-    pub rmax: f32,
-    pub train_steps: u32,
-    pub test_steps: u32,
-}
-
-impl WorldConfig {
-    /// Checked when the scenario was loaded, and again here for configs read back from a store.
-    pub fn params(&self) -> Result<WorldParams, world::ParamError> {
-        WorldParams::new(self.fov, self.decay, self.rmax)
-    }
-}
-
-impl ScenarioMap {
-    pub fn new(map: Map, source: String) -> Self {
-        let hash = map_hash(&map);
-        Self { map, source, hash }
-    }
-}
-
-/// The content hash of a map (of its canonical text, so a polygon map and its rasterised text
-/// are the same map).
-pub fn map_hash(map: &Map) -> String {
-    blake3::hash(map.to_text().as_bytes()).to_hex()[..20].to_owned()
 }
 
 impl Scenario {

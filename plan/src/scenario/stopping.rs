@@ -118,7 +118,7 @@ impl StoppingRule {
     /// Validations of a run that trains `episodes` at most: before training, at every
     /// multiple of `validate_every`, and at the cap.
     pub fn most_validations(&self, episodes: u64) -> u64 {
-        crate::scenario::cost::plays(episodes, u64::from(self.validate_every))
+        plays(episodes, u64::from(self.validate_every))
     }
 }
 
@@ -137,6 +137,13 @@ impl Until {
     pub(crate) fn is_episodes(&self) -> bool {
         *self == Until::Episodes
     }
+}
+
+/// How many rounds of evaluation a run of `episodes` training episodes plays, one every
+/// `every` episodes (its test curve's, `test_curve`, or its validations): before training,
+/// after every `every` episodes and at the end (at most; rounds may merge two).
+pub fn plays(episodes: u64, every: u64) -> u64 {
+    episodes.div_ceil(every.max(1)) + 1
 }
 
 #[cfg(test)]

@@ -11,7 +11,6 @@
 //! (a committed report's copy, tables only) is judged from that table alone.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::path::PathBuf;
 use std::sync::Arc;
 use store::schema::{behaviour_episodes, cell, cells, episodes};
 
@@ -25,6 +24,8 @@ use super::judgement::at_point;
 use super::motion::{Motion, sin_theta};
 use plan::scenario::claims::{Claim, ClaimTest, Point};
 use store::{CellRecord, Store, StoreError};
+
+pub use crate::error::{BehaviourError, ReplayError};
 
 /// Plays stored test episodes again. The engine does it (`engine::execution`, handed in by the
 /// binary): the report only measures what it is shown, and runs no cell itself.
@@ -43,9 +44,6 @@ pub trait Replay: Sync {
     ) -> Result<(), ReplayError>;
 }
 
-/// Why a replay failed, as the engine says it.
-pub type ReplayError = Box<dyn std::error::Error + Send + Sync>;
-
 /// The store table of measured episodes (`NAME.parquet` and `NAME.csv` in the store's root).
 pub const TABLE: &str = behaviour_episodes::TABLE;
 
@@ -62,23 +60,6 @@ pub struct EpisodeMeasure {
     /// Which recorded episodes the roles were pooled with ([`Pool::identity`]): a row whose
     /// pool is no longer the store's is measured again where the store can replay it.
     pub pool: String,
-}
-
-#[derive(Debug, thiserror::Error)]
-pub enum BehaviourError {
-    #[error(transparent)]
-    Store(#[from] StoreError),
-    #[error("replaying test episodes of cell {key}: {source}")]
-    Replay { key: String, source: ReplayError },
-    #[error("the stored world parameters of cell {key} are not valid: {source}")]
-    World {
-        key: String,
-        source: world::ParamError,
-    },
-    #[error("{path}: {source}")]
-    Table { path: PathBuf, source: PolarsError },
-    #[error("the episodes table: {0}")]
-    Episodes(PolarsError),
 }
 
 /// The measured episodes of every behaviour claim's point of `claims`: read from the store's

@@ -14,6 +14,7 @@ mod comparison;
 mod convergence;
 mod disturbance;
 mod earlier;
+mod error;
 pub mod header;
 mod illustration;
 pub mod judgement;
@@ -21,64 +22,32 @@ pub mod markdown;
 pub mod motion;
 mod penalty;
 mod publish;
+mod run_seconds;
 mod test_curve;
 mod time_to_quality;
 mod training;
 mod transfer;
+mod units;
 pub mod verdicts;
+mod writer;
 
-use std::collections::{BTreeMap, HashMap};
-use std::path::{Path, PathBuf};
+use std::collections::HashMap;
+use std::path::Path;
 
 use polars::prelude::*;
 
-use chart::{ChartError, Figure, render};
-use store::atomic_file::write_atomic;
 use store::provenance::BuiltFrom;
 use store::schema;
 use store::status::CellState;
-use store::{MissingCell, Store, StoreError, tables};
+use store::{MissingCell, Store};
 use world::Map;
 
 pub use behaviour_replay::{Replay, ReplayError};
-
-/// Penalties are reported in millions, as in the paper.
-pub const PENALTY_UNIT: f64 = 1e6;
-
-#[derive(Debug, thiserror::Error)]
-pub enum ReportError {
-    #[error(transparent)]
-    Store(#[from] StoreError),
-    #[error("{0}")]
-    Polars(#[from] PolarsError),
-    #[error(transparent)]
-    Chart(#[from] ChartError),
-    #[error(transparent)]
-    Stats(#[from] stats::StatsError),
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{0} holds no sweep (no sweep.json)")]
-    NoSweep(PathBuf),
-    #[error(transparent)]
-    Claims(#[from] plan::scenario::ScenarioError),
-    #[error(transparent)]
-    Status(#[from] store::status::StatusError),
-    #[error(transparent)]
-    Behaviour(#[from] behaviour_replay::BehaviourError),
-}
-
-/// What a report wrote.
-#[derive(Debug)]
-pub struct ReportSummary {
-    pub folder: PathBuf,
-    pub tables: usize,
-    pub figures: usize,
-    /// The bytes of the table store it carries in `store/`.
-    pub store_bytes: u64,
-}
+pub use error::ReportError;
+pub use run_seconds::{LearnedSetting, training_run_seconds};
+pub use units::PENALTY_UNIT;
+pub use writer::ReportSummary;
+use writer::{ReportWriter, file_stem};
 
 /// The folder of a report that holds the table store it was written from.
 pub const STORE_FOLDER: &str = "store";
@@ -232,31 +201,6 @@ pub fn store_claims(store: &Store) -> Result<Vec<plan::scenario::claims::Claim>,
     )?)
 }
 
-/// A learned setting as the training table names it: map, policy, N_train.
-pub type LearnedSetting = (String, String, u32);
-
-/// Each learned setting's training runs' own wall times in seconds, by their logs: a run's is
-/// its log's last `wall_seconds` (the log counts from the run's start, across resumes; one
-/// cell holds one run). What one more run of the setting costs, whether or not the sweep took
-/// the run from the cache (then the cell's own wall time counts only its tests).
-pub fn training_run_seconds(
-    training: &DataFrame,
-) -> PolarsResult<BTreeMap<LearnedSetting, Vec<f64>>> {
-    let keys = columns::strings(training, schema::cell::KEY)?;
-    let walls = columns::f64s(training, schema::training::WALL_SECONDS)?;
-    let settings = columns::trained_keys(training)?;
-    let mut runs: BTreeMap<LearnedSetting, Vec<f64>> = BTreeMap::new();
-    for (_, rows) in columns::group_rows(&keys) {
-        let (map, policy) = &settings[rows[0]];
-        if let Some(n_train) = policy.n_train {
-            let seconds = rows.iter().map(|&r| walls[r]).fold(0.0, f64::max);
-            let setting = (map.clone(), policy.policy.clone(), n_train);
-            runs.entry(setting).or_default().push(seconds);
-        }
-    }
-    Ok(runs)
-}
-
 /// The store's tables that claims are tested against and the report's sections draw.
 pub struct StoreTables {
     pub episodes: DataFrame,
@@ -338,136 +282,6 @@ impl StoreTables {
         let measures = behaviour_replay::measures(&self.store, claims, recorded, replay)?;
         Ok(measures)
     }
-}
-
-/// The report folder being written: the README's text, and its tables and figures.
-pub struct ReportWriter {
-    publication: publish::Publication,
-    readme: String,
-    tables: usize,
-    figures: usize,
-}
-
-impl ReportWriter {
-    fn new(reports_root: &Path, name: &str) -> Result<Self, ReportError> {
-        let publication = publish::Publication::start(reports_root, name)?;
-        for sub in ["tables", "figures"] {
-            let path = publication.fresh.join(sub);
-            std::fs::create_dir_all(&path).map_err(|source| ReportError::Io { path, source })?;
-        }
-        Ok(Self {
-            publication,
-            readme: String::new(),
-            tables: 0,
-            figures: 0,
-        })
-    }
-
-    /// Where the report is written until it is whole.
-    fn folder(&self) -> &Path {
-        &self.publication.fresh
-    }
-
-    fn heading(&mut self, level: usize, text: &str) {
-        self.readme += &format!("{} {text}\n\n", "#".repeat(level));
-    }
-
-    fn paragraph(&mut self, text: &str) {
-        self.readme += text;
-        self.readme += "\n\n";
-    }
-
-    /// Writes `tables/NAME.parquet` and `tables/NAME.md`, and shows the table in the README.
-    fn table(&mut self, name: &str, frame: &DataFrame) -> Result<(), ReportError> {
-        let markdown = markdown::table(frame)?;
-        self.write(
-            &format!("tables/{name}.parquet"),
-            &tables::parquet_bytes(frame)?,
-        )?;
-        self.write(&format!("tables/{name}.md"), markdown.as_bytes())?;
-        self.tables += 1;
-        self.readme += &markdown;
-        self.readme += &format!("\n([Parquet](tables/{name}.parquet))\n\n");
-        Ok(())
-    }
-
-    /// Writes a table too long to read (per step or per cell) as Parquet only, and links it.
-    fn linked_table(
-        &mut self,
-        name: &str,
-        frame: &DataFrame,
-        what: &str,
-    ) -> Result<(), ReportError> {
-        self.write(
-            &format!("tables/{name}.parquet"),
-            &tables::parquet_bytes(frame)?,
-        )?;
-        self.tables += 1;
-        self.readme += &format!(
-            "{what}: [Parquet](tables/{name}.parquet) ({} rows).\n\n",
-            frame.height()
-        );
-        Ok(())
-    }
-
-    /// Writes `figures/NAME.png`, and `figures/NAME.svg` unless it is large, and shows the PNG
-    /// in the README.
-    fn figure(
-        &mut self,
-        name: &str,
-        figure: &impl Figure,
-        caption: &str,
-    ) -> Result<(), ReportError> {
-        let rendered = render(figure)?;
-        self.write(&format!("figures/{name}.png"), &rendered.png)?;
-        let svg = if rendered.svg.len() <= MAX_SVG_BYTES {
-            self.write(&format!("figures/{name}.svg"), rendered.svg.as_bytes())?;
-            format!("[SVG](figures/{name}.svg)")
-        } else {
-            format!("SVG of {} KB left out", rendered.svg.len() / 1000)
-        };
-        self.figures += 1;
-        self.readme += &format!("![{caption}](figures/{name}.png)\n\n*{caption}* ({svg})\n\n");
-        Ok(())
-    }
-
-    fn write(&mut self, relative: &str, bytes: &[u8]) -> Result<(), ReportError> {
-        let path = self.folder().join(relative);
-        write_atomic(&path, bytes).map_err(|source| ReportError::Io { path, source })
-    }
-
-    /// Writes the README and puts the whole folder in the last report's place: the folder
-    /// then holds exactly what the README shows, and nothing of an earlier report.
-    fn finish(mut self, store_bytes: u64) -> Result<ReportSummary, ReportError> {
-        let readme = std::mem::take(&mut self.readme);
-        self.write("README.md", readme.as_bytes())?;
-        Ok(ReportSummary {
-            folder: self.publication.swap_in()?,
-            tables: self.tables,
-            figures: self.figures,
-            store_bytes,
-        })
-    }
-}
-
-/// The largest SVG a report keeps. Maps and trajectories draw a shape per cell or step, and
-/// their SVGs run to hundreds of KB; their PNGs stand, so that a report stays small enough to
-/// commit.
-const MAX_SVG_BYTES: usize = 100_000;
-
-/// A name safe in file names: letters, digits and `-`, everything else `_`.
-fn file_stem(parts: &[&str]) -> String {
-    parts
-        .join("_")
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
 }
 
 #[cfg(test)]

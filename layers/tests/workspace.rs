@@ -40,34 +40,17 @@ fn modules_of(crate_name: &str) -> CrateModules {
     CrateModules::read(crate_name, &src).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// The cycles the check found when it came, which the list in `known_cycles.txt` holds until
-/// they are taken apart: the list only shrinks.
-fn known_cycles() -> BTreeSet<String> {
-    include_str!("known_cycles.txt")
-        .lines()
-        .filter(|line| !line.starts_with('#') && !line.trim().is_empty())
-        .map(str::to_owned)
-        .collect()
-}
-
 #[test]
 fn no_folder_has_an_import_cycle_between_its_modules() {
-    let found: BTreeSet<String> = CRATES
+    let found: Vec<String> = CRATES
         .iter()
         .flat_map(|c| folder_cycles(&modules_of(c)))
         .collect();
-    let known = known_cycles();
-    let new: Vec<&String> = found.difference(&known).collect();
     assert!(
-        new.is_empty(),
+        found.is_empty(),
         "modules that import each other in a cycle (take it apart: what the others need goes \
          into a leaf module of its own, below them; a folder's own file only declares and \
-         re-exports):\n{new:#?}"
-    );
-    let gone: Vec<&String> = known.difference(&found).collect();
-    assert!(
-        gone.is_empty(),
-        "taken apart: remove from layers/tests/known_cycles.txt:\n{gone:#?}"
+         re-exports):\n{found:#?}"
     );
 }
 

@@ -30,6 +30,18 @@ pub enum Baseline {
 }
 
 impl Baseline {
+    /// Whether it plans from the whole map before it acts (a tour through viewpoints, a
+    /// partition, a cover), so that its memory grows with the map's cells: what a scenario's
+    /// size estimate counts. Every baseline answers here, so a new one must.
+    pub fn plans_from_the_map(self) -> bool {
+        match self {
+            Baseline::Tspc | Baseline::Partition | Baseline::Static => true,
+            Baseline::Random | Baseline::Gcs | Baseline::GcsPaperText | Baseline::GcsOnArrival => {
+                false
+            }
+        }
+    }
+
     pub const ALL: [Baseline; 7] = [
         Baseline::Random,
         Baseline::Gcs,

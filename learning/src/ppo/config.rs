@@ -603,11 +603,6 @@ impl TrainingParams {
             init,
         })
     }
-
-    /// Samples per update: every agent of every environment at every step.
-    pub fn max_batch(&self) -> usize {
-        self.environments * self.steps_per_episode * self.agents.max
-    }
 }
 
 /// Follows the image side through the convolutions, so that a misfit names the network and

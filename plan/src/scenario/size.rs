@@ -115,13 +115,10 @@ impl Scenario {
     /// The planning memory of a baseline's cell on map `map_index` (none for one that does not
     /// plan).
     fn planning_bytes(&self, map_index: usize, policy: &super::ScenarioPolicy) -> u64 {
-        use baselines::Baseline;
-        let plans = matches!(
-            policy,
-            super::ScenarioPolicy::Baseline(
-                Baseline::Tspc | Baseline::Partition | Baseline::Static
-            )
-        );
+        let plans = match policy {
+            super::ScenarioPolicy::Baseline(baseline) => baseline.plans_from_the_map(),
+            super::ScenarioPolicy::Learned(_) => false,
+        };
         let map = &self.maps[map_index].map;
         match plans {
             true => (map.width() * map.height()) as u64 * PLANNING_BYTES_PER_CELL,

@@ -55,24 +55,11 @@ fn check_claim(spec: &ClaimSpec, context: Option<&ClaimContext>) -> Result<Claim
     if spec.id.trim().is_empty() {
         return Err((None, ".id".into(), "a claim needs an id".into()));
     }
-    let kinds = [
-        spec.lower.is_some(),
-        spec.within.is_some(),
-        spec.not_worse.is_some(),
-        spec.gap_grows.is_some(),
-        spec.every_run_lower.is_some(),
-        spec.diagonal_best.is_some(),
-        spec.curve_below.is_some(),
-        spec.behaviour.is_some(),
-        spec.adapts_better.is_some(),
-        spec.faster.is_some(),
-        spec.not_tested.is_some(),
-    ];
-    if kinds.iter().filter(|&&k| k).count() != 1 {
-        let problem = "give exactly one of lower, within, not_worse, gap_grows, \
-                       every_run_lower, diagonal_best, curve_below, behaviour, adapts_better, \
-                       faster, not_tested";
-        return Err((None, String::new(), problem.into()));
+    let kinds = spec.kinds();
+    if kinds.iter().filter(|(_, given)| *given).count() != 1 {
+        let names: Vec<&str> = kinds.iter().map(|(name, _)| *name).collect();
+        let problem = format!("give exactly one of {}", names.join(", "));
+        return Err((None, String::new(), problem));
     }
     let checker = Checker { context };
     let test = if let Some(pair) = &spec.lower {

@@ -46,6 +46,43 @@ pub(crate) struct ClaimSpec {
     pub budget: Option<Spanned<u64>>,
 }
 
+impl ClaimSpec {
+    /// Each claim kind by its field's name, and whether this entry gives it, in the order
+    /// "give exactly one of" names them. The pattern names every field, so a kind added to
+    /// the struct and left out here does not compile.
+    pub(crate) fn kinds(&self) -> [(&'static str, bool); 11] {
+        let ClaimSpec {
+            id: _,
+            paper: _,
+            budget: _,
+            lower,
+            within,
+            not_worse,
+            every_run_lower,
+            gap_grows,
+            diagonal_best,
+            curve_below,
+            behaviour,
+            adapts_better,
+            faster,
+            not_tested,
+        } = self;
+        [
+            ("lower", lower.is_some()),
+            ("within", within.is_some()),
+            ("not_worse", not_worse.is_some()),
+            ("gap_grows", gap_grows.is_some()),
+            ("every_run_lower", every_run_lower.is_some()),
+            ("diagonal_best", diagonal_best.is_some()),
+            ("curve_below", curve_below.is_some()),
+            ("behaviour", behaviour.is_some()),
+            ("adapts_better", adapts_better.is_some()),
+            ("faster", faster.is_some()),
+            ("not_tested", not_tested.is_some()),
+        ]
+    }
+}
+
 /// Two policies compared at the points (map, N_test = n): a learned policy is taken at
 /// N_train = `n_train` when given, else at N_train = N_test.
 #[derive(Clone, Debug, Deserialize)]

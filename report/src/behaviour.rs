@@ -420,7 +420,6 @@ fn role_frame(motions: &[Motion], rows: &[AgentRole]) -> PolarsResult<DataFrame>
 
 /// What one episode shows (a recorded one, or one a behaviour claim replays).
 pub struct EpisodeBehaviour {
-    pub group: super::columns::GroupKey,
     pub stationary: usize,
     pub touring: usize,
     /// The touring agents share a rhythm in y(t) or in sin(theta(t)): each one's own period
@@ -545,7 +544,6 @@ fn summary(
         touring.len()
     );
     EpisodeBehaviour {
-        group: motion.group.clone(),
         stationary,
         touring: touring.len(),
         periodic,

@@ -11,7 +11,7 @@ pub mod lines;
 pub mod marker;
 mod style;
 
-pub use figure::{ChartError, FONT, Figure, Rendered, render};
+pub use figure::{ChartError, FONT, Figure, render};
 pub use style::{
     centre_label, diverging, draw_colour_bar, draw_legend, padded_range, rgb, series_colour,
     tick_label,

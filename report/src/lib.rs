@@ -5,21 +5,21 @@
 //! figure never shows a number the report's tables do not hold. Penalties are in units of
 //! 10^6, as in the paper.
 
-pub mod behaviour;
+mod behaviour;
 mod behaviour_claims;
 pub mod behaviour_replay;
-pub mod chart;
+mod chart;
 mod columns;
 mod comparison;
 mod convergence;
 mod disturbance;
 mod earlier;
 mod error;
-pub mod header;
+mod header;
 mod illustration;
 pub mod judgement;
 pub mod markdown;
-pub mod motion;
+mod motion;
 mod penalty;
 mod publish;
 mod run_seconds;

@@ -50,7 +50,7 @@ pub mod reader;
 pub mod record;
 pub mod schema;
 pub mod status;
-pub mod table_store;
+mod table_store;
 pub mod tables;
 pub mod taken;
 

@@ -3,4 +3,7 @@
 
 pub mod cli;
 pub mod provenance;
-pub mod source_hash;
+/// Compiled into the build script (`build.rs`), which alone computes the hash; here only for
+/// its tests.
+#[cfg(test)]
+mod source_hash;

@@ -295,11 +295,10 @@ fn is_test(attributes: &[syn::Attribute]) -> bool {
     attributes.iter().any(|attribute| match &attribute.meta {
         syn::Meta::Path(path) => path.is_ident("test"),
         syn::Meta::List(list) if list.path.is_ident("cfg") => {
-            list.tokens
-                .to_string()
-                .split(|c: char| !c.is_alphanumeric() && c != '_')
-                .any(|w| w == "test")
-                && !list.tokens.to_string().starts_with("not")
+            let condition = list.tokens.to_string();
+            !condition.starts_with("not")
+                && (condition.split(|c: char| !c.is_alphanumeric() && c != '_'))
+                    .any(|w| w == "test")
         }
         _ => false,
     })

@@ -99,7 +99,7 @@ fn reached_by(
         .collect()
 }
 
-/// The provenance hash of a cell (`harness::source_hash`) covers every module of the plan and
+/// The provenance hash of a cell (`harness/src/source_hash.rs`) covers every module of the plan and
 /// the engine that running a cell reaches through its imports, from `engine::execution` on: a
 /// module left out could change a cell's numbers without changing the hash its record keeps.
 #[test]

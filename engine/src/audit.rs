@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use world::{ParamError, Seed, StartError, World};
 
 use learning::checkpoint::{self, WEIGHTS_FILE};
-use learning::ppo::{ConfigError, TrainError, Trainer};
+use learning::ppo::{TrainError, Trainer};
 
 use crate::aggregate::{AggregateError, tables_of};
 use crate::execution::{CellError, disturbed_test_episode, stored_policy, test_episode};
@@ -33,8 +33,6 @@ pub enum AuditError {
     Start(#[from] StartError),
     #[error(transparent)]
     World(#[from] ParamError),
-    #[error(transparent)]
-    Config(#[from] ConfigError),
     #[error(transparent)]
     Train(#[from] TrainError),
     #[error("training log: {0}")]
@@ -291,9 +289,9 @@ fn train_again(
     record: &CellRecord,
 ) -> Result<TrainedAgain, AuditError> {
     let config = &record.config;
-    let training = config.training_config().ok_or(AuditError::NotTrained)??;
+    let training = config.training().ok_or(AuditError::NotTrained)?;
     let world = world_of(store, worlds, config)?;
-    let mut trainer = Trainer::new(world, training, config.training_seed)?;
+    let mut trainer = Trainer::new(world, training.clone(), config.training_seed)?;
     let records = trainer.train(stop_episode(store, record)?, &mut |_| ())?;
     let compared = match &record.taken_from {
         Some(_) => "log (its weights were not kept: taken from tables)",

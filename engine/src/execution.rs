@@ -22,11 +22,11 @@ use crate::test_curve::{self, CpuMeter, CurvePoint, TestCurve};
 use crate::training_run::{TrainingRun, TrainingRunError};
 use crate::trajectory::CellRecording;
 use crate::validation::{BestPolicy, Stop, Validation, ValidationPoint};
-use plan::cell::{CellConfig, SweepCell};
+use plan::cell::{CellConfig, CellPolicy, LearnedCell, SweepCell};
 use plan::code_version::code_version;
 use plan::disturbance::{Disturbance, UNDISTURBED};
+use plan::scenario::Learned;
 use plan::scenario::stopping::Checkpoint;
-use plan::scenario::{Learned, ScenarioPolicy};
 use store::adaptation::{self, Adaptation};
 use store::disturbance::{self, DisturbedRow};
 use store::provenance::{BuiltFrom, cpu_description, host_name, utc_timestamp};
@@ -89,19 +89,18 @@ pub(crate) fn run_cell(
     let mut files = Vec::new();
     // The training wall time of the processes before this one, when a stopped run resumed.
     let mut earlier_training_seconds = 0.0;
-    let (mut policy, trained) = match &config.policy {
-        ScenarioPolicy::Baseline(baseline) => (baseline.build(world)?, None),
-        ScenarioPolicy::Learned(learned) => {
+    let (mut policy, trained) = match config.playing() {
+        CellPolicy::Baseline(baseline) => (baseline.build(world)?, None),
+        CellPolicy::Learned(run) => {
+            let learned = run.policy;
             let models = match shared_training(store, cache, cell, &mut files)? {
                 Some(shared) => {
                     advance(config.training_cost().env_steps);
                     shared
                 }
                 None => {
-                    let training = config.training_config_of(learned)?;
                     let folder = store.partial_training_folder(&cell.key);
-                    let training = (training, learned);
-                    let trained = train_cell(&folder, cell, world, training, events, advance)?;
+                    let trained = train_cell(&folder, cell, world, run, events, advance)?;
                     earlier_training_seconds = trained.earlier_seconds;
                     trained.into_files(cell, &mut files)?
                 }
@@ -400,19 +399,20 @@ fn train_cell(
     folder: &Path,
     cell: &SweepCell,
     world: &Arc<World>,
-    (training, learned): (TrainingConfig, &Learned),
+    learned: LearnedCell<'_>,
     events: Option<&Path>,
     advance: &dyn Fn(u64),
 ) -> Result<Trained, CellError> {
     let config = &cell.config;
     let seed = config.training_seed;
+    let training = learned.training;
     let mut run = TrainingRun::resume_or_start(folder, world.clone(), training.clone(), seed)?;
-    let mut evaluations = Evaluations::resume(folder, learned, run.state().episodes_done)?;
+    let mut evaluations = Evaluations::resume(folder, learned.policy, run.state().episodes_done)?;
     if evaluations.lost_its_best() {
         // The best policy of the validations saved is gone: only training again finds it.
         std::fs::remove_dir_all(folder).map_err(|e| StoreError::io(folder, e))?;
-        run = TrainingRun::start(folder, world.clone(), training, seed)?;
-        evaluations = Evaluations::resume(folder, learned, 0)?;
+        run = TrainingRun::start(folder, world.clone(), training.clone(), seed)?;
+        evaluations = Evaluations::resume(folder, learned.policy, 0)?;
     }
     if let Some(events) = events {
         run.write_events(events)?;
@@ -539,7 +539,7 @@ impl Evaluations {
         &mut self,
         world: &Arc<World>,
         cell: &SweepCell,
-        learned: &Learned,
+        learned: LearnedCell<'_>,
         (state, cpu_seconds): (&TrainingState, f64),
         folder: &Path,
     ) -> Result<Option<Stop>, CellError> {
@@ -577,13 +577,16 @@ impl Evaluations {
 fn validation_point(
     world: &Arc<World>,
     config: &CellConfig,
-    learned: &Learned,
+    learned: LearnedCell<'_>,
     state: &TrainingState,
     cpu_seconds: f64,
 ) -> Result<ValidationPoint, CellError> {
-    let agents = config.learned_n_train()?;
-    let episodes = learned.stopping.map_or(0, |rule| rule.validation_episodes);
-    let mut policy = learned_policy(world, state.model.clone(), &state.config, learned)?;
+    let agents = learned.n_train;
+    let episodes = learned
+        .policy
+        .stopping
+        .map_or(0, |rule| rule.validation_episodes);
+    let mut policy = learned_policy(world, state.model.clone(), &state.config, learned.policy)?;
     let mut total = 0.0;
     for episode in 0..episodes {
         let seed = config
@@ -615,12 +618,12 @@ fn validation_point(
 fn curve_point(
     world: &Arc<World>,
     config: &CellConfig,
-    learned: &Learned,
+    learned: LearnedCell<'_>,
     state: &TrainingState,
     cpu_seconds: f64,
 ) -> Result<CurvePoint, CellError> {
-    let agents = config.learned_n_train()?;
-    let mut policy = learned_policy(world, state.model.clone(), &state.config, learned)?;
+    let agents = learned.n_train;
+    let mut policy = learned_policy(world, state.model.clone(), &state.config, learned.policy)?;
     let rows = (0..config.test_episodes)
         .map(|episode| test_episode(world, policy.as_mut(), config, agents, episode))
         .collect::<Result<Vec<_>, _>>()?;
@@ -639,12 +642,13 @@ pub fn stored_policy(
     record: &CellRecord,
     world: &Arc<World>,
 ) -> Result<Box<dyn Policy>, CellError> {
-    let learned = match &record.config.policy {
-        ScenarioPolicy::Baseline(baseline) => return Ok(baseline.build(world)?),
-        ScenarioPolicy::Learned(learned) => learned,
+    let run = match record.config.playing() {
+        CellPolicy::Baseline(baseline) => return Ok(baseline.build(world)?),
+        CellPolicy::Learned(run) => run,
     };
+    let learned = run.policy;
     if record.taken_from.is_some() {
-        return trained_again(record, world, learned);
+        return trained_again(record, world, run);
     }
     let names = match learned.stopping.map(|rule| rule.tested) {
         Some(Checkpoint::Best) => (BEST_WEIGHTS_FILE, BEST_METADATA_FILE),
@@ -661,9 +665,9 @@ pub fn stored_policy(
 fn trained_again(
     record: &CellRecord,
     world: &Arc<World>,
-    learned: &Learned,
+    run: LearnedCell<'_>,
 ) -> Result<Box<dyn Policy>, CellError> {
-    let training = record.config.training_config_of(learned)?;
+    let (learned, training) = (run.policy, run.training);
     if learned.stopping.is_some() {
         let name = format!("vpm-trained-again-{}-{}", std::process::id(), record.key);
         let folder = std::env::temp_dir().join(name);
@@ -673,7 +677,7 @@ fn trained_again(
             key: record.key.clone(),
             config: record.config.clone(),
         };
-        let trained = train_cell(&folder, &cell, world, (training, learned), None, &|_| ());
+        let trained = train_cell(&folder, &cell, world, run, None, &|_| ());
         let _ = std::fs::remove_dir_all(&folder);
         let models = trained?.into_files(&cell, &mut Vec::new())?;
         return models.policy(world, learned, models.tested(learned));
@@ -682,7 +686,7 @@ fn trained_again(
     let mut trainer = Trainer::new(world.clone(), training.clone(), seed).map_err(retrain)?;
     trainer.train(u64::MAX, &mut |_| ()).map_err(retrain)?;
     let model = trainer.state().model.clone();
-    learned_policy(world, model, &training, learned)
+    learned_policy(world, model, training, learned)
 }
 
 fn retrain(error: TrainError) -> CellError {
@@ -862,10 +866,8 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("vpm-resumed-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let store = Store::new(&dir);
-        let ScenarioPolicy::Learned(learned) = &cell.config.policy else {
-            panic!("a learned cell");
-        };
-        let training = cell.config.training_config_of(learned).unwrap();
+        let learned = cell.config.learned().expect("a learned cell");
+        let training = learned.training.clone();
         // The first process: two of four episodes, saved.
         let folder = store.partial_training_folder(&cell.key);
         let seed = cell.config.training_seed;
@@ -876,8 +878,7 @@ mod tests {
         assert_eq!(first.state().episodes_done, 2);
         assert!(before > 0.0);
         // The second process resumes it and finishes.
-        let training = (training, learned);
-        let trained = train_cell(&folder, cell, &world, training, None, &|_| ()).unwrap();
+        let trained = train_cell(&folder, cell, &world, learned, None, &|_| ()).unwrap();
         // Through the checkpoint's JSON: equal to the microsecond, not always to the bit.
         assert!(
             (trained.earlier_seconds - before).abs() < 1e-6,
@@ -933,10 +934,7 @@ mod tests {
             scenario.maps()[0].map.clone(),
             scenario.world().params().unwrap(),
         );
-        let ScenarioPolicy::Learned(learned) = &cell.config.policy else {
-            panic!("a learned cell");
-        };
-        let training = cell.config.training_config_of(learned).unwrap();
+        let learned = cell.config.learned().expect("a learned cell");
         let steps = std::sync::atomic::AtomicU64::new(0);
         let advance = |n: u64| {
             let so_far = steps.fetch_add(n, std::sync::atomic::Ordering::Relaxed) + n;
@@ -946,8 +944,7 @@ mod tests {
         let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             // Its events beside the run in progress, as a sweep's are.
             let events = folder.with_extension("events");
-            let training = (training, learned);
-            train_cell(folder, cell, &world, training, Some(&events), &advance).unwrap()
+            train_cell(folder, cell, &world, learned, Some(&events), &advance).unwrap()
         }));
         run.ok()
     }

@@ -2,6 +2,7 @@
 //! N_train, training seed) plus its evaluations at every N_test; a baseline does not train,
 //! so its cells have no N_train.
 
+use baselines::Baseline;
 use learning::ppo::{ConfigError, TrainingConfig};
 use serde::{Deserialize, Serialize};
 use world::Seed;
@@ -19,8 +20,12 @@ mod branch {
 }
 
 /// Everything that determines a cell's result, and nothing else (not the scenario's name, not
-/// where the map file lives), so that equal work in two scenarios has one key.
+/// where the map file lives), so that equal work in two scenarios has one key; and, for a
+/// learned policy, its training run resolved from them once (when the scenario is checked, or
+/// when a stored cell is read), so that no reader resolves it again or meets a cell without
+/// one. Its fields are read, never written: the training run follows from them.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "CellFields", into = "CellFields")]
 pub struct CellConfig {
     pub map: MapIdentity,
     pub world: WorldConfig,
@@ -32,15 +37,89 @@ pub struct CellConfig {
     /// Root of the test episodes' seeds: episode e with n agents uses `descend([n, e])`.
     pub test_seed: u64,
     pub test_episodes: u32,
-    /// What each test episode is also played under; absent from the key when there is none,
-    /// so scenarios without disturbances keep their cells.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    /// What each test episode is also played under.
     pub disturbances: Vec<Disturbance>,
     /// Root of the validation episodes' seeds (a learned policy `until: converged`): episode
     /// e uses `descend([N_train, e])`, a branch of the seed tree apart from the tests'.
-    /// Absent from the key otherwise.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub validation_seed: Option<u64>,
+    /// The training run of a learned policy's cell; `None` exactly for a baseline's.
+    training: Option<TrainingConfig>,
+}
+
+/// A cell config as its key and its files write it: the fields alone, the training run
+/// resolved from them when read.
+#[derive(Clone, Serialize, Deserialize)]
+struct CellFields {
+    map: MapIdentity,
+    world: WorldConfig,
+    policy: ScenarioPolicy,
+    n_train: Option<u32>,
+    n_test: Vec<u32>,
+    repetition: u32,
+    training_seed: u64,
+    test_seed: u64,
+    test_episodes: u32,
+    /// Absent from the key when there is none, so scenarios without disturbances keep their
+    /// cells.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    disturbances: Vec<Disturbance>,
+    /// Absent from the key for a run of fixed length.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    validation_seed: Option<u64>,
+}
+
+/// What a cell plays: a baseline, or a learned policy with its N_train and training run.
+#[derive(Clone, Copy, Debug)]
+pub enum CellPolicy<'a> {
+    Baseline(&'a Baseline),
+    Learned(LearnedCell<'a>),
+}
+
+/// A learned cell's policy, N_train and training run, which every learned cell has.
+#[derive(Clone, Copy, Debug)]
+pub struct LearnedCell<'a> {
+    pub policy: &'a Learned,
+    pub n_train: u32,
+    pub training: &'a TrainingConfig,
+}
+
+impl TryFrom<CellFields> for CellConfig {
+    type Error = ConfigError;
+
+    /// A stored cell's config, its training run resolved as the scenario's check resolves
+    /// it: a learned policy's cell without N_train, or whose values no longer make a valid
+    /// run, is refused here rather than met later as "no training".
+    fn try_from(fields: CellFields) -> Result<Self, ConfigError> {
+        let training = match (fields.policy.learned(), fields.n_train) {
+            (None, _) => None,
+            (Some(learned), Some(n)) => Some(learned.training_config(&fields.world, n)?),
+            (Some(_), None) => {
+                return Err(ConfigError::Invalid {
+                    field: "agents",
+                    reason: "a learned policy's cell has no N_train".to_owned(),
+                });
+            }
+        };
+        Ok(CellConfig::with_training(fields, training))
+    }
+}
+
+impl From<CellConfig> for CellFields {
+    fn from(config: CellConfig) -> Self {
+        CellFields {
+            map: config.map,
+            world: config.world,
+            policy: config.policy,
+            n_train: config.n_train,
+            n_test: config.n_test,
+            repetition: config.repetition,
+            training_seed: config.training_seed,
+            test_seed: config.test_seed,
+            test_episodes: config.test_episodes,
+            disturbances: config.disturbances,
+            validation_seed: config.validation_seed,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -77,9 +156,9 @@ impl CellConfig {
     /// (`evaluate_every`) also plays the cell's test episodes along the way, so its identity
     /// adds what those depend on. `None` for a baseline.
     pub fn training_identity(&self) -> Option<String> {
-        let training = self.training_config()?.ok()?;
+        let training = self.training.as_ref()?;
         let world = (self.world.fov, self.world.decay, self.world.rmax);
-        let what = (&self.map.hash, world, &training, self.training_seed);
+        let what = (&self.map.hash, world, training, self.training_seed);
         let json = serde_json::to_string(&what).expect("a training identity serialises");
         let mut hasher = blake3::Hasher::new();
         hasher.update(code_version().as_bytes());
@@ -144,22 +223,53 @@ impl CellConfig {
     }
 
     /// The training run of a learned cell; `None` for a baseline.
-    pub fn training_config(&self) -> Option<Result<TrainingConfig, ConfigError>> {
-        let learned = self.policy.learned()?;
-        Some(self.training_config_of(learned))
+    pub fn training(&self) -> Option<&TrainingConfig> {
+        self.training.as_ref()
     }
 
-    /// The training run of this cell's `learned` policy.
-    pub fn training_config_of(&self, learned: &Learned) -> Result<TrainingConfig, ConfigError> {
-        learned.training_config(&self.world, self.learned_n_train()?)
+    /// What the cell plays: its baseline, or its learned policy with N_train and training
+    /// run.
+    pub fn playing(&self) -> CellPolicy<'_> {
+        match (&self.policy, self.n_train, &self.training) {
+            (ScenarioPolicy::Baseline(baseline), ..) => CellPolicy::Baseline(baseline),
+            (ScenarioPolicy::Learned(policy), Some(n_train), Some(training)) => {
+                CellPolicy::Learned(LearnedCell {
+                    policy,
+                    n_train,
+                    training,
+                })
+            }
+            (ScenarioPolicy::Learned(_), ..) => {
+                unreachable!("a learned cell's N_train and training run are set when it is made")
+            }
+        }
     }
 
-    /// N_train of a learned policy's cell, which every such cell has.
-    pub fn learned_n_train(&self) -> Result<u32, ConfigError> {
-        self.n_train.ok_or_else(|| ConfigError::Invalid {
-            field: "agents",
-            reason: "a learned policy's cell has no N_train".to_owned(),
-        })
+    /// The learned policy, N_train and training run of a learned cell; `None` for a
+    /// baseline.
+    pub fn learned(&self) -> Option<LearnedCell<'_>> {
+        match self.playing() {
+            CellPolicy::Baseline(_) => None,
+            CellPolicy::Learned(learned) => Some(learned),
+        }
+    }
+
+    /// A config from its fields and their training run, resolved by the caller from them.
+    fn with_training(fields: CellFields, training: Option<TrainingConfig>) -> Self {
+        CellConfig {
+            map: fields.map,
+            world: fields.world,
+            policy: fields.policy,
+            n_train: fields.n_train,
+            n_test: fields.n_test,
+            repetition: fields.repetition,
+            training_seed: fields.training_seed,
+            test_seed: fields.test_seed,
+            test_episodes: fields.test_episodes,
+            disturbances: fields.disturbances,
+            validation_seed: fields.validation_seed,
+            training,
+        }
     }
 }
 
@@ -171,11 +281,11 @@ impl Scenario {
     /// adding a map or a policy to a scenario changes no other cell.
     pub fn cells(&self) -> Vec<SweepCell> {
         let mut cells = Vec::new();
-        for (map_index, policy, n_train) in self.runs() {
+        for (map_index, policy, n_train, training) in self.runs() {
             let map = &self.maps[map_index];
             for repetition in 0..self.repetitions {
                 let root = Seed::new(self.seed);
-                let config = CellConfig {
+                let fields = CellFields {
                     map: MapIdentity {
                         name: map.map.name().to_owned(),
                         hash: map.hash.clone(),
@@ -194,6 +304,7 @@ impl Scenario {
                             .value()
                     }),
                 };
+                let config = CellConfig::with_training(fields, training.cloned());
                 cells.push(SweepCell {
                     index: cells.len(),
                     map_index,
@@ -206,24 +317,35 @@ impl Scenario {
     }
 
     /// The cells without their repetitions, in the cells' order: (map index, policy,
-    /// N_train), a learned policy once per N_train and a baseline once, with no N_train.
-    pub(crate) fn runs(&self) -> Vec<(usize, &ScenarioPolicy, Option<u32>)> {
+    /// N_train, training run), a learned policy once per N_train with the run the check
+    /// resolved for it, and a baseline once, with neither.
+    pub(crate) fn runs(&self) -> Vec<Run<'_>> {
         let mut runs = Vec::new();
         for map_index in 0..self.maps.len() {
-            for policy in &self.policies {
+            for (policy, trainings) in self.policies.iter().zip(&self.trainings) {
                 match policy.learned() {
                     Some(_) => runs.extend(
                         self.train_agents
                             .iter()
-                            .map(|&n| (map_index, policy, Some(n))),
+                            .zip(trainings)
+                            .map(|(&n, training)| (map_index, policy, Some(n), Some(training))),
                     ),
-                    None => runs.push((map_index, policy, None)),
+                    None => runs.push((map_index, policy, None, None)),
                 }
             }
         }
         runs
     }
 }
+
+/// One run of a scenario without its repetitions: map index, policy, N_train and training run
+/// (the last two for a learned policy only).
+pub(crate) type Run<'a> = (
+    usize,
+    &'a ScenarioPolicy,
+    Option<u32>,
+    Option<&'a TrainingConfig>,
+);
 
 /// What the cell is expected to cost (`scenario::cost`), for `harness check`, progress and
 /// shard balancing.
@@ -303,14 +425,35 @@ mod tests {
         assert_eq!(fixed.cells().last().unwrap().key, cells.last().unwrap().key);
     }
 
+    /// A stored cell is read back with the training run its scenario resolved, and one that
+    /// cannot have a run is refused when read, not met later as a baseline's "no training".
+    #[test]
+    fn a_cell_read_back_carries_its_training_run_and_a_bad_one_is_refused() {
+        let cells = scenario("").cells();
+        for cell in [&cells[0], cells.last().unwrap()] {
+            let json = serde_json::to_string(&cell.config).unwrap();
+            let read: CellConfig = serde_json::from_str(&json).unwrap();
+            assert_eq!(read, cell.config);
+            assert_eq!(read.key(), cell.key);
+            assert_eq!(serde_json::to_string(&read).unwrap(), json);
+        }
+        assert!(cells[0].config.learned().is_some());
+        assert!(cells.last().unwrap().config.training().is_none());
+        let json = serde_json::to_string(&cells[0].config).unwrap();
+        let without_n = json.replace(r#""n_train":2"#, r#""n_train":null"#);
+        assert_ne!(without_n, json);
+        let error = serde_json::from_str::<CellConfig>(&without_n).unwrap_err();
+        assert!(error.to_string().contains("no N_train"), "{error}");
+        let bad_set = json.replace(r#""network":"compact""#, r#""network":"huge""#);
+        assert_ne!(bad_set, json);
+        assert!(serde_json::from_str::<CellConfig>(&bad_set).is_err());
+    }
+
     #[test]
     fn a_run_until_converged_trains_at_a_constant_learning_rate_and_refuses_a_schedule() {
         let converged = scenario("until: converged, ");
-        let training = converged.cells()[0]
-            .config
-            .training_config()
-            .unwrap()
-            .unwrap();
+        let cells = converged.cells();
+        let training = cells[0].config.training().unwrap();
         assert!(!training.anneal_learning_rate);
         let text = "name: x\nseed: 1\nmaps:\n  - inline: {name: a, grid: \"....\\n\"}\n\
                     world: {fov: 3, train_steps: 4, test_steps: 4}\npolicies:\n  \

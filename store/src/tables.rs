@@ -110,8 +110,8 @@ pub fn training_frame(
 /// A learned cell's training configuration as resolved from its profile and overrides, as
 /// JSON; `None` for a baseline.
 fn resolved_training(config: &CellConfig) -> Option<String> {
-    let training = config.training_config()?.ok()?;
-    Some(serde_json::to_string(&training).expect("a training configuration serialises"))
+    let training = config.training()?;
+    Some(serde_json::to_string(training).expect("a training configuration serialises"))
 }
 
 /// One row per finished cell: resolved config as JSON, hashes and provenance.

@@ -18,23 +18,20 @@ use nn::{PAPER_HEADS, PAPER_HIDDEN};
 ///
 /// A profile's values never change once cells were trained with it (a key names the profile,
 /// not its values): better values become a new profile, and `fast` (the name a scenario or
-/// `harness train` gives) moves to it, while the old one stays reachable by its own name and
-/// keeps its cells' keys and labels. The serialised form (in cell keys, labels and
-/// checkpoints) is therefore not always the user's name: `FastV1` is written `"fast"`, the
-/// name it had when the first keys were made.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// `harness train` gives) moves to it at load, while the old one stays reachable by its own
+/// name and keeps its cells' keys and labels. Keys, labels and checkpoints write a profile by
+/// its own versioned name, with one exception kept in one place, [`Profile::written`]: `FastV1`
+/// is written `"fast"`, the name it had when the first keys were made.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Profile {
     /// The released code's hyper-parameters exactly.
     #[default]
-    #[serde(rename = "paper")]
     Paper,
     /// The first of ours: GAE, advantage normalisation, minibatches, annealed larger learning
     /// rate, gradient clipping, 8 episodes in parallel before each update.
-    #[serde(rename = "fast")]
     FastV1,
     /// `FastV1` with one episode per update instead of 8: the profile study's winner on time
     /// to quality (`reports/profile`), every other value unchanged.
-    #[serde(rename = "fast-v2")]
     FastV2,
 }
 
@@ -42,7 +39,10 @@ impl Profile {
     /// What the name `fast` means: our current default.
     pub const FAST: Profile = Profile::FastV2;
 
-    /// The names a user gives, with what each means.
+    /// Every profile.
+    pub const ALL: [Profile; 3] = [Profile::Paper, Profile::FastV1, Profile::FastV2];
+
+    /// The names a user gives, with what each means: every profile's own name, and `fast`.
     pub const NAMES: [(&'static str, Profile); 4] = [
         ("paper", Profile::Paper),
         ("fast", Profile::FAST),
@@ -59,14 +59,20 @@ impl Profile {
             .ok_or_else(|| UnknownProfile(name.to_owned()))
     }
 
-    /// The profile as keys, labels and checkpoints write it (`fast` for `FastV1`, its name
-    /// when the first keys were made).
+    /// The profile as keys, labels and checkpoints write it: its own name, except the one
+    /// legacy form, `fast` for `FastV1` (its name when the first keys were made; writing
+    /// `fast-v1` would re-key every cell trained with it). Serialisation goes through here
+    /// and [`Profile::from_written`] alone.
     pub fn written(self) -> &'static str {
         match self {
-            Profile::Paper => "paper",
             Profile::FastV1 => "fast",
-            Profile::FastV2 => "fast-v2",
+            other => other.name(),
         }
+    }
+
+    /// The profile a key, label or checkpoint writes as `written`.
+    pub fn from_written(written: &str) -> Option<Profile> {
+        Self::ALL.into_iter().find(|p| p.written() == written)
     }
 
     /// The profile's own name (`fast-v1`, not `fast`, which moves).
@@ -76,6 +82,24 @@ impl Profile {
             Profile::FastV1 => "fast-v1",
             Profile::FastV2 => "fast-v2",
         }
+    }
+}
+
+impl Serialize for Profile {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.written())
+    }
+}
+
+impl<'de> Deserialize<'de> for Profile {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let written = String::deserialize(deserializer)?;
+        Profile::from_written(&written).ok_or_else(|| {
+            let known = Profile::ALL.map(Profile::written).join(", ");
+            serde::de::Error::custom(format!(
+                "unknown profile `{written}` as stored (stored forms: {known})"
+            ))
+        })
     }
 }
 
@@ -720,6 +744,35 @@ mod tests {
             let written = serde_json::to_value(profile).unwrap();
             assert_eq!(written.as_str(), Some(profile.written()), "{profile:?}");
         }
+    }
+
+    /// The one legacy mapping: every profile is stored by its own name but `FastV1`, stored
+    /// as `fast` (keys made before `fast` moved to `FastV2` keep their cells); a stored
+    /// `fast` reads back as `FastV1`, never as today's `fast`, and a stored `fast-v1`, which
+    /// no key writes, is refused.
+    #[test]
+    fn fast_v1_alone_is_stored_by_its_old_name_and_read_back_as_itself() {
+        for profile in Profile::ALL {
+            let stored = serde_json::to_string(&profile).unwrap();
+            let expected = match profile {
+                Profile::FastV1 => r#""fast""#.to_owned(),
+                other => format!("{:?}", other.name()),
+            };
+            assert_eq!(stored, expected);
+            assert_eq!(serde_json::from_str::<Profile>(&stored).unwrap(), profile);
+        }
+        assert_eq!(
+            serde_json::from_str::<Profile>(r#""fast""#).unwrap(),
+            Profile::FastV1
+        );
+        assert_ne!(Profile::FAST, Profile::FastV1);
+        let error = serde_json::from_str::<Profile>(r#""fast-v1""#).unwrap_err();
+        assert!(
+            error
+                .to_string()
+                .contains("stored forms: paper, fast, fast-v2"),
+            "{error}"
+        );
     }
 
     #[test]

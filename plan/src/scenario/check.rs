@@ -4,6 +4,7 @@
 use std::collections::HashSet;
 use std::path::Path;
 
+use learning::ppo::TrainingConfig;
 use serde_saphyr::Spanned;
 use world::{Map, MapError, WorldParams};
 
@@ -26,7 +27,7 @@ pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenari
     } else {
         Vec::new()
     };
-    check_training(
+    let trainings = check_training(
         &spec.policies,
         &policies,
         &world,
@@ -63,6 +64,7 @@ pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenari
         world,
         policies,
         train_agents,
+        trainings,
         test_agents,
         seed: spec.seed,
         repetitions,
@@ -173,6 +175,8 @@ fn check_policies(
 
 /// Resolves every learned policy's training run for every N_train and map, so that a bad
 /// `set` or a network that does not fit a map's images fails now, not hours into a sweep.
+/// The resolved runs are the scenario's: its cells carry them, and nothing resolves them
+/// again.
 fn check_training(
     specs: &Spanned<Vec<Spanned<PolicySpec<ProfileName>>>>,
     policies: &[ScenarioPolicy],
@@ -180,13 +184,16 @@ fn check_training(
     train_agents: &[u32],
     maps: &[ScenarioMap],
     file: &Path,
-) -> Result<(), ScenarioError> {
+) -> Result<Vec<Vec<TrainingConfig>>, ScenarioError> {
+    let mut trainings = Vec::with_capacity(policies.len());
     for (i, (spec, policy)) in specs.value.iter().zip(policies).enumerate() {
         let field = format!("policies[{i}]");
         let fail = |problem: String| ScenarioError::at(file, spec, &field, problem);
         let Some(learned) = policy.learned() else {
+            trainings.push(Vec::new());
             continue;
         };
+        let mut per_count = Vec::with_capacity(train_agents.len());
         for &n_train in train_agents {
             let config = learned
                 .training_config(world, n_train)
@@ -198,9 +205,11 @@ fn check_training(
                     .model_config(side)
                     .map_err(|e| fail(format!("map {:?}: {e}", map.map.name())))?;
             }
+            per_count.push(config);
         }
+        trainings.push(per_count);
     }
-    Ok(())
+    Ok(trainings)
 }
 
 /// Agent counts: at least one, each at least 1, no repeats, and room for them on every map.

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use learning::ppo::TrainingConfig;
 use world::Map;
 
 use super::earlier;
@@ -21,6 +22,9 @@ pub struct Scenario {
     pub(crate) world: WorldConfig,
     pub(crate) policies: Vec<ScenarioPolicy>,
     pub(crate) train_agents: Vec<u32>,
+    /// Each policy's training run at each of `train_agents`, resolved once by the check
+    /// (empty for a baseline): the cells carry these, never a run resolved again.
+    pub(crate) trainings: Vec<Vec<TrainingConfig>>,
     pub(crate) test_agents: Vec<u32>,
     pub(crate) seed: u64,
     pub(crate) repetitions: u32,

@@ -125,11 +125,11 @@ mod tests {
         assert_eq!(cells[0].config.n_train, None);
         assert_eq!(cells[2].config.n_train, Some(2));
         assert_eq!(cells[2].config.policy.label(), "ma-ppo@fast");
-        let training = cells[2].config.training_config().unwrap().unwrap();
+        let training = cells[2].config.training().unwrap();
         assert_eq!(training.agents, learning::ppo::AgentCount::fixed(2));
         assert_eq!((training.episodes, training.steps_per_episode), (5, 10));
         assert_eq!(training.network, learning::ppo::Network::Compact);
-        assert!(cells[0].config.training_config().is_none());
+        assert!(cells[0].config.training().is_none());
         let keys: std::collections::HashSet<_> = cells.iter().map(|c| &c.key).collect();
         assert_eq!(keys.len(), cells.len());
         let cost: crate::scenario::cost::Cost = cells

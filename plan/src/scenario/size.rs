@@ -5,11 +5,12 @@
 
 use std::path::Path;
 
+use learning::ppo::TrainingConfig;
 use serde_saphyr::Spanned;
 
 use super::error::ScenarioError;
 use super::format::ScenarioFile;
-use super::{Learned, Output, Scenario};
+use super::{Output, Scenario};
 use crate::scenario::cost::Cost;
 
 /// What a scenario may ask for. The defaults are what a 2-core, 24 GB machine survives, and
@@ -72,7 +73,7 @@ impl Scenario {
     pub fn size(&self) -> Size {
         let mut size = Size::default();
         let mut runs = Vec::new();
-        for (map_index, policy, n_train) in self.runs() {
+        for (map_index, policy, n_train, training) in self.runs() {
             let learned = policy.learned();
             let cell = Cost::of_cell(
                 &self.world,
@@ -83,9 +84,9 @@ impl Scenario {
             );
             size.cost = size.cost + cell.times(u64::from(self.repetitions));
             size.cells = size.cells.saturating_add(u64::from(self.repetitions));
-            match (learned, n_train) {
-                (Some(learned), Some(n)) => {
-                    runs.push((self.rollout_bytes(map_index, learned, n), 0))
+            match (training, n_train) {
+                (Some(training), Some(n)) => {
+                    runs.push((self.rollout_bytes(map_index, training, n), 0))
                 }
                 _ => runs.push((0, self.planning_bytes(map_index, policy))),
             }
@@ -126,11 +127,8 @@ impl Scenario {
         }
     }
 
-    /// The memory of a training run of `learned` with `n` agents on map `map_index`.
-    fn rollout_bytes(&self, map_index: usize, learned: &Learned, n: u32) -> u64 {
-        let Ok(config) = learned.training_config(&self.world, n) else {
-            return 0;
-        };
+    /// The memory of the training run `config` with `n` agents on map `map_index`.
+    fn rollout_bytes(&self, map_index: usize, config: &TrainingConfig, n: u32) -> u64 {
         let map = &self.maps[map_index].map;
         let geometry = world::ImageGeometry::new(map, self.world.fov, config.mini_map_block);
         let image = (geometry.side * geometry.side) as u64;

@@ -46,7 +46,7 @@ use store::Store;
 use store::schema::training;
 
 /// The folder of a store that holds its learned cells' events, one folder per training run.
-pub const EVENTS_FOLDER: &str = "events";
+pub(crate) const EVENTS_FOLDER: &str = "events";
 
 /// How every event file's name starts (TensorBoard reads the files whose name holds
 /// `tfevents`).
@@ -74,11 +74,11 @@ pub const TRAINING_TAGS: [(&str, &str); 15] = [
 ];
 
 /// The mean cumulative penalty of a test curve's point.
-pub const TEST_PENALTY: &str = "eval/test_penalty";
+pub(crate) const TEST_PENALTY: &str = "eval/test_penalty";
 /// The mean penalty of a validation of a run until converged.
 pub const VALIDATION_PENALTY: &str = "eval/validation_penalty";
 /// The lowest validation penalty so far: the best policy's.
-pub const BEST_VALIDATION_PENALTY: &str = "eval/best_validation_penalty";
+pub(crate) const BEST_VALIDATION_PENALTY: &str = "eval/best_validation_penalty";
 /// Where a run until converged stopped: 1 when the rule stopped it, 0 at its cap.
 pub const STOP: &str = "eval/stop";
 
@@ -186,7 +186,7 @@ impl EventLog {
     }
 
     /// The training log's episodes (its rows) that the files lack, one event each.
-    pub fn write_log(&mut self, log: &DataFrame) -> Result<(), EventsError> {
+    pub(crate) fn write_log(&mut self, log: &DataFrame) -> Result<(), EventsError> {
         let episodes = log.column(training::EPISODE)?.u64()?;
         let columns = TRAINING_TAGS
             .iter()
@@ -207,13 +207,13 @@ impl EventLog {
     }
 
     /// The episode of `record`, as its row of the training log.
-    pub fn write_record(&mut self, record: &EpisodeRecord) -> Result<(), EventsError> {
+    pub(crate) fn write_record(&mut self, record: &EpisodeRecord) -> Result<(), EventsError> {
         self.write_log(&training_log::to_frame(std::slice::from_ref(record))?)
     }
 
     /// The evaluations of a sweep's learned cell that the files lack: its test curve, its
     /// validations with the best so far, and the stop of a run that stops at its last one.
-    pub fn write_evaluations(
+    pub(crate) fn write_evaluations(
         &mut self,
         curve: Option<&TestCurve>,
         validation: Option<&Validation>,

@@ -206,7 +206,7 @@ impl Validation {
 /// The best policy of a run so far: its checkpoint's weights and metadata (no optimiser:
 /// it is tested, never trained on).
 #[derive(Clone, Debug, PartialEq)]
-pub struct BestPolicy {
+pub(crate) struct BestPolicy {
     pub episode: u64,
     pub weights: Vec<u8>,
     pub metadata: String,

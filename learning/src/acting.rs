@@ -32,7 +32,7 @@ impl ActionChoice {
 }
 
 /// Appends one group (the agents of one environment at one step) to an attention graph.
-pub fn push_agents(
+pub(crate) fn push_agents(
     graph: &mut AgentGraph,
     rule: Neighbours,
     positions: &[Cell],

@@ -35,14 +35,14 @@ use crate::ppo::trainer::{TrainingState, adam_config};
 use crate::ppo::value_norm::ValueNorm;
 use nn::{ActorCritic, Adam, ModelConfig, NnError, ParamSlot, ParamSpec, ParamStore};
 
-pub use checks::{MAX_AGENTS, MAX_IMAGE_SIDE};
+pub(crate) use checks::{MAX_AGENTS, MAX_IMAGE_SIDE};
 pub use probe::Overflow;
 
 pub const WEIGHTS_FILE: &str = "checkpoint.safetensors";
 pub const OPTIMIZER_FILE: &str = "checkpoint.optimizer.safetensors";
 pub const METADATA_FILE: &str = "checkpoint.json";
 /// Bumped whenever the files change meaning.
-pub const FORMAT_VERSION: u32 = 2;
+pub(crate) const FORMAT_VERSION: u32 = 2;
 /// The first version, whose CNN-feature columns were in our channels-last order.
 ///
 /// Both versions hold the same tensors of the same shapes: only the order of the CNN-feature

@@ -9,4 +9,5 @@ mod learned;
 pub mod ppo;
 
 pub use acting::ActionChoice;
-pub use learned::{Inspection, LearnedPolicy};
+pub use learned::Inspection;
+pub use learned::LearnedPolicy;

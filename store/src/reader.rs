@@ -107,7 +107,7 @@ impl Store {
 
     /// Refuses a store whose `cells/` is a file or a symbolic link, whose cells would read as
     /// absent (or as another store's).
-    pub fn check_cells_folder(&self) -> Result<(), StoreError> {
+    pub(crate) fn check_cells_folder(&self) -> Result<(), StoreError> {
         real_folder(&self.root.join("cells")).map(drop)
     }
 }

@@ -28,7 +28,7 @@ pub mod episodes {
     /// The team size the episode was played with.
     pub const N_TEST: &str = "n_test";
     pub const EPISODE: &str = "episode";
-    pub const TEST_SEED: &str = "test_seed";
+    pub(crate) const TEST_SEED: &str = "test_seed";
     pub const CUMULATIVE_PENALTY: &str = "cumulative_penalty";
     pub const AVERAGE_IDLENESS: &str = "average_idleness";
     pub const WORST_IDLENESS: &str = "worst_idleness";
@@ -55,23 +55,23 @@ pub mod cells {
 
     pub const TABLE: &str = "cells";
     pub const SCENARIO: &str = "scenario";
-    pub const MAP_SOURCE: &str = "map_source";
+    pub(crate) const MAP_SOURCE: &str = "map_source";
     pub const MAP_HASH: &str = "map_hash";
     pub const REPETITION: &str = "repetition";
     /// The cell's configuration as JSON.
     pub const CONFIG: &str = "config";
     /// A learned cell's training configuration, resolved from profile and overrides, as JSON.
-    pub const TRAINING_CONFIG: &str = "training_config";
-    pub const EPISODES_HASH: &str = "episodes_hash";
-    pub const WEIGHTS_HASH: &str = "weights_hash";
-    pub const TRAINING_HASH: &str = "training_hash";
-    pub const CODE_VERSION: &str = "code_version";
+    pub(crate) const TRAINING_CONFIG: &str = "training_config";
+    pub(crate) const EPISODES_HASH: &str = "episodes_hash";
+    pub(crate) const WEIGHTS_HASH: &str = "weights_hash";
+    pub(crate) const TRAINING_HASH: &str = "training_hash";
+    pub(crate) const CODE_VERSION: &str = "code_version";
     pub const GIT_COMMIT: &str = "git_commit";
     pub const HOST: &str = "host";
     pub const CPU: &str = "cpu";
     pub const KERNELS: &str = "kernels";
-    pub const STARTED: &str = "started";
-    pub const FINISHED: &str = "finished";
+    pub(crate) const STARTED: &str = "started";
+    pub(crate) const FINISHED: &str = "finished";
     pub const WALL_SECONDS: &str = "wall_seconds";
 
     pub fn columns() -> Vec<&'static str> {
@@ -379,10 +379,10 @@ pub mod disturbed {
     pub const EVENT: &str = "event";
     /// The lost robots' indices, space-separated.
     pub const LOST: &str = "lost";
-    pub const PENALTY_BEFORE: &str = "penalty_before";
-    pub const PENALTY_AFTER: &str = "penalty_after";
+    pub(crate) const PENALTY_BEFORE: &str = "penalty_before";
+    pub(crate) const PENALTY_AFTER: &str = "penalty_after";
     pub const LAST_QUARTER: &str = "last_quarter";
-    pub const SETTLE_STEPS: &str = "settle_steps";
+    pub(crate) const SETTLE_STEPS: &str = "settle_steps";
     /// Robot cells `x,y` at the event and at the end, space-separated.
     pub const AT_EVENT: &str = "at_event";
     pub const AT_END: &str = "at_end";

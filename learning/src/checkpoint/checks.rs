@@ -10,7 +10,7 @@ use nn::{Architecture, ModelConfig};
 
 /// The largest observation side: an image is as wide as the field of view or the mini-map,
 /// whichever is wider, and the mini-map has at most one pixel per map cell.
-pub const MAX_IMAGE_SIDE: usize = if MAX_SIDE > MAX_FOV {
+pub(crate) const MAX_IMAGE_SIDE: usize = if MAX_SIDE > MAX_FOV {
     MAX_SIDE
 } else {
     MAX_FOV
@@ -21,7 +21,7 @@ pub const MAX_IMAGE_SIDE: usize = if MAX_SIDE > MAX_FOV {
 /// shared by all agents and the attention reads any number), so this is the only bound a
 /// checkpoint can be held to without its map; where the map is known, `world::Episode` refuses
 /// more agents than its free cells.
-pub const MAX_AGENTS: usize = MAX_SIDE * MAX_SIDE;
+pub(crate) const MAX_AGENTS: usize = MAX_SIDE * MAX_SIDE;
 
 /// The widest observation a mini-map block allows. The image is as wide as the field of view
 /// (odd, at most `MAX_FOV`) or the mini-map, whichever is wider; the default block (`None`)
@@ -32,7 +32,7 @@ pub const MAX_AGENTS: usize = MAX_SIDE * MAX_SIDE;
 /// the mini-map means, not the network's shapes (blocks 2 and 7 on a 50 x 50 map with L = 25
 /// both give 25 x 25 images), so a block that lies within this limit loads, and the image side
 /// is held to the map only where the map is known (`LearnedPolicy::new`).
-pub fn largest_image_side(block: Option<usize>) -> usize {
+pub(crate) fn largest_image_side(block: Option<usize>) -> usize {
     block.map_or(MAX_FOV, |block| {
         MAX_FOV.max(MAX_SIDE.div_ceil(block.max(1)))
     })
@@ -41,7 +41,7 @@ pub fn largest_image_side(block: Option<usize>) -> usize {
 /// The first of a custom network's kernels, strides and paddings above the largest image side,
 /// as `(layer, field, value)`: no layer can use more, and the network's own checks add and
 /// multiply them unchecked.
-pub fn oversized_convolution(network: &Network) -> Option<(usize, &'static str, usize)> {
+pub(crate) fn oversized_convolution(network: &Network) -> Option<(usize, &'static str, usize)> {
     let Network::Custom { convolutions, .. } = network else {
         return None;
     };
@@ -59,7 +59,7 @@ pub fn oversized_convolution(network: &Network) -> Option<(usize, &'static str, 
 /// The number of parameters `ActorCritic::new` allocates for `config`, `None` when it does
 /// not fit a `usize`. It follows the model's shapes (PyTorch's: biases on every convolution
 /// and linear layer, none on the attention's `W`); a test holds it to the model's own count.
-pub fn parameter_count(config: &ModelConfig) -> Option<usize> {
+pub(crate) fn parameter_count(config: &ModelConfig) -> Option<usize> {
     let (cnn, features) = cnn_parameters(config)?;
     let (attention, actor_inputs) = match config.architecture {
         Architecture::MaPpo => (0, features),
@@ -110,7 +110,7 @@ fn dense_parameters(inputs: usize, outputs: usize) -> Option<usize> {
 }
 
 /// Where the first value that is not finite lies: its flat index and its index per dimension.
-pub fn first_non_finite(values: &[f32], shape: &[usize]) -> Option<(usize, Vec<usize>)> {
+pub(crate) fn first_non_finite(values: &[f32], shape: &[usize]) -> Option<(usize, Vec<usize>)> {
     // A fold without an early exit vectorises; the rare bad tensor is searched again.
     if values.iter().fold(true, |finite, v| finite & v.is_finite()) {
         return None;

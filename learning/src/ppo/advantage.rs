@@ -4,7 +4,7 @@
 
 /// `returns[t] = rewards[t] + gamma * returns[t + 1]`, zero after the last step (the released
 /// code treats the episode's end as terminal).
-pub fn discounted_returns(rewards: &[f32], gamma: f64, returns: &mut [f32]) {
+pub(crate) fn discounted_returns(rewards: &[f32], gamma: f64, returns: &mut [f32]) {
     let mut running = 0.0f64;
     for (r, out) in rewards.iter().zip(returns.iter_mut()).rev() {
         running = *r as f64 + gamma * running;
@@ -15,7 +15,7 @@ pub fn discounted_returns(rewards: &[f32], gamma: f64, returns: &mut [f32]) {
 /// Generalised advantage estimation for `agents` agents sharing `rewards` (one per step);
 /// `values` holds `rewards.len() + 1` steps of values, the last one bootstrapping the state
 /// after the final step. Writes `[step][agent]` advantages.
-pub fn gae(
+pub(crate) fn gae(
     rewards: &[f32],
     values: &[f32],
     agents: usize,

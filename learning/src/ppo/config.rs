@@ -71,7 +71,7 @@ impl Profile {
     }
 
     /// The profile a key, label or checkpoint writes as `written`.
-    pub fn from_written(written: &str) -> Option<Profile> {
+    pub(crate) fn from_written(written: &str) -> Option<Profile> {
         Self::ALL.into_iter().find(|p| p.written() == written)
     }
 
@@ -130,7 +130,7 @@ pub enum NeighbourRule {
 }
 
 impl NeighbourRule {
-    pub fn to_nn(self) -> Neighbours {
+    pub(crate) fn to_nn(self) -> Neighbours {
         match self {
             NeighbourRule::AllOthers => Neighbours::AllOthers,
             NeighbourRule::AllAgents => Neighbours::AllAgents,
@@ -451,7 +451,7 @@ impl TrainingParams {
     }
 
     /// The observation settings this configuration trains with.
-    pub fn observation_config(&self) -> ObservationConfig {
+    pub(crate) fn observation_config(&self) -> ObservationConfig {
         ObservationConfig {
             channels: self.channels,
             mark_others_on_mini: self.mark_others_on_mini,

@@ -13,7 +13,7 @@ use nn::{ModelWorkspace, OutputGradients, Real};
 
 /// The loss's weights.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LossCoefficients {
+pub(crate) struct LossCoefficients {
     pub clip: f64,
     pub value: f64,
     pub entropy: f64,
@@ -22,7 +22,7 @@ pub struct LossCoefficients {
 
 /// Where each sample's advantage comes from.
 #[derive(Debug, Clone, Copy)]
-pub enum Advantages<'a, T> {
+pub(crate) enum Advantages<'a, T> {
     /// Computed before the update (GAE), one per sample.
     Fixed(&'a [T]),
     /// `return - V` with the value of this very forward pass, held constant (the released
@@ -87,7 +87,7 @@ impl LossTerms {
 /// Buffers for the loss's gradients with respect to the model outputs; reused across
 /// minibatches.
 #[derive(Debug, Clone, Default)]
-pub struct LossGradients<T> {
+pub(crate) struct LossGradients<T> {
     log_probs: Vec<T>,
     entropy: Vec<T>,
     values: Vec<T>,
@@ -111,7 +111,7 @@ impl<T: Real> LossGradients<T> {
 
 /// The loss of the outputs in `ws` (after a full forward pass on the minibatch) and its
 /// gradients, written to `grads`.
-pub fn ppo_loss<T: Real>(
+pub(crate) fn ppo_loss<T: Real>(
     ws: &ModelWorkspace<T>,
     samples: &Samples<T>,
     c: &LossCoefficients,

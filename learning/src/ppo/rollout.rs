@@ -18,7 +18,7 @@ use nn::{ActorCritic, AgentGraph, ModelWorkspace, Neighbours};
 
 /// One environment's episode and its record, `[step][agent]` throughout.
 #[derive(Debug)]
-pub struct EnvironmentRollout {
+pub(crate) struct EnvironmentRollout {
     episode: Episode,
     observer: Observer,
     streams: Vec<Pcg64Mcg>,
@@ -109,7 +109,7 @@ impl EnvironmentRollout {
 
     /// Appends step `t`'s observations and its group of agents to a batch being assembled
     /// (the rollout's policy batch, the update's minibatches).
-    pub fn push_step(
+    pub(crate) fn push_step(
         &self,
         t: usize,
         neighbours: Neighbours,
@@ -162,7 +162,7 @@ impl EnvironmentRollout {
 
 /// The actor's batch buffers, reused across steps and rounds.
 #[derive(Debug, Default)]
-pub struct RolloutWorkspace {
+pub(crate) struct RolloutWorkspace {
     observations: Vec<f32>,
     graph: AgentGraph,
     points: Vec<[f64; 2]>,

@@ -20,11 +20,11 @@ use nn::{ActorCritic, Adam, AdamConfig, NnError};
 /// Children of the training seed.
 mod stream {
     /// The initial weights.
-    pub const INIT: u64 = 0;
+    pub(crate) const INIT: u64 = 0;
     /// Training episode `k` is `EPISODES`'s child `k` (starts, agent count, action draws).
     pub const EPISODES: u64 = 1;
     /// The minibatch order of the update after the round starting at episode `k`.
-    pub const SHUFFLES: u64 = 2;
+    pub(crate) const SHUFFLES: u64 = 2;
 }
 
 /// One training episode: its penalty and the update that followed its round.

@@ -41,7 +41,7 @@ struct Targets {
 
 /// Buffers of the update, reused across rounds.
 #[derive(Debug, Default)]
-pub struct UpdateWorkspace {
+pub(crate) struct UpdateWorkspace {
     targets: Targets,
     values: Vec<f32>,
     /// (environment, step) of every group, in minibatch order.

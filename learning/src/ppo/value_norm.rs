@@ -79,7 +79,7 @@ impl ValueNorm {
     }
 
     /// The critic's outputs back to returns.
-    pub fn denormalise(&self, values: &mut [f32]) {
+    pub(crate) fn denormalise(&self, values: &mut [f32]) {
         let (mean, deviation) = self.moments();
         values
             .iter_mut()

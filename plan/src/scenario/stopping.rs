@@ -91,7 +91,7 @@ impl Default for StoppingRule {
 /// A rule no run could follow, naming the field.
 #[derive(Debug, thiserror::Error)]
 #[error("stopping.{field}: {reason}")]
-pub struct StoppingError {
+pub(crate) struct StoppingError {
     pub field: &'static str,
     pub reason: String,
 }
@@ -114,18 +114,12 @@ impl StoppingRule {
         }
         Ok(())
     }
-
-    /// Validations of a run that trains `episodes` at most: before training, at every
-    /// multiple of `validate_every`, and at the cap.
-    pub fn most_validations(&self, episodes: u64) -> u64 {
-        plays(episodes, u64::from(self.validate_every))
-    }
 }
 
 /// Whether a learned policy trains a fixed number of episodes or until converged.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
-pub enum Until {
+pub(crate) enum Until {
     /// Exactly `episodes` (the default, left out of the key).
     #[default]
     Episodes,
@@ -173,6 +167,8 @@ mod tests {
             let error = rule.check().unwrap_err().to_string();
             assert!(error.starts_with(field), "{error}");
         }
-        assert_eq!(StoppingRule::default().most_validations(1000), 21);
+        // At most: before training, at every multiple of validate_every, and at the cap.
+        let every = u64::from(StoppingRule::default().validate_every);
+        assert_eq!(plays(1000, every), 21);
     }
 }

@@ -87,8 +87,8 @@ impl Baseline {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("unknown policy {given:?} (known: {known})")]
 pub struct UnknownBaseline {
-    pub given: String,
-    pub known: String,
+    given: String,
+    known: String,
 }
 
 impl FromStr for Baseline {

@@ -25,7 +25,7 @@ impl ClosedWalk {
     /// One search per viewpoint gives a row of the distance matrix and is then dropped, and
     /// one more per leg expands the tour: memory stays linear in the map, however many
     /// viewpoints there are.
-    pub fn through(map: &Map, viewpoints: &[Cell]) -> Result<Self, BaselineError> {
+    pub(crate) fn through(map: &Map, viewpoints: &[Cell]) -> Result<Self, BaselineError> {
         assert!(
             !viewpoints.is_empty(),
             "a walk needs at least one viewpoint"
@@ -72,11 +72,6 @@ impl ClosedWalk {
         self.cells.len()
     }
 
-    /// Always false: a walk has at least one cell.
-    pub fn is_empty(&self) -> bool {
-        self.cells.is_empty()
-    }
-
     pub fn cells(&self) -> &[Cell] {
         &self.cells
     }
@@ -86,12 +81,12 @@ impl ClosedWalk {
         self.cells[position % self.cells.len()]
     }
 
-    pub fn next_visit(&self, position: usize) -> usize {
+    pub(crate) fn next_visit(&self, position: usize) -> usize {
         self.next_visit[position % self.cells.len()] as usize
     }
 
     /// The first position on `cell`, if the walk passes it.
-    pub fn position_of(&self, map: &Map, cell: Cell) -> Option<usize> {
+    pub(crate) fn position_of(&self, map: &Map, cell: Cell) -> Option<usize> {
         let position = self.first_position[map.index(cell)];
         (position != u32::MAX).then_some(position as usize)
     }

@@ -17,7 +17,7 @@ use std::collections::BinaryHeap;
 const WORD_BITS: usize = u64::BITS as usize;
 
 /// Candidates and the elements `0..universe()` each covers.
-pub trait Coverage {
+pub(crate) trait Coverage {
     fn universe(&self) -> usize;
     fn candidates(&self) -> usize;
     /// Calls `each` once with every element `candidate` covers, all below `universe()`.
@@ -108,16 +108,16 @@ impl Iterator for GreedyOrder<'_> {
 /// A cover of every element some candidate covers; elements no candidate covers are listed
 /// rather than treated as a failure, since the caller knows whether they can occur.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct SetCover {
+pub(crate) struct SetCover {
     /// In the order the greedy chose them.
-    pub chosen: Vec<usize>,
+    pub(crate) chosen: Vec<usize>,
     /// In increasing order.
-    pub uncoverable: Vec<usize>,
+    pub(crate) uncoverable: Vec<usize>,
 }
 
 /// Greedy set cover, then dropping candidates that became redundant once later ones were
 /// chosen, so that every chosen candidate is the only one covering some element.
-pub fn greedy_set_cover(sets: &dyn Coverage) -> SetCover {
+pub(crate) fn greedy_set_cover(sets: &dyn Coverage) -> SetCover {
     let mut order = GreedyOrder::new(sets);
     let mut chosen = Vec::new();
     for (candidate, gain) in order.by_ref() {
@@ -155,7 +155,7 @@ fn drop_redundant(sets: &dyn Coverage, chosen: &mut Vec<usize>) {
 /// Once everything coverable is covered the remaining picks add nothing and go to the lowest
 /// unchosen indices, so the baseline always gets the `k` positions it asked for, and the result
 /// for `k` is a prefix of the result for `k + 1`.
-pub fn greedy_max_coverage(sets: &dyn Coverage, k: usize) -> Vec<usize> {
+pub(crate) fn greedy_max_coverage(sets: &dyn Coverage, k: usize) -> Vec<usize> {
     GreedyOrder::new(sets)
         .take(k)
         .map(|(candidate, _)| candidate)

@@ -25,7 +25,7 @@ use world::Policy;
 /// Root of the k-means seeds; its child for N agents seeds the split into N groups.
 const SPLIT_SEED: u64 = 0x7061_7274;
 
-pub struct Partition {
+pub(crate) struct Partition {
     world: Arc<World>,
     viewpoints: Vec<Cell>,
     /// The patrol for the last agent count planned for.
@@ -34,7 +34,7 @@ pub struct Partition {
 
 impl Partition {
     /// Fails when the viewpoints are not all connected, as no tour could join them.
-    pub fn new(world: &Arc<World>) -> Result<Self, BaselineError> {
+    pub(crate) fn new(world: &Arc<World>) -> Result<Self, BaselineError> {
         let map = world.map();
         let viewpoints = covering_viewpoints(world);
         let mut search = BreadthFirst::new(map);
@@ -57,7 +57,7 @@ impl Partition {
     }
 
     /// The tours for `agents` agents, planned on first use.
-    pub fn patrol(&mut self, agents: usize) -> &mut Patrol {
+    fn patrol(&mut self, agents: usize) -> &mut Patrol {
         if self
             .patrol
             .as_ref()

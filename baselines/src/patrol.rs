@@ -17,14 +17,14 @@ struct Home {
 /// Walks shared out among agents: agent i patrols walk i mod (number of walks), and the agents
 /// of one walk are spread evenly along it.
 #[derive(Clone, Debug)]
-pub struct Patrol {
+pub(crate) struct Patrol {
     walks: Vec<ClosedWalk>,
     search: BreadthFirst,
     patrollers: Vec<Patroller>,
 }
 
 impl Patrol {
-    pub fn new(map: &Map, walks: Vec<ClosedWalk>) -> Self {
+    pub(crate) fn new(map: &Map, walks: Vec<ClosedWalk>) -> Self {
         assert!(!walks.is_empty(), "a patrol needs at least one walk");
         Self {
             walks,
@@ -33,7 +33,7 @@ impl Patrol {
         }
     }
 
-    pub fn walks(&self) -> &[ClosedWalk] {
+    pub(crate) fn walks(&self) -> &[ClosedWalk] {
         &self.walks
     }
 
@@ -56,7 +56,7 @@ impl Patrol {
     /// passing a cell twice, or more agents than cells) moves on along its walk to the first
     /// free one; if its whole walk is taken it starts on the nearest unused free cell instead
     /// and joins the walk from there.
-    pub fn starts(&mut self, map: &Map, agents: usize) -> Vec<Cell> {
+    pub(crate) fn starts(&mut self, map: &Map, agents: usize) -> Vec<Cell> {
         let mut starts: Vec<Cell> = Vec::with_capacity(agents);
         for home in self.homes(agents) {
             let walk = &self.walks[home.walk];
@@ -73,7 +73,7 @@ impl Patrol {
         starts
     }
 
-    pub fn reset(&mut self, episode: &Episode, seed: Seed) {
+    pub(crate) fn reset(&mut self, episode: &Episode, seed: Seed) {
         let map = episode.world().map();
         let homes = self.homes(episode.agents());
         self.patrollers = homes
@@ -88,7 +88,7 @@ impl Patrol {
             .collect();
     }
 
-    pub fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
+    pub(crate) fn act(&mut self, episode: &Episode, actions: &mut [Action]) {
         let (map, positions) = (episode.world().map(), episode.positions());
         let agents = self.patrollers.iter_mut().zip(positions);
         for ((patroller, &position), action) in agents.zip(actions) {

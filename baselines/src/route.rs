@@ -16,20 +16,20 @@ const REFUSALS_BEFORE_GIVING_WAY: u32 = 2;
 /// way at the same step would step aside the same way and could meet again forever; with
 /// coins, they soon give way at different steps and one of them lets the other pass.
 #[derive(Clone, Debug)]
-pub struct Impatience {
+pub(crate) struct Impatience {
     coins: Pcg64Mcg,
 }
 
 impl Impatience {
     /// Agent `agent`'s stream under the episode's policy seed.
-    pub fn of_agent(seed: Seed, agent: usize) -> Self {
+    pub(crate) fn of_agent(seed: Seed, agent: usize) -> Self {
         Self {
             coins: seed.child(purpose::POLICY).child(agent as u64).rng(),
         }
     }
 
     /// Whether to give way after `refusals` refused moves in a row.
-    pub fn gives_way(&mut self, refusals: u32) -> bool {
+    pub(crate) fn gives_way(&mut self, refusals: u32) -> bool {
         refusals >= REFUSALS_BEFORE_GIVING_WAY && self.coins.random_bool(0.5)
     }
 }
@@ -39,7 +39,7 @@ impl Impatience {
 /// Moves in the world either succeed or are refused (the agent stays), so an agent is always
 /// on its route: after a refusal the same move is simply tried again next step.
 #[derive(Clone, Debug, Default)]
-pub struct Route {
+pub(crate) struct Route {
     /// Goal first, next cell last, as [`BreadthFirst::path_to`] writes it.
     ahead: Vec<Cell>,
     /// Whether the last move asked for was a move, so that standing still means refused.
@@ -50,37 +50,37 @@ pub struct Route {
 impl Route {
     /// Plans the shortest path from the source of `search`'s last search to `goal`; false
     /// (and an empty route) when that search did not reach `goal`.
-    pub fn plan(&mut self, search: &BreadthFirst, map: &Map, goal: Cell) -> bool {
+    pub(crate) fn plan(&mut self, search: &BreadthFirst, map: &Map, goal: Cell) -> bool {
         self.moving = false;
         self.refusals = 0;
         search.path_to(map, goal, &mut self.ahead)
     }
 
-    pub fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.ahead.clear();
         self.moving = false;
         self.refusals = 0;
     }
 
     /// Whether no cell is left to walk to.
-    pub fn is_finished(&self) -> bool {
+    pub(crate) fn is_finished(&self) -> bool {
         self.ahead.is_empty()
     }
 
     /// The cell the route ends on, until it is reached.
-    pub fn goal(&self) -> Option<Cell> {
+    fn goal(&self) -> Option<Cell> {
         self.ahead.first().copied()
     }
 
     /// Moves refused in a row, as of the last [`next_move`](Self::next_move).
     #[cfg(test)]
-    pub fn refusals(&self) -> u32 {
+    fn refusals(&self) -> u32 {
         self.refusals
     }
 
     /// The move toward the next cell from `position`, forgetting the cells already reached;
     /// `Stay` once the goal is reached.
-    pub fn next_move(&mut self, position: Cell) -> Action {
+    pub(crate) fn next_move(&mut self, position: Cell) -> Action {
         if self.ahead.last() == Some(&position) {
             self.ahead.pop();
             self.refusals = 0;
@@ -102,7 +102,7 @@ impl Route {
     /// The next move, planning a new path around `others` (agents' cells) first when the
     /// agent's moves keep being refused and it gives way. When no such path exists the route
     /// is kept and the agent waits.
-    pub fn next_move_around(
+    pub(crate) fn next_move_around(
         &mut self,
         position: Cell,
         impatience: &mut Impatience,

@@ -18,7 +18,7 @@ use crate::route::{Impatience, Route};
 use crate::viewpoints::VisibilitySets;
 use world::Policy;
 
-pub struct StaticCoverage {
+pub(crate) struct StaticCoverage {
     world: Arc<World>,
     /// The greedy's first picks so far, best first: the picks for k agents are a prefix of
     /// those for more, so every episode's posts are read from here, and the greedy over the
@@ -30,7 +30,7 @@ pub struct StaticCoverage {
 }
 
 impl StaticCoverage {
-    pub fn new(world: &Arc<World>) -> Self {
+    pub(crate) fn new(world: &Arc<World>) -> Self {
         Self {
             world: world.clone(),
             ranked: Vec::new(),
@@ -41,7 +41,7 @@ impl StaticCoverage {
     }
 
     /// The `agents` cells that together see the most, best first.
-    pub fn posts(&mut self, agents: usize) -> Vec<Cell> {
+    fn posts(&mut self, agents: usize) -> Vec<Cell> {
         if self.ranked.len() < agents {
             let free = self.world.map().free_cells();
             let chosen = greedy_max_coverage(&VisibilitySets::new(&self.world), agents);

@@ -45,13 +45,13 @@ pub enum TourError {
 /// Symmetric distances with a zero diagonal, checked once here so that the solvers can rely on
 /// them: 2-opt's gain formula is only valid when reversing a segment keeps its length.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct DistanceMatrix {
+pub(crate) struct DistanceMatrix {
     points: usize,
     row_major: Vec<u32>,
 }
 
 impl DistanceMatrix {
-    pub fn from_rows<R: AsRef<[u32]>>(rows: &[R]) -> Result<Self, TourError> {
+    pub(crate) fn from_rows<R: AsRef<[u32]>>(rows: &[R]) -> Result<Self, TourError> {
         let points = rows.len();
         let mut row_major = Vec::with_capacity(points * points);
         for (row, entries) in rows.iter().enumerate() {
@@ -69,7 +69,7 @@ impl DistanceMatrix {
     }
 
     #[cfg(test)]
-    pub fn from_fn(
+    fn from_fn(
         points: usize,
         mut distance: impl FnMut(usize, usize) -> u32,
     ) -> Result<Self, TourError> {
@@ -105,11 +105,11 @@ impl DistanceMatrix {
         Ok(matrix)
     }
 
-    pub fn len(&self) -> usize {
+    fn len(&self) -> usize {
         self.points
     }
 
-    pub fn get(&self, from: usize, to: usize) -> u32 {
+    fn get(&self, from: usize, to: usize) -> u32 {
         self.row_major[from * self.points + to]
     }
 
@@ -122,7 +122,7 @@ impl DistanceMatrix {
 /// A closed tour: the visiting order, starting at point 0, and the length including the edge
 /// back from the last point to the first.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Tour {
+pub(crate) struct Tour {
     order: Vec<usize>,
     length: u64,
 }
@@ -136,18 +136,18 @@ impl Tour {
         Self { order, length }
     }
 
-    pub fn order(&self) -> &[usize] {
+    pub(crate) fn order(&self) -> &[usize] {
         &self.order
     }
 
     #[cfg(test)]
-    pub fn length(&self) -> u64 {
+    fn length(&self) -> u64 {
         self.length
     }
 }
 
 /// Length of the closed tour visiting `order` and returning to its first point.
-pub fn tour_length(distances: &DistanceMatrix, order: &[usize]) -> u64 {
+fn tour_length(distances: &DistanceMatrix, order: &[usize]) -> u64 {
     let closing = order.iter().skip(1).chain(order.first());
     order
         .iter()
@@ -158,7 +158,7 @@ pub fn tour_length(distances: &DistanceMatrix, order: &[usize]) -> u64 {
 
 /// The heuristic tour: nearest neighbour from point 0, then 2-opt and Or-opt to a local optimum
 /// of both. Deterministic: fixed scan order, first improvement, ties to the lowest index.
-pub fn solve(distances: &DistanceMatrix) -> Tour {
+pub(crate) fn solve(distances: &DistanceMatrix) -> Tour {
     let mut order = nearest_neighbour_order(distances);
     improve_to_local_optimum(distances, &mut order);
     Tour::closed(distances, order)

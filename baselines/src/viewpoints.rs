@@ -7,14 +7,14 @@ use crate::cover::{Coverage, greedy_set_cover};
 /// One candidate per free cell, covering the free cells it sees; both indexed in the order of
 /// `Map::free_cells`. Each set is read from the world's visibility when asked for, so the
 /// memory is a free-cell index per map cell, not the sets themselves.
-pub struct VisibilitySets<'w> {
+pub(crate) struct VisibilitySets<'w> {
     world: &'w World,
     /// Each map cell's index among the free cells (`u32::MAX` for an obstacle).
     free_index: Vec<u32>,
 }
 
 impl<'w> VisibilitySets<'w> {
-    pub fn new(world: &'w World) -> Self {
+    pub(crate) fn new(world: &'w World) -> Self {
         let map = world.map();
         let mut free_index = vec![u32::MAX; map.width() * map.height()];
         for (index, &cell) in map.free_cells().iter().enumerate() {
@@ -44,7 +44,7 @@ impl Coverage for VisibilitySets<'_> {
 
 /// Free cells that together see every free cell, none of them redundant. Every free cell sees
 /// itself, so nothing is left uncoverable.
-pub fn covering_viewpoints(world: &World) -> Vec<Cell> {
+pub(crate) fn covering_viewpoints(world: &World) -> Vec<Cell> {
     let cover = greedy_set_cover(&VisibilitySets::new(world));
     debug_assert!(cover.uncoverable.is_empty());
     let free = world.map().free_cells();

@@ -18,9 +18,9 @@ use crate::cpu_clock::process_cpu_time;
 /// One team size's measurement.
 pub struct Throughput {
     pub agents: usize,
-    pub episodes: u64,
-    pub agent_steps: u64,
-    pub cpu_seconds: f64,
+    episodes: u64,
+    agent_steps: u64,
+    cpu_seconds: f64,
 }
 
 impl Throughput {

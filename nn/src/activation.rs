@@ -6,17 +6,17 @@ use super::real::Real;
 
 /// `max(x, 0) + slope * min(x, 0)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LeakyRelu {
-    pub negative_slope: f64,
+pub(crate) struct LeakyRelu {
+    pub(crate) negative_slope: f64,
 }
 
 /// The plain rectifier.
-pub const RELU: LeakyRelu = LeakyRelu {
+pub(crate) const RELU: LeakyRelu = LeakyRelu {
     negative_slope: 0.0,
 };
 
 impl LeakyRelu {
-    pub fn apply<T: Real>(self, x: T) -> T {
+    pub(crate) fn apply<T: Real>(self, x: T) -> T {
         if x > T::zero() {
             x
         } else {
@@ -25,7 +25,7 @@ impl LeakyRelu {
     }
 
     /// The derivative at the input that produced `output`.
-    pub fn derivative_at_output<T: Real>(self, output: T) -> T {
+    pub(crate) fn derivative_at_output<T: Real>(self, output: T) -> T {
         if output > T::zero() {
             T::one()
         } else {
@@ -33,13 +33,13 @@ impl LeakyRelu {
         }
     }
 
-    pub fn forward_in_place<T: Real>(self, values: &mut [T]) {
+    pub(crate) fn forward_in_place<T: Real>(self, values: &mut [T]) {
         values.iter_mut().for_each(|v| *v = self.apply(*v));
     }
 
     /// Turns the gradient with respect to the outputs into the gradient with respect to the
     /// inputs.
-    pub fn backward_in_place<T: Real>(self, outputs: &[T], grads: &mut [T]) {
+    pub(crate) fn backward_in_place<T: Real>(self, outputs: &[T], grads: &mut [T]) {
         grads
             .iter_mut()
             .zip(outputs)

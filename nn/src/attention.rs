@@ -27,7 +27,7 @@ const SCORE_ACTIVATION: LeakyRelu = LeakyRelu {
 /// A graph-attention layer; its parameters are `{name}.weight` `[heads * out, in]` (all heads'
 /// `W^m` stacked) and `{name}.attention` `[heads, 2 * out]` (each head's `a^m`).
 #[derive(Debug, Clone)]
-pub struct GraphAttention {
+pub(crate) struct GraphAttention {
     in_features: usize,
     out_features: usize,
     heads: usize,
@@ -75,7 +75,7 @@ impl<T: Real> AttentionWorkspace<T> {
 impl GraphAttention {
     /// Allocates and draws the parameters; `W` has fan-in `in_features`, each `a^m` fan-in
     /// `2 * out_features`.
-    pub fn new<T: Real, R: Rng + ?Sized>(
+    pub(crate) fn new<T: Real, R: Rng + ?Sized>(
         store: &mut ParamStore<T>,
         name: &str,
         in_features: usize,
@@ -108,13 +108,13 @@ impl GraphAttention {
         self.weight
     }
 
-    pub fn out_features(&self) -> usize {
+    pub(crate) fn out_features(&self) -> usize {
         self.out_features
     }
 
     /// Forward FLOPs per agent when every agent has `neighbours` neighbours: the projection,
     /// the two score dot products, and per edge a score, a softmax term and a weighted sum.
-    pub fn forward_flops_per_agent(&self, neighbours: usize) -> u64 {
+    pub(crate) fn forward_flops_per_agent(&self, neighbours: usize) -> u64 {
         let projection = 2 * self.heads * self.out_features * self.in_features;
         let scores = 2 * 2 * self.heads * self.out_features;
         let per_edge = self.heads * (2 * self.out_features + 4);
@@ -135,7 +135,7 @@ impl GraphAttention {
 
     /// Writes the messages `h' [batch, out]` of `h [batch, in]` over `graph` (whose agents are
     /// the batch rows).
-    pub fn forward<T: Real>(
+    pub(crate) fn forward<T: Real>(
         &self,
         params: &[T],
         ws: &mut AttentionWorkspace<T>,
@@ -216,7 +216,7 @@ impl GraphAttention {
     /// `d_out` with respect to the messages and `entropy_grad` with respect to the attention
     /// entropy. `h` and `graph` must be those of the forward pass.
     #[allow(clippy::too_many_arguments)]
-    pub fn backward<T: Real>(
+    pub(crate) fn backward<T: Real>(
         &self,
         params: &[T],
         grads: &mut [T],

@@ -20,7 +20,7 @@ pub struct CategoricalBatch<T> {
 
 impl<T: Real> CategoricalBatch<T> {
     /// Normalises `logits [batch, actions]`.
-    pub fn forward(&mut self, logits: ArrayView2<T>) {
+    pub(crate) fn forward(&mut self, logits: ArrayView2<T>) {
         (self.batch, self.actions) = logits.dim();
         let mut log_probs = self.log_probs.matrix_mut(self.batch, self.actions);
         log_probs.assign(&logits);
@@ -56,7 +56,11 @@ impl<T: Real> CategoricalBatch<T> {
 
     /// The logit gradients `[batch, actions]` for loss gradients with respect to every
     /// log-probability and every row's entropy.
-    pub fn backward(&mut self, d_log_probs: ArrayView2<T>, d_entropy: &[T]) -> ArrayView2<'_, T> {
+    pub(crate) fn backward(
+        &mut self,
+        d_log_probs: ArrayView2<T>,
+        d_entropy: &[T],
+    ) -> ArrayView2<'_, T> {
         let log_probs = self.log_probs.matrix(self.batch, self.actions);
         let mut grads = self.logit_grads.matrix_mut(self.batch, self.actions);
         grads.assign(&d_log_probs);

@@ -36,13 +36,13 @@ pub const PAPER_CONVOLUTIONS: [ConvSpec; 3] = [
 
 /// Convolutions with ReLU after each.
 #[derive(Debug, Clone)]
-pub struct CnnEncoder {
+pub(crate) struct CnnEncoder {
     convs: Vec<Conv2d>,
 }
 
 /// Every convolution's workspace and output, and the gradient buffers of the backward pass.
 #[derive(Debug, Clone, Default)]
-pub struct CnnWorkspace<T> {
+pub(crate) struct CnnWorkspace<T> {
     batch: usize,
     convs: Vec<ConvWorkspace<T>>,
     outputs: Vec<ReusableBuffer<T>>,
@@ -51,7 +51,7 @@ pub struct CnnWorkspace<T> {
 
 impl CnnEncoder {
     /// Convolutions named `{name}.0`, `{name}.1`, ...
-    pub fn new<T: Real, R: Rng + ?Sized>(
+    pub(crate) fn new<T: Real, R: Rng + ?Sized>(
         store: &mut ParamStore<T>,
         name: &str,
         input: ImageShape,
@@ -78,21 +78,21 @@ impl CnnEncoder {
     }
 
     /// Values per input sample.
-    pub fn input_len(&self) -> usize {
+    pub(crate) fn input_len(&self) -> usize {
         self.convs[0].input_shape().len()
     }
 
     /// The shape of the last convolution's output, which the features flatten channels-last.
-    pub fn output_shape(&self) -> ImageShape {
+    pub(crate) fn output_shape(&self) -> ImageShape {
         self.convs[self.convs.len() - 1].output_shape()
     }
 
     /// Features per sample.
-    pub fn features(&self) -> usize {
+    pub(crate) fn features(&self) -> usize {
         self.output_shape().len()
     }
 
-    pub fn forward_flops_per_sample(&self) -> u64 {
+    pub(crate) fn forward_flops_per_sample(&self) -> u64 {
         self.convs
             .iter()
             .map(Conv2d::forward_flops_per_sample)
@@ -100,7 +100,7 @@ impl CnnEncoder {
     }
 
     /// The features `[batch, features]` of `x` (`batch` images of the input shape).
-    pub fn forward<'w, T: Real>(
+    pub(crate) fn forward<'w, T: Real>(
         &self,
         params: &[T],
         ws: &'w mut CnnWorkspace<T>,
@@ -115,7 +115,7 @@ impl CnnEncoder {
     /// critic's, on the observations): their first layers write the patches of `x` once
     /// ([`conv::forward_sharing_input`]), every other layer runs on its own. Each encoder's
     /// features, read with [`CnnEncoder::output`], have the bits of its own forward pass.
-    pub fn forward_sharing_input<T: Real, const N: usize>(
+    pub(crate) fn forward_sharing_input<T: Real, const N: usize>(
         params: &[T],
         x: &[T],
         batch: usize,
@@ -155,13 +155,14 @@ impl CnnEncoder {
     }
 
     /// The features of the last forward pass.
-    pub fn output<'w, T: Real>(&self, ws: &'w CnnWorkspace<T>) -> ArrayView2<'w, T> {
+    pub(crate) fn output<'w, T: Real>(&self, ws: &'w CnnWorkspace<T>) -> ArrayView2<'w, T> {
         ws.outputs[self.convs.len() - 1].matrix(ws.batch, self.features())
     }
 
     /// Accumulates parameter gradients for the feature gradient `d_features`, and writes the
     /// input gradient to `dx` when given. `x` is the input of the last forward pass.
-    pub fn backward<T: Real>(
+    #[cfg(test)]
+    fn backward<T: Real>(
         &self,
         grads: &mut [T],
         ws: &mut CnnWorkspace<T>,
@@ -174,7 +175,7 @@ impl CnnEncoder {
 
     /// The backward pass of [`CnnEncoder::forward_sharing_input`], each encoder with its
     /// feature gradient; `dx`, when given, gets the input gradient through every encoder.
-    pub fn backward_sharing_input<T: Real, const N: usize>(
+    pub(crate) fn backward_sharing_input<T: Real, const N: usize>(
         grads: &mut [T],
         x: &[T],
         mut encoders: [(&CnnEncoder, &mut CnnWorkspace<T>, ArrayView2<T>); N],

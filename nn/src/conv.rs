@@ -33,7 +33,7 @@ const PATCH_BAND_VALUES: usize = 1 << 16;
 
 /// Where the channel index sits in one sample's memory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ChannelOrder {
+pub(crate) enum ChannelOrder {
     /// `[channels, height, width]`, as observation planes.
     First,
     /// `[height, width, channels]`, as this module's outputs.
@@ -46,7 +46,7 @@ pub struct ImageShape {
     pub channels: usize,
     pub height: usize,
     pub width: usize,
-    pub order: ChannelOrder,
+    pub(crate) order: ChannelOrder,
 }
 
 impl ImageShape {
@@ -79,7 +79,7 @@ pub struct ConvSpec {
 
 /// A 2-D convolution layer.
 #[derive(Debug, Clone)]
-pub struct Conv2d {
+pub(crate) struct Conv2d {
     input: ImageShape,
     output: ImageShape,
     /// One sample's patch matrix (`[positions, in * kh * kw]`, row-major) as consecutive runs
@@ -96,7 +96,7 @@ pub struct Conv2d {
 /// One convolution's scratch: bands of patches (or of their gradients), and the weight and its
 /// gradient in the GEMM's order.
 #[derive(Debug, Clone, Default)]
-pub struct ConvWorkspace<T> {
+pub(crate) struct ConvWorkspace<T> {
     patch_bands: ReusableBuffer<T>,
     weight: ReusableBuffer<T>,
     weight_grad: ReusableBuffer<T>,
@@ -104,7 +104,7 @@ pub struct ConvWorkspace<T> {
 
 impl Conv2d {
     /// Allocates `{name}.weight` `[out, in, k, k]` and `{name}.bias` and draws them.
-    pub fn new<T: Real, R: Rng + ?Sized>(
+    pub(crate) fn new<T: Real, R: Rng + ?Sized>(
         store: &mut ParamStore<T>,
         name: &str,
         input: ImageShape,
@@ -135,11 +135,11 @@ impl Conv2d {
         })
     }
 
-    pub fn input_shape(&self) -> ImageShape {
+    pub(crate) fn input_shape(&self) -> ImageShape {
         self.input
     }
 
-    pub fn output_shape(&self) -> ImageShape {
+    pub(crate) fn output_shape(&self) -> ImageShape {
         self.output
     }
 
@@ -147,14 +147,14 @@ impl Conv2d {
         self.output.height * self.output.width
     }
 
-    pub fn forward_flops_per_sample(&self) -> u64 {
+    pub(crate) fn forward_flops_per_sample(&self) -> u64 {
         self.positions() as u64 * self.dense.forward_flops_per_row()
     }
 
     /// `y [batch * positions, out_channels]` from `x` (`batch` samples of the input shape, as
     /// many as `y`'s rows say). Keeps the weight in the GEMM's order in `ws` for the backward
     /// pass.
-    pub fn forward<T: Real>(
+    pub(crate) fn forward<T: Real>(
         &self,
         params: &[T],
         x: &[T],
@@ -199,7 +199,7 @@ impl Conv2d {
     /// Accumulates the parameter gradients from `dy` (as `y`) and, when `dx` is given, writes
     /// the input gradient there. `x` is the input of the forward pass, whose patches are
     /// written again band by band.
-    pub fn backward<T: Real>(
+    pub(crate) fn backward<T: Real>(
         &self,
         grads: &mut [T],
         ws: &mut ConvWorkspace<T>,
@@ -249,7 +249,7 @@ impl Conv2d {
 /// output)` as [`Conv2d::forward`]: the actor's and the critic's first layers read the same
 /// observations, so each band of patches is written once and multiplied by every layer's
 /// weight. Each output gets the bits of its layer's own forward pass.
-pub fn forward_sharing_input<T: Real, const N: usize>(
+pub(crate) fn forward_sharing_input<T: Real, const N: usize>(
     params: &[T],
     x: &[T],
     mut layers: [(&Conv2d, &mut ConvWorkspace<T>, ArrayViewMut2<T>); N],
@@ -293,7 +293,7 @@ fn patch_writer<'c, T, Y>(layers: &[(&'c Conv2d, &mut ConvWorkspace<T>, Y)]) -> 
 /// The backward pass of [`forward_sharing_input`], each `(layer, workspace, dy)` as
 /// [`Conv2d::backward`]: the patches of `x` are written again once per band for every layer's
 /// weight gradient, and `dx`, when given, gets the input gradient through every layer.
-pub fn backward_sharing_input<T: Real, const N: usize>(
+pub(crate) fn backward_sharing_input<T: Real, const N: usize>(
     grads: &mut [T],
     x: &[T],
     mut layers: [(&Conv2d, &mut ConvWorkspace<T>, ArrayView2<T>); N],

@@ -8,7 +8,7 @@ const STEP: f64 = 1e-5;
 const TOLERANCE: f64 = 1e-6;
 
 /// The central-difference derivatives of `loss` at `point` along the coordinates `indices`.
-pub fn numeric_gradient_at(
+fn numeric_gradient_at(
     point: &[f64],
     indices: &[usize],
     mut loss: impl FnMut(&[f64]) -> f64,
@@ -29,7 +29,7 @@ pub fn numeric_gradient_at(
 }
 
 /// The largest relative error between two gradients.
-pub fn max_relative_error(analytic: &[f64], numeric: &[f64]) -> f64 {
+fn max_relative_error(analytic: &[f64], numeric: &[f64]) -> f64 {
     analytic
         .iter()
         .zip(numeric)
@@ -44,7 +44,7 @@ pub fn assert_gradients_match(point: &[f64], analytic: &[f64], loss: impl FnMut(
 }
 
 /// Panics unless `analytic` agrees with the gradient of `loss` at `point` along `indices`.
-pub fn assert_gradients_match_at(
+pub(crate) fn assert_gradients_match_at(
     point: &[f64],
     analytic: &[f64],
     indices: &[usize],
@@ -71,7 +71,8 @@ fn a_wrong_gradient_fails_the_check() {
 }
 
 /// Values in [-1, -0.1] or [0.1, 1]: random test inputs that keep rectifiers off their kink.
-pub fn values_away_from_zero(len: usize, rng: &mut rand_pcg::Pcg64Mcg) -> Vec<f64> {
+#[cfg(test)]
+pub(crate) fn values_away_from_zero(len: usize, rng: &mut rand_pcg::Pcg64Mcg) -> Vec<f64> {
     use rand::RngExt;
     (0..len)
         .map(|_| {
@@ -87,6 +88,7 @@ pub fn values_away_from_zero(len: usize, rng: &mut rand_pcg::Pcg64Mcg) -> Vec<f6
 
 /// `sum(a * b)`: projects an output onto fixed random weights to get a scalar loss whose
 /// gradient with respect to the output is those weights.
-pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+#[cfg(test)]
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }

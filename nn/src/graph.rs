@@ -9,6 +9,7 @@
 
 use std::ops::Range;
 
+#[cfg(test)]
 use super::error::NnError;
 
 /// How the neighbours of an agent are chosen within its group.
@@ -62,7 +63,7 @@ impl AgentGraph {
 
     /// The edges leaving agent `agent` (positions into [`AgentGraph::neighbour_rows`] and into
     /// per-edge arrays such as attention weights).
-    pub fn edge_range(&self, agent: usize) -> Range<usize> {
+    pub(crate) fn edge_range(&self, agent: usize) -> Range<usize> {
         self.offsets[agent]..self.offsets[agent + 1]
     }
 
@@ -142,11 +143,8 @@ impl AgentGraph {
 
     /// Appends a group of `agents` agents with a row-major adjacency: `adjacency[i * agents + j]`
     /// says whether agent `i` listens to agent `j`.
-    pub fn push_group_adjacency(
-        &mut self,
-        agents: usize,
-        adjacency: &[bool],
-    ) -> Result<(), NnError> {
+    #[cfg(test)]
+    fn push_group_adjacency(&mut self, agents: usize, adjacency: &[bool]) -> Result<(), NnError> {
         if adjacency.len() != agents * agents {
             return Err(NnError::AdjacencyLength {
                 agents,

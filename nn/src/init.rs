@@ -7,7 +7,7 @@ use super::real::Real;
 
 /// How a layer's weight matrix (`rows` outputs x `fan_in` inputs) and bias are drawn.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Init {
+pub(crate) enum Init {
     /// PyTorch's default for `Linear` and `Conv2d`: weight and bias both U(-b, b) with
     /// b = 1 / sqrt(fan_in) (what `kaiming_uniform_(a = sqrt(5))` gives for the weight).
     PyTorchDefault,
@@ -17,7 +17,7 @@ pub enum Init {
 
 impl Init {
     /// Fills a row-major weight matrix with `fan_in` columns.
-    pub fn fill_weight<T: Real, R: Rng + ?Sized>(
+    pub(crate) fn fill_weight<T: Real, R: Rng + ?Sized>(
         self,
         weight: &mut [T],
         fan_in: usize,
@@ -31,7 +31,12 @@ impl Init {
 
     /// Fills the bias of a layer with `fan_in` inputs; call after [`Init::fill_weight`] so the
     /// draws come in PyTorch's order.
-    pub fn fill_bias<T: Real, R: Rng + ?Sized>(self, bias: &mut [T], fan_in: usize, rng: &mut R) {
+    pub(crate) fn fill_bias<T: Real, R: Rng + ?Sized>(
+        self,
+        bias: &mut [T],
+        fan_in: usize,
+        rng: &mut R,
+    ) {
         match self {
             Init::PyTorchDefault => fill_uniform(bias, fan_in_bound(fan_in), rng),
             Init::Orthogonal { .. } => bias.fill(T::zero()),
@@ -44,7 +49,7 @@ fn fan_in_bound(fan_in: usize) -> f64 {
 }
 
 /// U(-bound, bound), element by element in order.
-pub fn fill_uniform<T: Real, R: Rng + ?Sized>(values: &mut [T], bound: f64, rng: &mut R) {
+fn fill_uniform<T: Real, R: Rng + ?Sized>(values: &mut [T], bound: f64, rng: &mut R) {
     for v in values {
         *v = T::from_f64(bound * (2.0 * rng.random::<f64>() - 1.0));
     }
@@ -60,7 +65,7 @@ fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
 /// PyTorch's `orthogonal_`: a Gaussian matrix, the Q of its QR decomposition with the signs
 /// fixed so that R has a positive diagonal (which Gram-Schmidt gives directly), times `gain`.
 /// Rows are orthonormal when there are fewer rows than columns, columns otherwise.
-pub fn fill_orthogonal<T: Real, R: Rng + ?Sized>(
+fn fill_orthogonal<T: Real, R: Rng + ?Sized>(
     weight: &mut [T],
     cols: usize,
     gain: f64,

@@ -19,38 +19,33 @@
 //!   threads (every output element is reduced by one thread in a fixed order, in our loops and
 //!   in [`matmul`]'s, which splits only the output among threads, and whatever the CPU).
 
-pub(crate) mod activation;
-pub(crate) mod adam;
-pub(crate) mod attention;
-pub(crate) mod buffer;
-pub(crate) mod categorical;
-pub(crate) mod cnn;
-pub(crate) mod conv;
-pub(crate) mod error;
-pub(crate) mod graph;
-pub(crate) mod init;
-pub(crate) mod linear;
+mod activation;
+mod adam;
+mod attention;
+mod buffer;
+mod categorical;
+mod cnn;
+mod conv;
+mod error;
+mod graph;
+mod init;
+mod linear;
 pub mod matmul;
-pub(crate) mod mlp;
-pub(crate) mod model;
-pub(crate) mod params;
-pub(crate) mod real;
-pub(crate) mod softmax;
+mod mlp;
+mod model;
+mod params;
+mod real;
+mod softmax;
 
 pub mod gradient_check;
 
-pub use activation::{LeakyRelu, RELU};
 pub use adam::{Adam, AdamConfig};
-pub use attention::{AttentionWorkspace, GraphAttention};
-pub use buffer::ReusableBuffer;
+pub use attention::AttentionWorkspace;
 pub use categorical::CategoricalBatch;
-pub use cnn::{CnnEncoder, CnnWorkspace, PAPER_CONVOLUTIONS};
-pub use conv::{ChannelOrder, Conv2d, ConvSpec, ConvWorkspace, ImageShape};
+pub use cnn::PAPER_CONVOLUTIONS;
+pub use conv::{ConvSpec, ImageShape};
 pub use error::NnError;
 pub use graph::{AgentGraph, Neighbours};
-pub use init::Init;
-pub use linear::Linear;
-pub use mlp::{Mlp, MlpWorkspace};
 pub use model::{
     ACTIONS, ActorCritic, Architecture, InitScheme, ModelConfig, ModelWorkspace, OutputGradients,
     PAPER_HEADS, PAPER_HIDDEN,

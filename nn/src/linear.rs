@@ -13,7 +13,7 @@ use super::real::Real;
 
 /// A fully connected layer; the weight is stored `[outputs, inputs]` as in PyTorch.
 #[derive(Debug, Clone)]
-pub struct Linear {
+pub(crate) struct Linear {
     inputs: usize,
     outputs: usize,
     weight: ParamSlot,
@@ -22,7 +22,7 @@ pub struct Linear {
 
 impl Linear {
     /// Allocates `{name}.weight` and `{name}.bias` in `store` and draws them.
-    pub fn new<T: Real, R: Rng + ?Sized>(
+    pub(crate) fn new<T: Real, R: Rng + ?Sized>(
         store: &mut ParamStore<T>,
         name: &str,
         inputs: usize,
@@ -59,16 +59,16 @@ impl Linear {
         })
     }
 
-    pub fn inputs(&self) -> usize {
+    pub(crate) fn inputs(&self) -> usize {
         self.inputs
     }
 
-    pub fn outputs(&self) -> usize {
+    pub(crate) fn outputs(&self) -> usize {
         self.outputs
     }
 
     /// Multiply-adds count twice.
-    pub fn forward_flops_per_row(&self) -> u64 {
+    pub(crate) fn forward_flops_per_row(&self) -> u64 {
         2 * (self.inputs * self.outputs) as u64
     }
 
@@ -83,7 +83,7 @@ impl Linear {
     }
 
     /// `y [batch, outputs] = x [batch, inputs] W^T + b`.
-    pub fn forward<T: Real>(&self, params: &[T], x: ArrayView2<T>, mut y: ArrayViewMut2<T>) {
+    pub(crate) fn forward<T: Real>(&self, params: &[T], x: ArrayView2<T>, mut y: ArrayViewMut2<T>) {
         self.fill_with_bias(params, y.view_mut());
         matmul_add(x, self.weight(params).t(), y);
     }
@@ -101,7 +101,7 @@ impl Linear {
     }
 
     /// Adds `dy^T x` to the weight gradient and the column sums of `dy` to the bias gradient.
-    pub fn accumulate_param_grads<T: Real>(
+    pub(crate) fn accumulate_param_grads<T: Real>(
         &self,
         grads: &mut [T],
         x: ArrayView2<T>,
@@ -130,7 +130,12 @@ impl Linear {
     }
 
     /// Writes `dx = dy W`.
-    pub fn input_grad<T: Real>(&self, params: &[T], dy: ArrayView2<T>, dx: ArrayViewMut2<T>) {
+    pub(crate) fn input_grad<T: Real>(
+        &self,
+        params: &[T],
+        dy: ArrayView2<T>,
+        dx: ArrayViewMut2<T>,
+    ) {
         matmul(dy, self.weight(params), dx);
     }
 }

@@ -14,14 +14,14 @@ use super::real::Real;
 
 /// Fully connected layers `sizes[0] -> sizes[1] -> ... -> sizes[n]`.
 #[derive(Debug, Clone)]
-pub struct Mlp {
+pub(crate) struct Mlp {
     layers: Vec<Linear>,
 }
 
 /// Each layer's output (after its ReLU) from the last forward pass, and the gradient buffers
 /// of the backward pass.
 #[derive(Debug, Clone, Default)]
-pub struct MlpWorkspace<T> {
+pub(crate) struct MlpWorkspace<T> {
     batch: usize,
     outputs: Vec<ReusableBuffer<T>>,
     grads: AlternatingBuffers<T>,
@@ -30,7 +30,7 @@ pub struct MlpWorkspace<T> {
 impl Mlp {
     /// Layers are named `{name}.0`, `{name}.1`, ...; the last one is drawn with `output_init`
     /// (PPO codes often shrink the policy and value outputs).
-    pub fn new<T: Real, R: Rng + ?Sized>(
+    pub(crate) fn new<T: Real, R: Rng + ?Sized>(
         store: &mut ParamStore<T>,
         name: &str,
         sizes: &[usize],
@@ -58,20 +58,16 @@ impl Mlp {
         self.layers[0].weight_slot()
     }
 
-    pub fn inputs(&self) -> usize {
-        self.layers[0].inputs()
-    }
-
-    pub fn outputs(&self) -> usize {
+    fn outputs(&self) -> usize {
         self.layers[self.layers.len() - 1].outputs()
     }
 
-    pub fn forward_flops_per_row(&self) -> u64 {
+    pub(crate) fn forward_flops_per_row(&self) -> u64 {
         self.layers.iter().map(Linear::forward_flops_per_row).sum()
     }
 
     /// The output `[batch, outputs]` of `x [batch, inputs]`.
-    pub fn forward<'w, T: Real>(
+    pub(crate) fn forward<'w, T: Real>(
         &self,
         params: &[T],
         ws: &'w mut MlpWorkspace<T>,
@@ -96,13 +92,13 @@ impl Mlp {
     }
 
     /// The output of the last forward pass.
-    pub fn output<'w, T: Real>(&self, ws: &'w MlpWorkspace<T>) -> ArrayView2<'w, T> {
+    fn output<'w, T: Real>(&self, ws: &'w MlpWorkspace<T>) -> ArrayView2<'w, T> {
         ws.outputs[self.layers.len() - 1].matrix(ws.batch, self.outputs())
     }
 
     /// Accumulates parameter gradients for the output gradient `dy`, and writes the input
     /// gradient to `dx` when given. `x` must be the forward pass's input.
-    pub fn backward<T: Real>(
+    pub(crate) fn backward<T: Real>(
         &self,
         params: &[T],
         grads: &mut [T],

@@ -42,7 +42,7 @@ pub const PAPER_HIDDEN: [usize; 2] = [500, 256];
 /// Stay, +y, -x, -y, +x.
 pub const ACTIONS: usize = 5;
 /// Side of the local map and of the mini-map.
-pub const PAPER_IMAGE_SIDE: usize = 25;
+const PAPER_IMAGE_SIDE: usize = 25;
 
 /// Whether agents communicate through graph attention.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -305,7 +305,7 @@ impl<T: Real> ActorCritic<T> {
     }
 
     /// Forward FLOPs per sample of the actor alone.
-    pub fn policy_forward_flops_per_sample(&self, neighbours: usize) -> u64 {
+    fn policy_forward_flops_per_sample(&self, neighbours: usize) -> u64 {
         let attention = self.attention.as_ref();
         self.actor_cnn.forward_flops_per_sample()
             + attention.map_or(0, |a| a.forward_flops_per_agent(neighbours))

@@ -23,16 +23,14 @@ impl ParamSlot {
     }
 
     /// The positions of this tensor in the flat buffers.
-    pub fn range(&self) -> std::ops::Range<usize> {
+    #[cfg(test)]
+    pub(crate) fn range(&self) -> std::ops::Range<usize> {
         self.offset..self.offset + self.len
     }
 
-    pub fn len(&self) -> usize {
+    #[cfg(test)]
+    fn len(&self) -> usize {
         self.len
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
     }
 }
 
@@ -54,7 +52,7 @@ pub struct ParamStore<T> {
 }
 
 impl<T: Real> ParamStore<T> {
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         ParamStore {
             values: Vec::new(),
             grads: Vec::new(),
@@ -63,7 +61,7 @@ impl<T: Real> ParamStore<T> {
     }
 
     /// Appends a zero tensor and its zero gradient; layers call this while they are built.
-    pub fn allocate(&mut self, name: String, shape: &[usize]) -> ParamSlot {
+    pub(crate) fn allocate(&mut self, name: String, shape: &[usize]) -> ParamSlot {
         let slot = ParamSlot {
             offset: self.values.len(),
             len: shape.iter().product(),
@@ -103,12 +101,13 @@ impl<T: Real> ParamStore<T> {
         &self.grads
     }
 
-    pub fn grads_mut(&mut self) -> &mut [T] {
+    #[cfg(test)]
+    pub(crate) fn grads_mut(&mut self) -> &mut [T] {
         &mut self.grads
     }
 
     /// Values to read and gradients to accumulate into, as a backward pass needs them.
-    pub fn values_and_grads_mut(&mut self) -> (&[T], &mut [T]) {
+    pub(crate) fn values_and_grads_mut(&mut self) -> (&[T], &mut [T]) {
         (&self.values, &mut self.grads)
     }
 

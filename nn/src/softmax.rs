@@ -7,7 +7,7 @@ use super::real::Real;
 
 /// Replaces scores by their log-softmax and returns the entropy `-sum p log p`.
 /// An empty row stays empty and has entropy 0.
-pub fn log_softmax_in_place<T: Real>(row: &mut [T]) -> T {
+pub(crate) fn log_softmax_in_place<T: Real>(row: &mut [T]) -> T {
     let max = row.iter().copied().fold(T::neg_infinity(), T::max);
     let log_sum = row
         .iter()
@@ -26,7 +26,11 @@ pub fn log_softmax_in_place<T: Real>(row: &mut [T]) -> T {
 /// Given the log-probabilities of a row and, in `grads`, the loss gradient with respect to
 /// them, leaves in `grads` the gradient with respect to the scores. `entropy_grad` is the loss
 /// gradient with respect to the row's entropy, whose own gradient is `-p_k (log p_k + H)`.
-pub fn log_softmax_backward_in_place<T: Real>(log_probs: &[T], grads: &mut [T], entropy_grad: T) {
+pub(crate) fn log_softmax_backward_in_place<T: Real>(
+    log_probs: &[T],
+    grads: &mut [T],
+    entropy_grad: T,
+) {
     let grad_sum = grads.iter().copied().sum::<T>();
     let entropy = -log_probs.iter().map(|&l| l.exp_portable() * l).sum::<T>();
     for (g, &l) in grads.iter_mut().zip(log_probs) {

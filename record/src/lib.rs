@@ -22,22 +22,22 @@ use store::{Store, StoreError};
 use world::palette;
 
 /// The timeline every entity is logged on: the episode's step (0 is the start).
-pub const TIMELINE: &str = "step";
+const TIMELINE: &str = "step";
 /// Steps of trail drawn behind each agent.
 const TRAIL: usize = 100;
 
-pub mod entity {
-    pub const PENALTY_MAP: &str = "map/penalty";
-    pub const AGENTS: &str = "map/agents";
+mod entity {
+    pub(crate) const PENALTY_MAP: &str = "map/penalty";
+    pub(crate) const AGENTS: &str = "map/agents";
     /// Robots lost under a disturbance, from the step they stop; they leave `AGENTS`.
-    pub const LOST: &str = "map/lost";
-    pub const FIELDS_OF_VIEW: &str = "map/fov";
-    pub const TRAILS: &str = "map/trails";
-    pub const PENALTY: &str = "penalty/total";
+    pub(crate) const LOST: &str = "map/lost";
+    pub(crate) const FIELDS_OF_VIEW: &str = "map/fov";
+    pub(crate) const TRAILS: &str = "map/trails";
+    pub(crate) const PENALTY: &str = "penalty/total";
     /// MA-G-PPO only: lines between agents, and each weight as a series `attention/I/J` (how
     /// much agent I attends to agent J).
-    pub const ATTENTION: &str = "map/attention";
-    pub const ATTENTION_WEIGHTS: &str = "attention";
+    pub(crate) const ATTENTION: &str = "map/attention";
+    pub(crate) const ATTENTION_WEIGHTS: &str = "attention";
 }
 
 #[derive(Debug, thiserror::Error)]

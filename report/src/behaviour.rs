@@ -25,18 +25,18 @@ const FEWEST_CYCLES: usize = 2;
 
 /// A signal's fitted harmonic `amplitude * cos(2 pi t / period - phase) + offset`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Harmonic {
-    pub amplitude: f64,
+struct Harmonic {
+    amplitude: f64,
     /// Radians.
-    pub phase: f64,
+    phase: f64,
     /// The share of the signal's variance the harmonic explains.
-    pub r_squared: f64,
+    r_squared: f64,
 }
 
 /// The period (in steps) of the strongest frequency of `signal`'s periodogram, between
 /// [`FEWEST_CYCLES`] cycles per episode and [`SHORTEST_PERIOD`] steps; `None` for a signal
 /// without variation or too short to hold two such cycles.
-pub fn dominant_period(signal: &[f64]) -> Option<f64> {
+fn dominant_period(signal: &[f64]) -> Option<f64> {
     let n = signal.len();
     let mean = signal.iter().sum::<f64>() / n.max(1) as f64;
     let centred: Vec<f64> = signal.iter().map(|v| v - mean).collect();
@@ -61,7 +61,7 @@ pub fn dominant_period(signal: &[f64]) -> Option<f64> {
 }
 
 /// Least-squares fit of `a cos(w t) + b sin(w t) + c` with `w = 2 pi / period`.
-pub fn fit_harmonic(signal: &[f64], period: f64) -> Option<Harmonic> {
+fn fit_harmonic(signal: &[f64], period: f64) -> Option<Harmonic> {
     let omega = std::f64::consts::TAU / period;
     let rows: Vec<Vec<f64>> = (0..signal.len())
         .map(|t| vec![(omega * t as f64).cos(), (omega * t as f64).sin()])
@@ -248,7 +248,7 @@ fn standardised(values: Vec<f64>) -> Vec<f64> {
         .collect()
 }
 
-pub fn section(report: &mut ReportWriter, motions: &[Motion]) -> Result<(), ReportError> {
+pub(crate) fn section(report: &mut ReportWriter, motions: &[Motion]) -> Result<(), ReportError> {
     report.heading(
         2,
         "Emergent behaviour, measured: what roles and rhythms emerge?",
@@ -419,15 +419,15 @@ fn role_frame(motions: &[Motion], rows: &[AgentRole]) -> PolarsResult<DataFrame>
 }
 
 /// What one episode shows (a recorded one, or one a behaviour claim replays).
-pub struct EpisodeBehaviour {
-    pub stationary: usize,
-    pub touring: usize,
+pub(crate) struct EpisodeBehaviour {
+    pub(crate) stationary: usize,
+    pub(crate) touring: usize,
     /// The touring agents share a rhythm in y(t) or in sin(theta(t)): each one's own period
     /// within `PERIOD_TOLERANCE` of the team's, and their phase differences at the team's
     /// period steady over the episode (`phase_wander` at most `PHASE_WANDER` degrees).
-    pub periodic: bool,
+    pub(crate) periodic: bool,
     /// The report's sentence about it.
-    pub statement: String,
+    statement: String,
 }
 
 /// How far (relative) an agent's period may be from the team's and still be the same rhythm.
@@ -474,7 +474,7 @@ fn phase_wander(signals: &[Vec<f64>], agents: &[usize], period: f64) -> Option<f
 
 /// The behaviour of `pool[index]`, its roles pooled with the rest of `pool` (motions of one
 /// map, as the report pools a map's recorded episodes); `None` when `index` is outside it.
-pub fn measure(pool: &[&Motion], index: usize) -> Option<EpisodeBehaviour> {
+pub(crate) fn measure(pool: &[&Motion], index: usize) -> Option<EpisodeBehaviour> {
     let motion = pool.get(index)?;
     let rhythm = motion_rhythms(index, motion);
     Some(summary(motion, index, &rhythm, &pooled_roles(pool)))

@@ -12,7 +12,7 @@ use super::{ReportError, ReportWriter};
 use plan::scenario::claims::{Behaviour, Claim, ClaimTest, Point};
 
 /// The verdict rule, as the report states it.
-pub const RULE: &str = "An episode shows the structure when every feature the claim names \
+pub(crate) const RULE: &str = "An episode shows the structure when every feature the claim names \
      matches it: the number of stationary and of touring agents (2-means roles, pooled with the \
      map's recorded episodes) and whether the touring agents keep a common period with steady \
      phase differences. A run (a training run; for a baseline, a repetition) shows the \
@@ -22,7 +22,7 @@ pub const RULE: &str = "An episode shows the structure when every feature the cl
      **inconclusive** otherwise; **no data** when no run's episodes were measured.";
 
 /// Whether one measured episode shows what a claim expects.
-pub fn holds(measure: &EpisodeMeasure, expected: Behaviour) -> bool {
+fn holds(measure: &EpisodeMeasure, expected: Behaviour) -> bool {
     expected
         .stationary
         .is_none_or(|k| k == measure.stationary as usize)
@@ -34,17 +34,17 @@ pub fn holds(measure: &EpisodeMeasure, expected: Behaviour) -> bool {
 
 /// One run's test episodes at a claim's point: how many, and how many show the structure.
 #[derive(Clone, Debug, PartialEq)]
-pub struct RunShare {
-    pub cell_key: String,
-    pub repetition: u32,
-    pub episodes: usize,
-    pub holding: usize,
+pub(crate) struct RunShare {
+    cell_key: String,
+    repetition: u32,
+    episodes: usize,
+    holding: usize,
 }
 
 impl RunShare {
     /// Whether the run shows the structure in most of its episodes (`Some(true)`), lacks it
     /// in most (`Some(false)`), or neither (exactly half).
-    pub fn shows(&self) -> Option<bool> {
+    fn shows(&self) -> Option<bool> {
         match (2 * self.holding).cmp(&self.episodes) {
             std::cmp::Ordering::Greater => Some(true),
             std::cmp::Ordering::Less => Some(false),
@@ -54,7 +54,7 @@ impl RunShare {
 }
 
 /// The runs of `policy` at `point` among `measures`, in order of repetition.
-pub fn runs(
+pub(crate) fn runs(
     measures: &[EpisodeMeasure],
     policy: &str,
     point: &Point,
@@ -84,7 +84,7 @@ pub fn runs(
 }
 
 /// The verdict of [`RULE`] over `runs`.
-pub fn verdict(runs: &[RunShare]) -> Verdict {
+pub(crate) fn verdict(runs: &[RunShare]) -> Verdict {
     if runs.is_empty() {
         return Verdict::NoData;
     }
@@ -101,7 +101,7 @@ pub fn verdict(runs: &[RunShare]) -> Verdict {
 
 /// The numbers behind a verdict, in words: what the claim expects, the runs showing it, and
 /// each run's episodes.
-pub fn describe(runs: &[RunShare], expected: Behaviour) -> String {
+pub(crate) fn describe(runs: &[RunShare], expected: Behaviour) -> String {
     let showing = runs.iter().filter(|r| r.shows() == Some(true)).count();
     let lacking = runs.iter().filter(|r| r.shows() == Some(false)).count();
     let (holding, episodes) = runs
@@ -172,7 +172,7 @@ fn judged<'a>(claims: &'a [Claim], measures: &'a [EpisodeMeasure]) -> Vec<Judged
 /// [`RULE`]): how their episodes were measured, every run's share of episodes showing the
 /// structure, and every measured episode (linked). Nothing when `claims` has no behaviour
 /// claim.
-pub fn section(
+pub(crate) fn section(
     report: &mut ReportWriter,
     claims: &[Claim],
     measures: &[EpisodeMeasure],

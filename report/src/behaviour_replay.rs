@@ -45,21 +45,21 @@ pub trait Replay: Sync {
 }
 
 /// The store table of measured episodes (`NAME.parquet` and `NAME.csv` in the store's root).
-pub const TABLE: &str = behaviour_episodes::TABLE;
+const TABLE: &str = behaviour_episodes::TABLE;
 
 /// One test episode's measured behaviour: a row of [`TABLE`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct EpisodeMeasure {
-    pub group: GroupKey,
-    pub cell_key: String,
-    pub repetition: u32,
-    pub episode: u32,
-    pub stationary: u32,
-    pub touring: u32,
-    pub periodic: bool,
+    pub(crate) group: GroupKey,
+    pub(crate) cell_key: String,
+    pub(crate) repetition: u32,
+    pub(crate) episode: u32,
+    pub(crate) stationary: u32,
+    pub(crate) touring: u32,
+    pub(crate) periodic: bool,
     /// Which recorded episodes the roles were pooled with ([`Pool::identity`]): a row whose
     /// pool is no longer the store's is measured again where the store can replay it.
-    pub pool: String,
+    pub(crate) pool: String,
 }
 
 /// The measured episodes of every behaviour claim's point of `claims`: read from the store's
@@ -67,7 +67,7 @@ pub struct EpisodeMeasure {
 /// again (and the table rewritten) where it does not or its rows were pooled with other
 /// recorded episodes, and the store has the cells to replay. A point neither held nor
 /// replayable has no rows, and its claims no data.
-pub fn measures(
+pub(crate) fn measures(
     store: &Store,
     claims: &[Claim],
     (episodes, motions): (&DataFrame, &[Motion]),
@@ -384,7 +384,7 @@ fn bools(frame: &DataFrame, name: &str) -> PolarsResult<Vec<bool>> {
 }
 
 /// The rows as the store's table ([`behaviour_episodes::columns`]).
-pub fn frame(rows: &[EpisodeMeasure]) -> PolarsResult<DataFrame> {
+fn frame(rows: &[EpisodeMeasure]) -> PolarsResult<DataFrame> {
     let column = |f: fn(&EpisodeMeasure) -> u32| -> Vec<u32> { rows.iter().map(f).collect() };
     let text = |f: fn(&EpisodeMeasure) -> &str| -> Vec<&str> { rows.iter().map(f).collect() };
     df!(

@@ -1,18 +1,18 @@
 //! Figures drawn once and rendered twice: PNG (for the README) and SVG (for print), with
 //! Plotters and an embedded font, so reports need no system fonts.
 
-pub mod axis;
-pub mod bars;
+mod axis;
+pub(crate) mod bars;
 mod figure;
-pub mod grid;
-pub mod heatmap;
-pub mod legend;
-pub mod lines;
-pub mod marker;
+pub(crate) mod grid;
+pub(crate) mod heatmap;
+mod legend;
+pub(crate) mod lines;
+mod marker;
 mod style;
 
-pub use figure::{ChartError, FONT, Figure, render};
-pub use style::{
+pub(crate) use figure::{ChartError, FONT, Figure, render};
+use style::{
     centre_label, diverging, draw_colour_bar, draw_legend, padded_range, rgb, series_colour,
     tick_label,
 };

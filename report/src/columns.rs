@@ -3,17 +3,17 @@
 use polars::prelude::*;
 use store::schema::{cell, episodes};
 
-pub use store::columns::{f64s, optional_u32s, strings, u32s};
+pub(crate) use store::columns::{f64s, optional_u32s, strings, u32s};
 
 /// A policy as the tables name it: its label and, for a learned one, its N_train.
 #[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct PolicyKey {
-    pub policy: String,
-    pub n_train: Option<u32>,
+pub(crate) struct PolicyKey {
+    pub(crate) policy: String,
+    pub(crate) n_train: Option<u32>,
 }
 
 impl PolicyKey {
-    pub fn label(&self) -> String {
+    pub(crate) fn label(&self) -> String {
         match self.n_train {
             Some(n) => format!("{} (N_train={n})", self.policy),
             None => self.policy.clone(),
@@ -23,7 +23,7 @@ impl PolicyKey {
 
 /// Every row's map and policy (with its N_train), in row order: what the tables of training
 /// runs (the training log, the test curve) group by, and the first part of a `GroupKey`.
-pub fn trained_keys(frame: &DataFrame) -> PolarsResult<Vec<(String, PolicyKey)>> {
+pub(crate) fn trained_keys(frame: &DataFrame) -> PolarsResult<Vec<(String, PolicyKey)>> {
     let maps = strings(frame, cell::MAP)?;
     let policies = strings(frame, cell::POLICY)?;
     let n_trains = optional_u32s(frame, cell::N_TRAIN)?;
@@ -37,15 +37,15 @@ pub fn trained_keys(frame: &DataFrame) -> PolarsResult<Vec<(String, PolicyKey)>>
 
 /// The rows of one (map, policy, N_train, N_test), the unit of the summary.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
-pub struct GroupKey {
-    pub map: String,
-    pub policy: PolicyKey,
-    pub n_test: u32,
+pub(crate) struct GroupKey {
+    pub(crate) map: String,
+    pub(crate) policy: PolicyKey,
+    pub(crate) n_test: u32,
 }
 
 impl GroupKey {
     /// Every row's group, in row order.
-    pub fn of_rows(frame: &DataFrame) -> PolarsResult<Vec<GroupKey>> {
+    pub(crate) fn of_rows(frame: &DataFrame) -> PolarsResult<Vec<GroupKey>> {
         let n_tests = u32s(frame, episodes::N_TEST)?;
         Ok(trained_keys(frame)?
             .into_iter()
@@ -58,7 +58,7 @@ impl GroupKey {
             .collect())
     }
 
-    pub fn label(&self) -> String {
+    pub(crate) fn label(&self) -> String {
         format!(
             "{}, {}, N_test={}",
             self.map,
@@ -67,7 +67,7 @@ impl GroupKey {
         )
     }
 
-    pub fn stem(&self) -> Vec<String> {
+    pub(crate) fn stem(&self) -> Vec<String> {
         let mut parts = vec![self.map.clone(), self.policy.policy.clone()];
         if let Some(n) = self.policy.n_train {
             parts.push(format!("train{n}"));
@@ -77,5 +77,5 @@ impl GroupKey {
     }
 }
 
-pub use stats::grouping::{distinct, group_rows};
-pub use stats::named_seed;
+pub(crate) use stats::grouping::{distinct, group_rows};
+pub(crate) use stats::named_seed;

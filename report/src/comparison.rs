@@ -14,24 +14,24 @@ use stats::{
     mean_difference, probability_of_improvement,
 };
 
-pub const CONFIDENCE: f64 = 0.95;
+pub(crate) const CONFIDENCE: f64 = 0.95;
 
 /// One policy's penalties (10^6) on a (map, N_test), by cell: for a learned policy, by
 /// training run.
 #[derive(Clone)]
-pub struct Sample {
-    pub group: GroupKey,
+pub(crate) struct Sample {
+    pub(crate) group: GroupKey,
     /// Each stratum's cell key.
-    pub cells: Vec<String>,
+    pub(crate) cells: Vec<String>,
     /// Each stratum's test episode numbers, in the order of its values.
-    pub episodes: Vec<Vec<u32>>,
+    pub(crate) episodes: Vec<Vec<u32>>,
     pub strata: Vec<Vec<f64>>,
 }
 
 impl Sample {
     /// A learned policy (one with an N_train) is replicated by training runs, a baseline by
     /// test episodes.
-    pub fn unit(&self) -> Unit {
+    fn unit(&self) -> Unit {
         match self.group.policy.n_train {
             Some(_) => Unit::Run,
             None => Unit::Episode,
@@ -39,21 +39,21 @@ impl Sample {
     }
 
     /// The sample as the bootstrap draws it.
-    pub fn drawn(&self) -> stats::Sample<'_> {
+    fn drawn(&self) -> stats::Sample<'_> {
         stats::Sample::new(self.strata.iter().map(Vec::as_slice).collect(), self.unit())
     }
 
     /// What statistics see: each run's mean, or every episode.
-    pub fn units(&self) -> Result<Vec<f64>, StatsError> {
+    pub(crate) fn units(&self) -> Result<Vec<f64>, StatsError> {
         self.drawn().units()
     }
 
-    pub fn values(&self) -> Vec<f64> {
+    pub(crate) fn values(&self) -> Vec<f64> {
         self.strata.concat()
     }
 
     /// The cells (training runs) it holds.
-    pub fn runs(&self) -> usize {
+    pub(crate) fn runs(&self) -> usize {
         self.strata.len()
     }
 }
@@ -62,7 +62,7 @@ impl Sample {
 /// two conditions, or at two team sizes) are paired by cell, and by episode where they hold
 /// the same test episodes of the same N_test; any other sample is drawn on its own. Returns
 /// the blocks and, block by block, the index in `samples` of each of their samples.
-pub fn blocks<'a>(samples: &[&'a Sample]) -> (Vec<Block<'a>>, Vec<usize>) {
+fn blocks<'a>(samples: &[&'a Sample]) -> (Vec<Block<'a>>, Vec<usize>) {
     let mut groups: Vec<Vec<usize>> = Vec::new();
     for (i, sample) in samples.iter().enumerate() {
         match groups
@@ -95,7 +95,7 @@ pub fn blocks<'a>(samples: &[&'a Sample]) -> (Vec<Block<'a>>, Vec<usize>) {
 
 /// The bootstrap of `statistic` over `samples`' units, drawn as [`blocks`] draws them. The
 /// statistic sees the units in the order of `samples`.
-pub fn bootstrap_of(
+pub(crate) fn bootstrap_of(
     samples: &[&Sample],
     statistic: UnitsStatistic,
     seed: world::Seed,
@@ -112,21 +112,21 @@ pub fn bootstrap_of(
 }
 
 /// A compared pair: `a` better than `b` when `p_improvement` > 0.5.
-pub struct Comparison {
-    pub map: String,
-    pub n_test: u32,
-    pub a: PolicyKey,
-    pub b: PolicyKey,
-    pub mean_a: f64,
-    pub mean_b: f64,
-    pub runs_a: usize,
-    pub runs_b: usize,
-    pub difference: (f64, f64, f64),
-    pub p_improvement: (f64, f64, f64),
+pub(crate) struct Comparison {
+    pub(crate) map: String,
+    pub(crate) n_test: u32,
+    pub(crate) a: PolicyKey,
+    pub(crate) b: PolicyKey,
+    mean_a: f64,
+    mean_b: f64,
+    runs_a: usize,
+    runs_b: usize,
+    difference: (f64, f64, f64),
+    pub(crate) p_improvement: (f64, f64, f64),
 }
 
 /// Every pair of policies (each pair once, in table order) on every (map, N_test).
-pub fn comparisons(episodes: &DataFrame) -> Result<Vec<Comparison>, ReportError> {
+pub(crate) fn comparisons(episodes: &DataFrame) -> Result<Vec<Comparison>, ReportError> {
     let samples = samples(episodes)?;
     let mut pairs = Vec::new();
     for (i, a) in samples.iter().enumerate() {
@@ -140,12 +140,16 @@ pub fn comparisons(episodes: &DataFrame) -> Result<Vec<Comparison>, ReportError>
 }
 
 /// Every (map, policy, N_train, N_test) of the episodes table, in table order.
-pub fn samples(episodes: &DataFrame) -> Result<Vec<Sample>, ReportError> {
+pub(crate) fn samples(episodes: &DataFrame) -> Result<Vec<Sample>, ReportError> {
     samples_of(episodes, episodes::CUMULATIVE_PENALTY, PENALTY_UNIT)
 }
 
 /// [`samples`] of any column of a per-episode table, divided by `unit`.
-pub fn samples_of(frame: &DataFrame, column: &str, unit: f64) -> Result<Vec<Sample>, ReportError> {
+pub(crate) fn samples_of(
+    frame: &DataFrame,
+    column: &str,
+    unit: f64,
+) -> Result<Vec<Sample>, ReportError> {
     let groups = GroupKey::of_rows(frame)?;
     let cells = strings(frame, cell::KEY)?;
     let numbers = u32s(frame, episodes::EPISODE)?;
@@ -159,7 +163,7 @@ pub fn samples_of(frame: &DataFrame, column: &str, unit: f64) -> Result<Vec<Samp
 impl Sample {
     /// The sample of a table's `rows`, by cell in order of first appearance, from the table's
     /// cell keys, episode numbers and values (all indexed by row).
-    pub fn of_rows(
+    pub(crate) fn of_rows(
         group: GroupKey,
         rows: &[usize],
         cells: &[String],
@@ -188,7 +192,7 @@ impl Sample {
 
 /// Difference of means and probability of improvement over units (rliable's, over runs for
 /// a learned policy), each with its bootstrap and its estimate.
-pub fn difference_and_improvement(
+pub(crate) fn difference_and_improvement(
     a: &Sample,
     b: &Sample,
     seed: world::Seed,
@@ -222,7 +226,7 @@ fn compare(a: &Sample, b: &Sample) -> Result<Comparison, ReportError> {
     })
 }
 
-pub fn frame(comparisons: &[Comparison]) -> PolarsResult<DataFrame> {
+fn frame(comparisons: &[Comparison]) -> PolarsResult<DataFrame> {
     let text =
         |f: fn(&Comparison) -> String| -> Vec<String> { comparisons.iter().map(f).collect() };
     let number = |f: fn(&Comparison) -> f64| -> Vec<f64> { comparisons.iter().map(f).collect() };
@@ -249,7 +253,10 @@ pub fn frame(comparisons: &[Comparison]) -> PolarsResult<DataFrame> {
     )
 }
 
-pub fn section(report: &mut ReportWriter, comparisons: &[Comparison]) -> Result<(), ReportError> {
+pub(crate) fn section(
+    report: &mut ReportWriter,
+    comparisons: &[Comparison],
+) -> Result<(), ReportError> {
     report.heading(
         2,
         "Pairwise comparisons: how far apart is each pair of policies?",

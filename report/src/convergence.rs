@@ -13,7 +13,7 @@ use plan::scenario::claims::Claim;
 use stats::{mean, median};
 
 /// The section, with the best-against-final table when the store has both policies' tests.
-pub fn section(
+pub(crate) fn section(
     report: &mut ReportWriter,
     convergence: &DataFrame,
     both: Option<&DataFrame>,
@@ -45,7 +45,7 @@ pub fn section(
 
 /// Names, in every verdict's text, which policy of its runs until converged the claim
 /// judged (the rule's `tested`: `best` by validation, or `final`).
-pub fn name_tested(
+pub(crate) fn name_tested(
     results: &mut [ClaimResult],
     claims: &[Claim],
     convergence: &DataFrame,

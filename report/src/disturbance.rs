@@ -22,18 +22,18 @@ use stats::{StatsError, mean, standard_deviation};
 use world::Map;
 
 /// Per-step penalties are reported in thousands.
-pub const PER_STEP_UNIT: f64 = 1e3;
+const PER_STEP_UNIT: f64 = 1e3;
 
 /// The disturbed table's samples by disturbance (`none` included): cumulative penalties
 /// (10^6) and last-quarter per-step penalties (10^3), with the robots each disturbance loses.
-pub struct DisturbedSamples {
-    pub penalties: BTreeMap<String, Vec<Sample>>,
-    pub last_quarters: BTreeMap<String, Vec<Sample>>,
-    pub lost: BTreeMap<String, u32>,
+pub(crate) struct DisturbedSamples {
+    pub(crate) penalties: BTreeMap<String, Vec<Sample>>,
+    last_quarters: BTreeMap<String, Vec<Sample>>,
+    lost: BTreeMap<String, u32>,
 }
 
 impl DisturbedSamples {
-    pub fn new(disturbed: Option<&DataFrame>) -> Result<Self, ReportError> {
+    pub(crate) fn new(disturbed: Option<&DataFrame>) -> Result<Self, ReportError> {
         let mut found = Self {
             penalties: BTreeMap::new(),
             last_quarters: BTreeMap::new(),
@@ -55,7 +55,7 @@ impl DisturbedSamples {
     }
 
     /// The samples of `policy` at `point` (a learned policy at the point's N_train).
-    pub fn find<'a>(
+    fn find<'a>(
         table: &'a BTreeMap<String, Vec<Sample>>,
         disturbance: &str,
         policy: &str,
@@ -67,7 +67,7 @@ impl DisturbedSamples {
     /// `policy`'s last-quarter samples at `point` under `disturbance`, and those of its
     /// undisturbed team of survivors: the same policy (for a learned one, the same training
     /// runs, trained with N) playing with N - k; or what is missing.
-    pub fn ratio_samples(
+    pub(crate) fn ratio_samples(
         &self,
         policy: &str,
         point: &Point,
@@ -108,7 +108,7 @@ fn of_disturbance(disturbed: &DataFrame, name: &str) -> PolarsResult<DataFrame> 
 }
 
 /// The adaptation ratio of replicates `[disturbed, reference]`: ratio of their means.
-pub fn ratio(replicates: &[Vec<f64>]) -> Result<f64, StatsError> {
+pub(crate) fn ratio(replicates: &[Vec<f64>]) -> Result<f64, StatsError> {
     Ok(mean(&replicates[0])? / mean(&replicates[1])?)
 }
 
@@ -124,7 +124,7 @@ fn ratio_interval(
     Ok((boot.estimate, low, high))
 }
 
-pub fn section(
+pub(crate) fn section(
     report: &mut ReportWriter,
     disturbed: &DataFrame,
     steps: &DataFrame,

@@ -19,7 +19,7 @@ struct Row {
     note: String,
 }
 
-pub fn section(
+pub(crate) fn section(
     report: &mut ReportWriter,
     earlier: &Earlier,
     results: &[ClaimResult],

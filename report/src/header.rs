@@ -16,25 +16,25 @@ use plan::cell::CellConfig;
 use stats::{least_squares_slope, summarize};
 
 /// The paper's training budget per learned policy, in episodes.
-pub const PAPER_TRAINING_EPISODES: u64 = 30_000;
+const PAPER_TRAINING_EPISODES: u64 = 30_000;
 
 /// Training slopes are shown per this many episodes.
 const SLOPE_EPISODES: f64 = 100.0;
 
 /// The store's tables the header reads.
-pub struct HeaderTables<'a> {
+pub(crate) struct HeaderTables<'a> {
     /// `None` when the sweep kept no cells table.
-    pub cells: Option<&'a DataFrame>,
-    pub episodes: &'a DataFrame,
-    pub training: Option<&'a DataFrame>,
+    pub(crate) cells: Option<&'a DataFrame>,
+    pub(crate) episodes: &'a DataFrame,
+    pub(crate) training: Option<&'a DataFrame>,
     /// Where runs trained until converged stopped (`None` for runs of fixed length), and
     /// both their policies' tests.
-    pub convergence: Option<&'a DataFrame>,
-    pub checkpoints: Option<&'a DataFrame>,
+    pub(crate) convergence: Option<&'a DataFrame>,
+    pub(crate) checkpoints: Option<&'a DataFrame>,
 }
 
 /// The header of a report written by the code at commit `writer`.
-pub fn section(
+pub(crate) fn section(
     report: &mut ReportWriter,
     tables: &HeaderTables,
     writer: &str,

@@ -16,7 +16,7 @@ const AGENTS: &str = "agents";
 /// Codes at or above this are agents, above 0 obstacles (the paper's 200 and 150).
 const AGENT_FLOOR: f64 = 175.0;
 
-pub fn section(
+pub(crate) fn section(
     report: &mut ReportWriter,
     snapshots: &DataFrame,
     trajectories: &DataFrame,

@@ -55,8 +55,8 @@ impl Verdict {
 /// claim's contradiction there (the level at which its interval would exclude the claim).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct PointTest {
-    pub supported: bool,
-    pub p_contradicted: f64,
+    pub(crate) supported: bool,
+    pub(crate) p_contradicted: f64,
 }
 
 impl PointTest {

@@ -7,7 +7,7 @@
 
 mod behaviour;
 mod behaviour_claims;
-pub mod behaviour_replay;
+mod behaviour_replay;
 mod chart;
 mod columns;
 mod comparison;
@@ -45,7 +45,7 @@ use world::Map;
 pub use behaviour_replay::{Replay, ReplayError};
 pub use error::ReportError;
 pub use run_seconds::{LearnedSetting, training_run_seconds};
-pub use units::PENALTY_UNIT;
+use units::PENALTY_UNIT;
 pub use writer::ReportSummary;
 use writer::{ReportWriter, file_stem};
 
@@ -203,17 +203,17 @@ pub fn store_claims(store: &Store) -> Result<Vec<plan::scenario::claims::Claim>,
 
 /// The store's tables that claims are tested against and the report's sections draw.
 pub struct StoreTables {
-    pub episodes: DataFrame,
+    episodes: DataFrame,
     pub training: Option<DataFrame>,
     /// The recorded episodes' motions and their maps, when the sweep kept trajectories.
-    pub motions: Option<(HashMap<String, Map>, Vec<motion::Motion>)>,
+    motions: Option<(HashMap<String, Map>, Vec<motion::Motion>)>,
     /// The episodes played under disturbances, when the scenario declared any.
-    pub disturbed: Option<DataFrame>,
+    disturbed: Option<DataFrame>,
     /// The learned runs' test penalty along training, when their policies asked for it.
-    pub test_curve: Option<DataFrame>,
+    test_curve: Option<DataFrame>,
     /// Where runs trained until converged stopped, and both their policies' tests.
-    pub convergence: Option<DataFrame>,
-    pub checkpoints: Option<DataFrame>,
+    convergence: Option<DataFrame>,
+    checkpoints: Option<DataFrame>,
     /// Where behaviour claims' test episodes are replayed from, and their measures kept.
     store: Store,
 }
@@ -272,7 +272,7 @@ impl StoreTables {
 
     /// Every test episode that the behaviour claims of `claims` read, measured (see
     /// `behaviour_replay`).
-    pub fn behaviour_measures(
+    fn behaviour_measures(
         &self,
         claims: &[plan::scenario::claims::Claim],
         replay: &dyn Replay,

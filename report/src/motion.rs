@@ -17,7 +17,7 @@ use plan::scenario::claims::{Claim, ClaimTest};
 use store::Store;
 
 /// The maps of a store by name, from its `cells` table and map files.
-pub fn maps(store: &Store) -> Result<HashMap<String, Map>, ReportError> {
+pub(crate) fn maps(store: &Store) -> Result<HashMap<String, Map>, ReportError> {
     let cells = store.table(cells::TABLE)?;
     let names = strings(&cells, cell::MAP)?;
     let hashes = strings(&cells, cells::MAP_HASH)?;
@@ -33,26 +33,26 @@ pub fn maps(store: &Store) -> Result<HashMap<String, Map>, ReportError> {
 }
 
 /// One recorded episode's motion: per agent, per step.
-pub struct Motion {
-    pub group: GroupKey,
-    pub agents: usize,
-    pub steps: Vec<u32>,
+pub(crate) struct Motion {
+    pub(crate) group: GroupKey,
+    pub(crate) agents: usize,
+    pub(crate) steps: Vec<u32>,
     /// `x[agent][t]`, cell coordinates.
-    pub x: Vec<Vec<f64>>,
-    pub y: Vec<Vec<f64>>,
-    pub sin_theta: Vec<Vec<f64>>,
-    pub penalty: Vec<f64>,
+    pub(crate) x: Vec<Vec<f64>>,
+    pub(crate) y: Vec<Vec<f64>>,
+    pub(crate) sin_theta: Vec<Vec<f64>>,
+    pub(crate) penalty: Vec<f64>,
 }
 
 impl Motion {
     /// The signals whose rhythm the paper reads, by name: y(t) and sin(theta(t)).
-    pub fn signals(&self) -> [(&'static str, &Vec<Vec<f64>>); 2] {
+    pub(crate) fn signals(&self) -> [(&'static str, &Vec<Vec<f64>>); 2] {
         [("y", &self.y), ("sin_theta", &self.sin_theta)]
     }
 }
 
 /// The recorded episodes' motions, and the store's maps they were played on.
-pub fn load(
+pub(crate) fn load(
     trajectories: &DataFrame,
     store: &Store,
 ) -> Result<(HashMap<String, Map>, Vec<Motion>), ReportError> {
@@ -65,7 +65,7 @@ pub fn load(
 /// where N_train = N_test, and those a behaviour claim reads. A sweep over every
 /// N_train x N_test pair would otherwise draw dozens of near-identical figures; the table
 /// keeps every episode.
-pub fn section(
+pub(crate) fn section(
     report: &mut ReportWriter,
     motions: &[Motion],
     maps: &HashMap<String, Map>,
@@ -162,7 +162,7 @@ fn motions(
 }
 
 /// The sine of the angle of cell (x, y)'s centre about `centre`; 0 at the centre itself.
-pub fn sin_theta(x: f64, y: f64, centre: (f64, f64)) -> f64 {
+pub(crate) fn sin_theta(x: f64, y: f64, centre: (f64, f64)) -> f64 {
     let (dx, dy) = (x + 0.5 - centre.0, y + 0.5 - centre.1);
     let radius = dx.hypot(dy);
     if radius == 0.0 { 0.0 } else { dy / radius }

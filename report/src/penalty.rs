@@ -27,7 +27,7 @@ struct MapRows {
     worst_idleness: Vec<f64>,
 }
 
-pub fn section(
+pub(crate) fn section(
     report: &mut ReportWriter,
     summary: &DataFrame,
     episodes: &DataFrame,

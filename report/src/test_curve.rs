@@ -21,48 +21,48 @@ use stats::median_with_infinities as median;
 use store::schema::test_curve::{CPU_SECONDS, TRAINING_EPISODE};
 
 /// A reference's test penalty by (map, N_train): its name and level.
-pub type Levels = BTreeMap<(String, u32), (String, f64)>;
+pub(crate) type Levels = BTreeMap<(String, u32), (String, f64)>;
 
 /// One point of a run's curve.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RunPoint {
+pub(crate) struct RunPoint {
     /// Training episodes done.
-    pub episode: u64,
+    pub(crate) episode: u64,
     /// Training CPU-seconds so far.
-    pub cpu_seconds: f64,
+    pub(crate) cpu_seconds: f64,
     /// The mean of the test episodes played there (10^6).
-    pub penalty: f64,
+    pub(crate) penalty: f64,
 }
 
 /// One training run's curve, its points in training order.
 #[derive(Clone, Debug, PartialEq)]
-pub struct RunCurve {
-    pub cell: String,
-    pub points: Vec<RunPoint>,
+pub(crate) struct RunCurve {
+    pub(crate) cell: String,
+    pub(crate) points: Vec<RunPoint>,
 }
 
 /// A learned policy's runs on one map.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Trained {
-    pub map: String,
-    pub policy: PolicyKey,
-    pub runs: Vec<RunCurve>,
+pub(crate) struct Trained {
+    pub(crate) map: String,
+    pub(crate) policy: PolicyKey,
+    pub(crate) runs: Vec<RunCurve>,
 }
 
 /// The runs at one training episode: how many, the median of their penalties with the
 /// lowest and the highest, and the median of their CPU-seconds.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Across {
-    pub episode: u64,
-    pub runs: usize,
-    pub median: f64,
-    pub low: f64,
-    pub high: f64,
-    pub cpu_seconds: f64,
+pub(crate) struct Across {
+    pub(crate) episode: u64,
+    runs: usize,
+    pub(crate) median: f64,
+    low: f64,
+    high: f64,
+    pub(crate) cpu_seconds: f64,
 }
 
 /// The curves of the `test_curve` table by (map, policy), runs by cell.
-pub fn trained_curves(table: &DataFrame) -> Result<Vec<Trained>, ReportError> {
+pub(crate) fn trained_curves(table: &DataFrame) -> Result<Vec<Trained>, ReportError> {
     let cells = strings(table, cell::KEY)?;
     let episodes = f64s(table, TRAINING_EPISODE)?;
     let cpu = f64s(table, CPU_SECONDS)?;
@@ -102,7 +102,7 @@ pub fn trained_curves(table: &DataFrame) -> Result<Vec<Trained>, ReportError> {
 /// The learned runs' test episodes at each run's first test-curve point at or after training
 /// episode `at` (a run with none is left out), as samples, beside the baselines' of `samples`
 /// (a baseline does not train): what a claim judged at a budget reads.
-pub fn samples_at(
+pub(crate) fn samples_at(
     table: &DataFrame,
     at: u64,
     samples: &[Sample],
@@ -128,7 +128,7 @@ pub fn samples_at(
 }
 
 /// The runs gathered at every training episode any of them played, in order.
-pub fn across(runs: &[RunCurve]) -> Vec<Across> {
+pub(crate) fn across(runs: &[RunCurve]) -> Vec<Across> {
     let mut at: BTreeMap<u64, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
     for point in runs.iter().flat_map(|r| &r.points) {
         let entry = at.entry(point.episode).or_default();
@@ -149,7 +149,7 @@ pub fn across(runs: &[RunCurve]) -> Vec<Across> {
 
 /// The section's figures and tables; returns the runs' curves for the time to quality, which
 /// `levels` (the reference's test penalty by map and N_train) marks on each figure.
-pub fn section(
+pub(crate) fn section(
     report: &mut ReportWriter,
     table: &DataFrame,
     levels: &Levels,

@@ -21,7 +21,7 @@ use stats::{self, Block, RESAMPLES, StatsError, Unit, bootstrap};
 
 /// When a run first reached a level.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Reached {
+enum Reached {
     At {
         episode: u64,
         cpu_seconds: f64,
@@ -34,7 +34,7 @@ pub enum Reached {
 
 impl Reached {
     /// The first point of `run` at or below `level`.
-    pub fn of(run: &RunCurve, level: f64) -> Reached {
+    fn of(run: &RunCurve, level: f64) -> Reached {
         match run.points.iter().find(|p| p.penalty <= level) {
             Some(p) => Reached::At {
                 episode: p.episode,
@@ -77,7 +77,7 @@ fn arriving_at_the_end(coded: f64) -> f64 {
 }
 
 /// GCS's mean test penalty at every (map, N_test) the episodes hold it.
-pub fn levels(samples: &[Sample]) -> Levels {
+pub(crate) fn levels(samples: &[Sample]) -> Levels {
     reference_levels(samples, GCS)
 }
 
@@ -96,7 +96,7 @@ fn reference_levels(samples: &[Sample], reference: &str) -> Levels {
 /// The time-to-quality table: per map and policy, when the median of the runs first reached
 /// the level, when each run did, and every policy's test penalty after the CPU budget that
 /// all policies of its map and N_train spent.
-pub fn section(
+pub(crate) fn section(
     report: &mut ReportWriter,
     trained: &[Trained],
     levels: &Levels,
@@ -205,7 +205,7 @@ fn frame(rows: &[Row]) -> PolarsResult<DataFrame> {
 
 /// A `faster` claim: at every point, the ratio of the runs' median times to quality (`a`
 /// over `b`) has an interval below `ratio`.
-pub fn faster(
+pub(crate) fn faster(
     trained: &[Trained],
     samples: &[Sample],
     (a, b, reference): (&str, &str, &str),

@@ -54,7 +54,7 @@ struct Curve {
     runs: Vec<Run>,
 }
 
-pub fn section(report: &mut ReportWriter, training: &DataFrame) -> Result<(), ReportError> {
+pub(crate) fn section(report: &mut ReportWriter, training: &DataFrame) -> Result<(), ReportError> {
     report.heading(2, "Training curves: how did training progress, run by run?");
     let curves = curves(training)?;
     report.paragraph(

@@ -8,7 +8,7 @@ use super::chart::heatmap::{HeatMaps, HeatPanel};
 use super::columns::{GroupKey, distinct, f64s};
 use super::{PENALTY_UNIT, ReportError, ReportWriter, file_stem};
 
-pub fn section(report: &mut ReportWriter, summary: &DataFrame) -> Result<(), ReportError> {
+pub(crate) fn section(report: &mut ReportWriter, summary: &DataFrame) -> Result<(), ReportError> {
     report.heading(2, "Trained with N_train agents, tested with N_test: does a policy carry over to other team sizes?");
     let groups = GroupKey::of_rows(summary)?;
     let means = f64s(summary, summary::MEAN)?;

@@ -31,7 +31,7 @@ use stats::{Bootstrap, StatsError, least_squares_slope, mean, mean_difference};
 pub struct ClaimResult {
     pub id: String,
     pub kind: &'static str,
-    pub paper: String,
+    pub(crate) paper: String,
     pub ours: String,
     pub verdict: Verdict,
     /// Each point that compares training runs, with the runs that would decide it: what
@@ -62,9 +62,9 @@ pub struct PointPower {
 /// runs.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LearnedRuns {
-    pub map: String,
-    pub policy: String,
-    pub n_train: u32,
+    map: String,
+    policy: String,
+    n_train: u32,
     pub runs: usize,
 }
 
@@ -199,21 +199,24 @@ impl From<(Verdict, String)> for Judged {
 /// What claims are tested against: the episodes table, and where the sweep kept them the
 /// training table (`curve_below`, and the training budget of every claim) and the measured
 /// behaviour of every test episode that behaviour claims read (`behaviour_replay`).
-pub struct Recorded<'a> {
-    pub episodes: &'a DataFrame,
-    pub training: Option<&'a DataFrame>,
-    pub behaviours: Option<&'a [EpisodeMeasure]>,
+pub(crate) struct Recorded<'a> {
+    pub(crate) episodes: &'a DataFrame,
+    pub(crate) training: Option<&'a DataFrame>,
+    pub(crate) behaviours: Option<&'a [EpisodeMeasure]>,
     /// The episodes played under disturbances (`lower` and the like under `a_under`,
     /// `adapts_better`).
-    pub disturbed: Option<&'a DataFrame>,
+    pub(crate) disturbed: Option<&'a DataFrame>,
     /// The learned runs' test penalty along training (`faster`).
-    pub test_curve: Option<&'a DataFrame>,
+    pub(crate) test_curve: Option<&'a DataFrame>,
     /// Where each run trained until converged stopped, and why (the budget rule).
-    pub convergence: Option<&'a DataFrame>,
+    pub(crate) convergence: Option<&'a DataFrame>,
 }
 
 /// Every claim's verdict.
-pub fn evaluate(claims: &[Claim], recorded: &Recorded) -> Result<Vec<ClaimResult>, ReportError> {
+pub(crate) fn evaluate(
+    claims: &[Claim],
+    recorded: &Recorded,
+) -> Result<Vec<ClaimResult>, ReportError> {
     let samples = samples(recorded.episodes)?;
     let disturbed = DisturbedSamples::new(recorded.disturbed)?;
     let trained = recorded
@@ -992,7 +995,7 @@ pub fn results_frame(results: &[&ClaimResult]) -> PolarsResult<DataFrame> {
 }
 
 /// What a claim's verdict means, for the report and `harness claims`.
-pub const RULE: &str = "Each of the scenario's claims with our numbers and a verdict. Intervals \
+const RULE: &str = "Each of the scenario's claims with our numbers and a verdict. Intervals \
      are 95 % bootstrap intervals whose unit is a learned policy's training run (runs drawn \
      with replacement, then test episodes within each drawn run) and a baseline's test \
      episode, with a small-sample correction (see the project's docs/claims.md, How we decide); the \
@@ -1017,7 +1020,10 @@ pub const RULE: &str = "Each of the scenario's claims with our numbers and a ver
      of five runs is itself uncertain, and so is the observed difference, so the figure is a \
      rough guide, off by a factor of about two either way. Penalties in 10^6.";
 
-pub fn section(report: &mut ReportWriter, results: &[ClaimResult]) -> Result<(), ReportError> {
+pub(crate) fn section(
+    report: &mut ReportWriter,
+    results: &[ClaimResult],
+) -> Result<(), ReportError> {
     let (behaviours, statistical): (Vec<&ClaimResult>, Vec<&ClaimResult>) =
         results.iter().partition(|r| r.kind == "behaviour");
     if !statistical.is_empty() {

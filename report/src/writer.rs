@@ -23,7 +23,7 @@ pub struct ReportSummary {
 }
 
 /// The report folder being written: the README's text, and its tables and figures.
-pub struct ReportWriter {
+pub(crate) struct ReportWriter {
     publication: publish::Publication,
     readme: String,
     tables: usize,

@@ -91,7 +91,7 @@ pub fn iqm(values: &[f64]) -> Result<f64, StatsError> {
 
 /// The expanded percentile bootstrap interval of the mean of independent `values` at
 /// `confidence` (0.95 for 95 %), with `resamples` replicates from `seed`'s stream.
-pub(crate) fn bootstrap_interval(
+fn bootstrap_interval(
     values: &[f64],
     confidence: f64,
     resamples: usize,

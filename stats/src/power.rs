@@ -9,11 +9,11 @@
 //! z(0.975), so the runs that would shrink it enough follow from the runs it rests on.
 
 /// z(0.975): the two-sided 5 % critical value of the standard normal.
-pub const Z_TWO_SIDED_95: f64 = 1.959_963_984_540_054;
+const Z_TWO_SIDED_95: f64 = 1.959_963_984_540_054;
 
 /// z(0.8): a true difference this many standard errors beyond the critical value is found
 /// four times in five.
-pub const Z_POWER_80: f64 = 0.841_621_233_572_914_3;
+const Z_POWER_80: f64 = 0.841_621_233_572_914_3;
 
 /// The smallest true difference a comparison whose 95 % interval has this half-width finds
 /// with 80 % power: half-width x (z(0.975) + z(0.8)) / z(0.975), about 1.43 half-widths. A
@@ -27,7 +27,8 @@ pub fn detectable(half_width: f64) -> f64 {
 /// up (Chow, Shao & Wang, *Sample Size Calculations in Clinical Research*, section 3.2: the
 /// two-sample test of equal means, normal approximation). `None` where no number of runs would: `delta` is 0, or a
 /// number is not finite.
-pub fn runs_per_group(sigma: f64, delta: f64) -> Option<u64> {
+#[cfg(test)]
+fn runs_per_group(sigma: f64, delta: f64) -> Option<u64> {
     runs_for(2.0 * sigma * sigma, delta)
 }
 

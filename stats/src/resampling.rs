@@ -48,7 +48,7 @@ pub enum Unit {
 #[derive(Clone, Debug)]
 pub struct Sample<'a> {
     pub strata: Vec<&'a [f64]>,
-    pub unit: Unit,
+    unit: Unit,
 }
 
 impl<'a> Sample<'a> {
@@ -68,7 +68,7 @@ impl<'a> Sample<'a> {
     }
 
     /// How many independent draws the sample holds.
-    pub(crate) fn unit_count(&self) -> usize {
+    fn unit_count(&self) -> usize {
         match self.unit {
             Unit::Run => self.strata.len(),
             Unit::Episode => self.strata.iter().map(|s| s.len()).sum(),

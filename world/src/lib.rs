@@ -6,19 +6,19 @@
 //! and is shared between threads; `Episode` holds one run's state and steps without allocating;
 //! a `Policy` chooses the agents' actions.
 
-pub mod episode;
-pub mod input;
-pub mod links;
+mod episode;
+mod input;
+mod links;
 pub mod map;
 pub mod observation;
 pub mod palette;
 pub mod params;
 pub mod paths;
 pub mod penalty;
-pub mod policy;
+mod policy;
 pub mod reference;
 pub mod seed;
-pub mod visibility;
+mod visibility;
 
 pub use episode::{Action, Episode, StartError, World};
 pub use input::{InputError, InputProblem, read_bounded, read_bounded_text};

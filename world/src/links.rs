@@ -35,7 +35,12 @@ impl Links {
 
     /// Whether robots `a` at `at_a` and `b` at `at_b` hear each other at step `time`. A link
     /// is a pair: both directions are up or down together.
-    pub fn up(&self, time: usize, (a, at_a): (usize, Cell), (b, at_b): (usize, Cell)) -> bool {
+    pub(crate) fn up(
+        &self,
+        time: usize,
+        (a, at_a): (usize, Cell),
+        (b, at_b): (usize, Cell),
+    ) -> bool {
         if let Some(radius) = self.radius {
             let (dx, dy) = (
                 f64::from(at_a.x) - f64::from(at_b.x),

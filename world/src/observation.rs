@@ -18,7 +18,7 @@ use crate::penalty::OBSTACLE_CODE;
 /// The code of an agent: every agent in a local window, the observing agent on its mini-map.
 pub const AGENT_CODE: f32 = 200.0;
 /// The code of the other agents on the mini-map, when they are marked (the released code).
-pub const OTHER_AGENT_CODE: f32 = 100.0;
+pub(crate) const OTHER_AGENT_CODE: f32 = 100.0;
 
 /// Which images a policy gets (the paper's RQ2 compares the three). Named in training
 /// configurations, hence serde.
@@ -72,8 +72,8 @@ impl Default for ObservationConfig {
 pub struct ImageGeometry {
     /// The side b of a mini-map block, in cells.
     pub block: usize,
-    pub mini_width: usize,
-    pub mini_height: usize,
+    mini_width: usize,
+    mini_height: usize,
     /// The side S of every image: the local image and the mini-map are padded to one square
     /// side, so that both stack as channels.
     pub side: usize,
@@ -95,7 +95,7 @@ impl ImageGeometry {
     }
 
     /// The mini-map pixel (row-major in an S x S image) of the block that holds `cell`.
-    pub fn mini_pixel(&self, cell: Cell) -> usize {
+    fn mini_pixel(&self, cell: Cell) -> usize {
         (cell.y as usize / self.block) * self.side + cell.x as usize / self.block
     }
 }

@@ -15,7 +15,7 @@ pub const LOST: Rgb = [200, 200, 200];
 /// colours), then ten darker or lighter hues, each at least 60 (RGB distance) from every other
 /// and from white, the obstacles and the lost robots. A report figure puts up to 14 policies
 /// side by side (rq6); ten colours had two of them share a blue.
-pub const SERIES: [Rgb; 20] = [
+const SERIES: [Rgb; 20] = [
     [31, 119, 180],
     [255, 127, 14],
     [44, 160, 44],

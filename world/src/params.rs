@@ -47,7 +47,7 @@ impl WorldParams {
     }
 
     /// Cells from the agent to the edge of its field of view: (L - 1) / 2.
-    pub fn half_fov(&self) -> usize {
+    pub(crate) fn half_fov(&self) -> usize {
         self.fov / 2
     }
 

@@ -17,7 +17,7 @@ const UNREACHED: u32 = u32::MAX;
 const MOVES: [Action; 4] = [Action::Up, Action::Left, Action::Down, Action::Right];
 
 /// The free cells one move away from `cell`, each with the move that reaches it.
-pub fn free_neighbours(map: &Map, cell: Cell) -> impl Iterator<Item = (Action, Cell)> + '_ {
+fn free_neighbours(map: &Map, cell: Cell) -> impl Iterator<Item = (Action, Cell)> + '_ {
     MOVES.into_iter().filter_map(move |action| {
         let (dx, dy) = action.delta();
         let (x, y) = (cell.x as i64 + dx, cell.y as i64 + dy);

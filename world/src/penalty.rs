@@ -58,14 +58,14 @@ pub struct PenaltyGrid {
 
 impl PenaltyGrid {
     /// The memory of the grid's tables (penalties, floors and the seen mask).
-    pub fn heap_bytes(&self) -> usize {
+    pub(crate) fn heap_bytes(&self) -> usize {
         use std::mem::size_of_val;
         size_of_val(self.codes.as_slice())
             + size_of_val(self.floor.as_slice())
             + size_of_val(self.seen.words.as_slice())
     }
 
-    pub fn new(map: &Map, params: &WorldParams) -> Self {
+    pub(crate) fn new(map: &Map, params: &WorldParams) -> Self {
         let pad = params.half_fov().max(1);
         // Rows are updated in whole groups of LANES cells, so the right border is wide enough
         // for the last group to spill into it.
@@ -97,7 +97,7 @@ impl PenaltyGrid {
     }
 
     /// Sets every free cell's penalty back to 0.
-    pub fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         for (code, &floor) in self.codes.iter_mut().zip(&self.floor) {
             *code = if floor == OBSTACLE_CODE { floor } else { 0.0 };
         }
@@ -105,7 +105,7 @@ impl PenaltyGrid {
 
     /// Marks what agents at `positions` see, then updates every cell; returns the step's reward,
     /// the sum of the penalties of all free cells (<= 0).
-    pub fn update(&mut self, visibility: &Visibility, positions: &[Cell]) -> f64 {
+    pub(crate) fn update(&mut self, visibility: &Visibility, positions: &[Cell]) -> f64 {
         let half = visibility.fov() / 2;
         for &at in positions {
             let bottom = at.y as usize + self.pad - half;
@@ -141,7 +141,7 @@ impl PenaltyGrid {
     }
 
     /// Index of `cell` in `codes()`.
-    pub fn padded_index(&self, cell: Cell) -> usize {
+    fn padded_index(&self, cell: Cell) -> usize {
         (cell.y as usize + self.pad) * self.stride + cell.x as usize + self.pad
     }
 

@@ -14,13 +14,13 @@ pub struct Seed(u64);
 /// Named children of an episode's seed, so that streams for different purposes never collide.
 pub mod purpose {
     /// Start positions of the agents.
-    pub const STARTS: u64 = 1;
+    pub(crate) const STARTS: u64 = 1;
     /// The policy's own draws (one child per agent below it where agents draw independently).
     pub const POLICY: u64 = 2;
     /// The number of agents, where an episode draws it (training over a range of team sizes).
     pub const AGENT_COUNT: u64 = 3;
     /// Which links between robots are down at each step, when communication is disturbed.
-    pub const LINKS: u64 = 4;
+    pub(crate) const LINKS: u64 = 4;
     /// Which robots are lost, when a disturbance names how many but not which.
     pub const LOST_ROBOTS: u64 = 5;
 }

@@ -13,7 +13,7 @@ use crate::map::{Cell, Map};
 /// The cells of a part of [`Visibility::compute_in_parts`]: at the largest L (255) on an open
 /// map a part takes a fraction of a second on a few cores, so an interrupt is answered at once,
 /// while each part still has work for every thread.
-pub const CELLS_PER_PART: usize = 4096;
+const CELLS_PER_PART: usize = 4096;
 
 /// Which free cells each cell sees, as one bitset per field-of-view window.
 ///
@@ -30,7 +30,7 @@ pub struct Visibility {
 
 impl Visibility {
     /// Computes every free cell's window; obstacle cells get empty windows.
-    pub fn compute(map: &Map, fov: usize) -> Self {
+    pub(crate) fn compute(map: &Map, fov: usize) -> Self {
         let whole = Self::compute_in_parts(map, fov, |part| {
             part();
             Ok::<(), std::convert::Infallible>(())
@@ -44,7 +44,7 @@ impl Visibility {
     /// the computation. A large table takes minutes, and a caller that must answer an
     /// interrupt (Python's Ctrl-C) checks for it between parts. The windows do not depend on
     /// the parts.
-    pub fn compute_in_parts<E>(
+    pub(crate) fn compute_in_parts<E>(
         map: &Map,
         fov: usize,
         mut run_part: impl FnMut(&mut (dyn FnMut() + Send)) -> Result<(), E>,
@@ -89,16 +89,16 @@ impl Visibility {
         (cells as u64).saturating_mul(per_cell)
     }
 
-    pub fn fov(&self) -> usize {
+    pub(crate) fn fov(&self) -> usize {
         self.fov
     }
 
-    pub fn words_per_row(&self) -> usize {
+    pub(crate) fn words_per_row(&self) -> usize {
         self.words_per_row
     }
 
     /// The window rows of `from`, bottom row first.
-    pub fn window(&self, from: Cell) -> &[u64] {
+    pub(crate) fn window(&self, from: Cell) -> &[u64] {
         let per_cell = self.fov * self.words_per_row;
         let start = (from.y as usize * self.width + from.x as usize) * per_cell;
         &self.bits[start..start + per_cell]
@@ -131,7 +131,8 @@ impl Visibility {
         })
     }
 
-    pub fn count(&self, from: Cell) -> usize {
+    #[cfg(test)]
+    fn count(&self, from: Cell) -> usize {
         self.window(from)
             .iter()
             .map(|w| w.count_ones() as usize)
@@ -168,7 +169,7 @@ fn fill_window(
 /// (x = even) and horizontal (y = even) grid lines of the doubled grid. The i-th vertical line
 /// is met at t = (1 + 2i) / (2 nx), the j-th horizontal at (1 + 2j) / (2 ny); comparing
 /// (1 + 2i) ny with (1 + 2j) nx orders them exactly, and equality is a corner.
-pub fn segment_clear(map: &Map, a: Cell, b: Cell) -> bool {
+pub(crate) fn segment_clear(map: &Map, a: Cell, b: Cell) -> bool {
     let (mut x, mut y) = (a.x as i64, a.y as i64);
     let (dx, dy) = (b.x as i64 - x, b.y as i64 - y);
     let (sx, sy) = (dx.signum(), dy.signum());

@@ -18,7 +18,7 @@ const NEIGHBOURS: [(i64, i64); 4] = [(-1, 0), (0, -1), (0, 1), (1, 0)];
 
 /// Buffers of one search, kept between searches so that searching allocates nothing.
 #[derive(Clone, Debug)]
-pub struct CoinWallSearch {
+pub(crate) struct CoinWallSearch {
     /// Index of the cell that found each reached cell (the start finds itself).
     parent: Vec<u32>,
     /// Reached cells in the order found: the queue, and the cells to clear next time.
@@ -26,7 +26,7 @@ pub struct CoinWallSearch {
 }
 
 impl CoinWallSearch {
-    pub fn new(map: &Map) -> Self {
+    pub(crate) fn new(map: &Map) -> Self {
         Self {
             parent: vec![UNREACHED; map.width() * map.height()],
             queue: Vec::new(),
@@ -37,7 +37,7 @@ impl CoinWallSearch {
     /// the search runs out of cells first (obstacles, or agents on the coin's wall side).
     /// `occupied[map.index(cell)]` says whether an agent stands on `cell`; the coins come
     /// from `coins`.
-    pub fn first_step(
+    pub(crate) fn first_step(
         &mut self,
         map: &Map,
         occupied: &[bool],

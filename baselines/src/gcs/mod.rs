@@ -13,14 +13,14 @@
 //! README's baseline section for the measured gap.
 
 mod coin_walls;
-pub mod numpy_sort;
-pub mod paper_text;
-pub mod released;
+mod numpy_sort;
+pub(crate) mod paper_text;
+pub(crate) mod released;
 
 use world::World;
 
 /// The paper's radius: half the side of the field of view (the code's LOCAL_SZ / 2, its
 /// local view being the field of view's square).
-pub fn default_radius(world: &World) -> f64 {
+pub(crate) fn default_radius(world: &World) -> f64 {
     world.params().fov() as f64 / 2.0
 }

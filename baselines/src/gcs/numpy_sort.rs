@@ -19,7 +19,7 @@ const STACK: usize = 128;
 
 /// Writes into `order` the indices `0..keys.len()` sorted by key ascending, exactly as numpy
 /// 1.x's `np.argsort(keys)` does, ties included. `order` is resized to fit.
-pub fn argsort(keys: &[f64], order: &mut Vec<u32>) {
+pub(crate) fn argsort(keys: &[f64], order: &mut Vec<u32>) {
     order.clear();
     order.extend(0..keys.len() as u32);
     introsort(keys, order);

@@ -33,14 +33,14 @@ use world::Policy;
 
 /// When an agent gives up its target for a new one.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Retarget {
+pub(crate) enum Retarget {
     /// On arrival, or as soon as the target is seen (its penalty is back to zero).
     WhenSeen,
     /// On arrival only.
     OnArrival,
 }
 
-pub struct PaperTextGcs {
+pub(crate) struct PaperTextGcs {
     world: Arc<World>,
     retarget: Retarget,
     candidates: Candidates,
@@ -57,7 +57,7 @@ struct Assignment {
 
 impl PaperTextGcs {
     /// `radius` is the L2 distance within which a candidate suppresses less bad cells.
-    pub fn new(world: &Arc<World>, radius: f64, retarget: Retarget) -> Self {
+    pub(crate) fn new(world: &Arc<World>, radius: f64, retarget: Retarget) -> Self {
         Self {
             world: world.clone(),
             retarget,
@@ -69,7 +69,7 @@ impl PaperTextGcs {
 
     /// Each agent's current target.
     #[cfg(test)]
-    pub fn targets(&self) -> impl Iterator<Item = Option<Cell>> + '_ {
+    pub(crate) fn targets(&self) -> impl Iterator<Item = Option<Cell>> + '_ {
         self.agents.iter().map(|agent| agent.target)
     }
 

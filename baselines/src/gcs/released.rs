@@ -43,7 +43,7 @@ use world::Policy;
 /// both 0 and 5 leave the agent where it is.
 const RANDOM_ACTION_CODES: usize = 6;
 
-pub struct ReleasedGcs {
+pub(crate) struct ReleasedGcs {
     world: Arc<World>,
     hot_spots: HotSpots,
     search: CoinWallSearch,
@@ -60,7 +60,7 @@ struct Agent {
 
 impl ReleasedGcs {
     /// `radius` is the L2 distance below which a hot spot hides a less bad one.
-    pub fn new(world: &Arc<World>, radius: f64) -> Self {
+    pub(crate) fn new(world: &Arc<World>, radius: f64) -> Self {
         let map = world.map();
         Self {
             world: world.clone(),
@@ -73,7 +73,7 @@ impl ReleasedGcs {
 
     /// Each agent's current target.
     #[cfg(test)]
-    pub fn targets(&self) -> impl Iterator<Item = Cell> + '_ {
+    fn targets(&self) -> impl Iterator<Item = Cell> + '_ {
         self.agents.iter().map(|agent| agent.target)
     }
 

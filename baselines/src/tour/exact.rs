@@ -7,12 +7,12 @@ use rand_pcg::Pcg64Mcg;
 use super::{DistanceMatrix, Tour, TourError, solve};
 
 /// Largest instance [`solve_exact`] accepts; beyond this enumeration takes too long to be useful.
-pub const MAX_EXACT_POINTS: usize = 12;
+pub(crate) const MAX_EXACT_POINTS: usize = 12;
 
 /// The optimal tour by enumerating orders with point 0 fixed first, abandoning any partial
 /// order already as long as the best complete one (distances are non-negative, so it cannot
 /// end shorter).
-pub fn solve_exact(distances: &DistanceMatrix) -> Result<Tour, TourError> {
+pub(crate) fn solve_exact(distances: &DistanceMatrix) -> Result<Tour, TourError> {
     let points = distances.len();
     if points > MAX_EXACT_POINTS {
         return Err(TourError::TooManyForExact { points });
@@ -71,7 +71,7 @@ impl ExhaustiveSearch<'_> {
 
 /// How distances between random plane points are made integral.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PlaneMetric {
+pub(crate) enum PlaneMetric {
     Manhattan,
     RoundedEuclidean,
 }
@@ -88,30 +88,30 @@ impl PlaneMetric {
 }
 
 /// Side of the integer grid random instances are drawn on, about the size of the paper's maps.
-pub const RANDOM_PLANE_SIDE: u16 = 50;
+const RANDOM_PLANE_SIDE: u16 = 50;
 
 /// A reproducible family of random instances: points drawn uniformly on a
 /// [`RANDOM_PLANE_SIDE`]² integer grid.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct RandomPlaneInstances {
-    pub instances: usize,
-    pub points: usize,
-    pub metric: PlaneMetric,
-    pub seed: u64,
+pub(crate) struct RandomPlaneInstances {
+    pub(crate) instances: usize,
+    pub(crate) points: usize,
+    pub(crate) metric: PlaneMetric,
+    pub(crate) seed: u64,
 }
 
 /// How far [`solve`] is from [`solve_exact`]; gaps are relative to the optimal length.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GapStatistic {
-    pub instances: usize,
-    pub mean_gap: f64,
-    pub max_gap: f64,
-    pub fraction_optimal: f64,
+pub(crate) struct GapStatistic {
+    instances: usize,
+    pub(crate) mean_gap: f64,
+    max_gap: f64,
+    fraction_optimal: f64,
 }
 
 /// Measures the heuristic against the exact optimum, so that reports can state how much patrol
 /// period the heuristic tour might be wasting. An empty family gives zeros.
-pub fn heuristic_gap(family: &RandomPlaneInstances) -> Result<GapStatistic, TourError> {
+pub(crate) fn heuristic_gap(family: &RandomPlaneInstances) -> Result<GapStatistic, TourError> {
     let mut rng = Pcg64Mcg::seed_from_u64(family.seed);
     let mut gaps = Vec::with_capacity(family.instances);
     for _ in 0..family.instances {

@@ -25,22 +25,22 @@ pub const INSTRUCTIONS: &str = "portable (scalar fma)";
 
 /// Rows of a tile: 6 rows x 2 vectors of 8 lanes are 12 accumulators, which with the two
 /// loaded vectors of `b` and one broadcast of `a` fill 15 of the 16 AVX2 registers.
-pub const MR: usize = 6;
+pub(crate) const MR: usize = 6;
 
 /// Columns of a tile.
-pub const NR: usize = 16;
+pub(crate) const NR: usize = 16;
 
 /// Elements of a tile, row-major.
-pub const TILE: usize = MR * NR;
+pub(crate) const TILE: usize = MR * NR;
 
 /// `depth` steps of a panel of `a` (`MR` values a step) or `b` (`NR` values): value `index`
 /// of step `k` is at `ptr + k * k_stride + index * index_stride`. A panel is read in place
 /// from the operand where its layout allows, else from a packing buffer.
 #[derive(Clone, Copy)]
 pub struct Panel<T> {
-    pub ptr: *const T,
-    pub k_stride: isize,
-    pub index_stride: isize,
+    pub(crate) ptr: *const T,
+    pub(crate) k_stride: isize,
+    pub(crate) index_stride: isize,
 }
 
 impl<T: Copy> Panel<T> {
@@ -58,8 +58,8 @@ impl<T: Copy> Panel<T> {
 /// values contiguous (the output itself where it allows, else a copy).
 #[derive(Clone, Copy)]
 pub struct Tile<T> {
-    pub ptr: *mut T,
-    pub row_stride: isize,
+    pub(crate) ptr: *mut T,
+    pub(crate) row_stride: isize,
 }
 
 /// A float with a tile kernel.
@@ -84,7 +84,7 @@ pub trait TileKernel: Copy {
 ///
 /// # Safety
 /// As [`TileKernel::multiply_tile`].
-pub unsafe fn portable_tile<T: num_traits::Float>(
+unsafe fn portable_tile<T: num_traits::Float>(
     depth: usize,
     a: Panel<T>,
     b: Panel<T>,
@@ -171,7 +171,7 @@ mod avx2 {
     /// # Safety
     /// As [`super::TileKernel::multiply_tile`].
     #[inline]
-    pub unsafe fn multiply_tile(
+    pub(crate) unsafe fn multiply_tile(
         depth: usize,
         a: Panel<f32>,
         b: Panel<f32>,

@@ -2,7 +2,7 @@
 //! bits with a vector unit as without.
 
 /// Lanes of [`LaneSums`]: one AVX2 register of `f32`.
-pub const LANES: usize = 8;
+pub(crate) const LANES: usize = 8;
 
 /// `LANES` running sums of products, the product rounded before the sum as in scalar code, so
 /// a vector unit gives the same bits as none.

@@ -22,10 +22,10 @@ use ndarray::{ArrayView2, ArrayViewMut2, Axis};
 use rayon::prelude::*;
 
 pub use kernel::{INSTRUCTIONS, TileKernel};
-pub use scalar::{PackingBuffers, Scalar};
+pub(crate) use scalar::Scalar;
 
 use super::buffer::ReusableBuffer;
-pub use lanes::{LANES, LaneSums};
+pub(crate) use lanes::{LANES, LaneSums};
 
 /// Products with fewer multiply-adds than this run on the calling thread: below it, handing
 /// work to the pool costs more than it saves (the rollout's batches of a few agents, whose
@@ -59,7 +59,7 @@ fn product<T: Scalar>(a: ArrayView2<T>, b: ArrayView2<T>, c: ArrayViewMut2<T>, a
 /// thread multiplies a run of consecutive bands.
 /// The bits are those of `matmul_add` on the whole `a`: every band takes the whole product's
 /// path, and both paths compute each row of the output independently of the others.
-pub fn matmul_add_banded<T: Scalar, const N: usize>(
+pub(crate) fn matmul_add_banded<T: Scalar, const N: usize>(
     scratch: &mut ReusableBuffer<T>,
     k: usize,
     band_rows: usize,
@@ -157,7 +157,7 @@ fn split_rows<'a, T: Scalar, const N: usize>(
 /// product would not run packed, `p` is written whole and multiplied as one band. Bands are
 /// whole units of `unit_rows` rows (a sample's patches), at most `band_rows` but one unit, and
 /// are written by all threads at once, each given whole units.
-pub fn matmul_transposed_banded<T: Scalar, const N: usize>(
+pub(crate) fn matmul_transposed_banded<T: Scalar, const N: usize>(
     scratch: &mut ReusableBuffer<T>,
     mut products: Products<'_, T, N>,
     (band_rows, unit_rows): (usize, usize),
@@ -207,7 +207,7 @@ pub fn matmul_transposed_banded<T: Scalar, const N: usize>(
 /// as many threads. Inlined: a rollout step makes dozens of small products, and the call cost
 /// 5% of its time.
 #[inline]
-pub fn row_band_product<T: Scalar>(
+pub(crate) fn row_band_product<T: Scalar>(
     a: ArrayView2<T>,
     b: ArrayView2<T>,
     c: ArrayViewMut2<T>,

@@ -73,7 +73,7 @@ struct Rectangle {
 }
 
 /// `c = a b`, or `c += a b` when `add`, on `threads` threads.
-pub fn product<T: Scalar>(
+pub(crate) fn product<T: Scalar>(
     a: ArrayView2<T>,
     b: ArrayView2<T>,
     mut c: ArrayViewMut2<T>,

@@ -7,10 +7,10 @@ use std::ops::Range;
 use super::padded_range;
 
 /// Decades the shown values must span before the axis turns logarithmic.
-pub const LOG_DECADES: f64 = 2.0;
+const LOG_DECADES: f64 = 2.0;
 
 /// Whether `values` are all positive and span more than [`LOG_DECADES`] decades.
-pub fn spans_decades(values: impl IntoIterator<Item = f64>) -> bool {
+fn spans_decades(values: impl IntoIterator<Item = f64>) -> bool {
     let finite = values.into_iter().filter(|v| v.is_finite());
     let (low, high) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
         (l.min(v), h.max(v))
@@ -21,7 +21,7 @@ pub fn spans_decades(values: impl IntoIterator<Item = f64>) -> bool {
 /// Ticks for a log axis from `low` to `high`: powers of ten and their 2 and 5 multiples,
 /// or every multiple 1 to 9 where those give fewer than three (an axis from 53 to 153
 /// would have had the one tick 100); the ends where even those give fewer than two.
-pub fn log_ticks(low: f64, high: f64) -> Vec<f64> {
+pub(crate) fn log_ticks(low: f64, high: f64) -> Vec<f64> {
     let within = |multiples: &[f64]| -> Vec<f64> {
         let (first, last) = (low.log10().floor() as i32, high.log10().ceil() as i32);
         let candidates =
@@ -41,16 +41,16 @@ pub fn log_ticks(low: f64, high: f64) -> Vec<f64> {
 
 /// A value axis: its range and whether it is logarithmic.
 #[derive(Clone, Debug, PartialEq)]
-pub struct ValueAxis {
-    pub range: Range<f64>,
-    pub log: bool,
+pub(crate) struct ValueAxis {
+    pub(crate) range: Range<f64>,
+    pub(crate) log: bool,
 }
 
 impl ValueAxis {
     /// The axis for `shown` (the values that decide the scale: means, curves) that also holds
     /// `reach` (interval and band edges) where it can: a log axis cannot reach 0 or below, so
     /// those edges are cut at its floor. A linear axis starts at 0 when `from_zero` (bars).
-    pub fn fit(shown: &[f64], reach: &[f64], from_zero: bool) -> Self {
+    pub(crate) fn fit(shown: &[f64], reach: &[f64], from_zero: bool) -> Self {
         let all = || shown.iter().chain(reach).copied();
         if !spans_decades(shown.iter().copied()) {
             return Self {
@@ -71,18 +71,18 @@ impl ValueAxis {
     }
 
     /// The ticks of a log axis (see [`log_ticks`]).
-    pub fn log_ticks(&self) -> Vec<f64> {
+    pub(crate) fn log_ticks(&self) -> Vec<f64> {
         log_ticks(self.range.start, self.range.end)
     }
 
     /// Where a bar starts: 0, or the floor of a log axis.
-    pub fn base(&self) -> f64 {
+    pub(crate) fn base(&self) -> f64 {
         if self.log { self.range.start } else { 0.0 }
     }
 
     /// `value` as drawn: on a log axis, cut at the floor; an unbounded value (one run's
     /// interval) at the axis' edge.
-    pub fn clamp(&self, value: f64) -> f64 {
+    pub(crate) fn clamp(&self, value: f64) -> f64 {
         match (self.log, value.is_finite()) {
             (false, true) => value,
             _ => value.clamp(self.range.start, self.range.end),
@@ -90,7 +90,7 @@ impl ValueAxis {
     }
 
     /// An axis description that says when the scale is logarithmic.
-    pub fn describe(&self, label: &str) -> String {
+    pub(crate) fn describe(&self, label: &str) -> String {
         if self.log {
             format!("{label}, log scale")
         } else {

@@ -14,26 +14,26 @@ use super::{ChartError, FONT, Figure, centre_label, series_colour, tick_label};
 
 /// A bar's height and its interval.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Interval {
-    pub value: f64,
-    pub low: f64,
-    pub high: f64,
+pub(crate) struct Interval {
+    pub(crate) value: f64,
+    pub(crate) low: f64,
+    pub(crate) high: f64,
 }
 
-pub struct BarSeries {
-    pub label: String,
+pub(crate) struct BarSeries {
+    pub(crate) label: String,
     /// One per group; `None` leaves a gap.
-    pub values: Vec<Option<Interval>>,
+    pub(crate) values: Vec<Option<Interval>>,
     /// One list per group: the mean of each training run (cell), drawn as points on the bar.
-    pub runs: Vec<Vec<f64>>,
+    pub(crate) runs: Vec<Vec<f64>>,
 }
 
-pub struct GroupedBars {
-    pub title: String,
-    pub x_label: String,
-    pub y_label: String,
-    pub groups: Vec<String>,
-    pub series: Vec<BarSeries>,
+pub(crate) struct GroupedBars {
+    pub(crate) title: String,
+    pub(crate) x_label: String,
+    pub(crate) y_label: String,
+    pub(crate) groups: Vec<String>,
+    pub(crate) series: Vec<BarSeries>,
 }
 
 /// The radius of a run's point on a bar `bar` pixels wide: at most 4 pixels, and less on
@@ -64,7 +64,7 @@ impl Figure for GroupedBars {
 impl GroupedBars {
     /// The value axis: logarithmic where the bars and the runs' points span more than two
     /// decades, and then it says so.
-    pub fn axis(&self) -> ValueAxis {
+    pub(crate) fn axis(&self) -> ValueAxis {
         let (mut shown, mut reach) = (Vec::new(), Vec::new());
         for series in &self.series {
             for interval in series.values.iter().flatten() {

@@ -26,22 +26,22 @@ impl From<image::ImageError> for ChartError {
 }
 
 /// A figure, drawn the same way on any backend.
-pub trait Figure {
+pub(crate) trait Figure {
     /// Width and height in pixels (SVG user units).
     fn size(&self) -> (u32, u32);
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), ChartError>;
 }
 
 /// A figure as PNG bytes and SVG text.
-pub struct Rendered {
-    pub png: Vec<u8>,
-    pub svg: String,
+pub(crate) struct Rendered {
+    pub(crate) png: Vec<u8>,
+    pub(crate) svg: String,
 }
 
 /// The font every figure uses.
-pub const FONT: &str = "sans-serif";
+pub(crate) const FONT: &str = "sans-serif";
 
-pub fn render(figure: &impl Figure) -> Result<Rendered, ChartError> {
+pub(crate) fn render(figure: &impl Figure) -> Result<Rendered, ChartError> {
     register_embedded_font()?;
     let (width, height) = figure.size();
     let mut pixels = vec![0u8; width as usize * height as usize * 3];

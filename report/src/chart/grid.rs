@@ -13,7 +13,7 @@ use super::{
 
 /// What a cell shows.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Shade {
+pub(crate) enum Shade {
     Free,
     Obstacle,
     Agent,
@@ -21,23 +21,23 @@ pub enum Shade {
     Penalty(f64),
 }
 
-pub struct GridPanel {
-    pub title: String,
-    pub width: usize,
-    pub height: usize,
+pub(crate) struct GridPanel {
+    pub(crate) title: String,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
     /// Row-major from the bottom row: `cells[y * width + x]`.
-    pub cells: Vec<Shade>,
+    pub(crate) cells: Vec<Shade>,
     /// Per agent, its path through cell centres.
-    pub trails: Vec<Vec<(f64, f64)>>,
+    pub(crate) trails: Vec<Vec<(f64, f64)>>,
     /// Per agent, where it is at the end (circled, in its trail's colour).
-    pub markers: Vec<(f64, f64)>,
+    pub(crate) markers: Vec<(f64, f64)>,
 }
 
-pub struct GridFigure {
-    pub panels: Vec<GridPanel>,
+pub(crate) struct GridFigure {
+    pub(crate) panels: Vec<GridPanel>,
     /// Rmax, where the panels shade penalties: a colour bar from 0 to -Rmax is drawn beside
     /// them, so a reader can tell a cell's penalty from its colour.
-    pub penalty_scale: Option<f64>,
+    pub(crate) penalty_scale: Option<f64>,
 }
 
 /// Width of the colour bar's column in pixels.

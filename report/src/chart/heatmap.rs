@@ -13,18 +13,18 @@ use super::axis::log_ticks;
 use super::{ChartError, FONT, Figure, centre_label, diverging, draw_colour_bar};
 use crate::markdown::number;
 
-pub struct HeatPanel {
-    pub title: String,
-    pub rows: Vec<String>,
-    pub columns: Vec<String>,
+pub(crate) struct HeatPanel {
+    pub(crate) title: String,
+    pub(crate) rows: Vec<String>,
+    pub(crate) columns: Vec<String>,
     /// `values[row][column]`; `None` is left blank.
-    pub values: Vec<Vec<Option<f64>>>,
+    pub(crate) values: Vec<Vec<Option<f64>>>,
 }
 
-pub struct HeatMaps {
-    pub row_label: String,
-    pub column_label: String,
-    pub panels: Vec<HeatPanel>,
+pub(crate) struct HeatMaps {
+    pub(crate) row_label: String,
+    pub(crate) column_label: String,
+    pub(crate) panels: Vec<HeatPanel>,
 }
 
 /// Width of the colour bar's column in pixels.
@@ -58,7 +58,7 @@ impl Figure for HeatMaps {
 
 impl HeatMaps {
     /// Whether the colour follows the logarithm of the values (all of them positive).
-    pub fn logarithmic(&self) -> bool {
+    pub(crate) fn logarithmic(&self) -> bool {
         self.scale().logarithmic
     }
 

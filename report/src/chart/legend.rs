@@ -8,13 +8,13 @@ use super::marker::{Behind, legend_sample};
 use super::{ChartError, draw_legend};
 
 /// One entry: its label, and the sample drawn before it.
-pub struct Entry {
-    pub label: String,
+pub(crate) struct Entry {
+    pub(crate) label: String,
     /// The series, whose marker the sample shows.
-    pub series: usize,
+    pub(crate) series: usize,
     /// The marker's colour.
-    pub colour: RGBColor,
-    pub behind: Behind,
+    pub(crate) colour: RGBColor,
+    pub(crate) behind: Behind,
 }
 
 /// The legend's font size.
@@ -29,7 +29,7 @@ fn width(entries: &[Entry]) -> u32 {
 
 /// Splits `area` into the plot (returned) and, on its right, a column with the legend of
 /// `entries`, top-aligned with the plot.
-pub fn beside<DB: DrawingBackend>(
+pub(crate) fn beside<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     entries: &[Entry],
     top: u32,

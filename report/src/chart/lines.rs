@@ -12,22 +12,22 @@ use super::legend::{self, Entry};
 use super::marker::{Behind, marker};
 use super::{ChartError, FONT, Figure, padded_range, series_colour, tick_label};
 
-pub struct Line {
-    pub label: String,
-    pub points: Vec<(f64, f64)>,
+pub(crate) struct Line {
+    pub(crate) label: String,
+    pub(crate) points: Vec<(f64, f64)>,
     /// Lower and upper edge at each point's x, drawn as a translucent band.
-    pub band: Option<Vec<(f64, f64)>>,
+    pub(crate) band: Option<Vec<(f64, f64)>>,
 }
 
 /// A line over the curves it summarises (each training run's own), drawn thin beneath it in
 /// its colour, so that a run unlike the others stays visible.
-pub struct Spread {
-    pub line: Line,
-    pub traces: Vec<Vec<(f64, f64)>>,
+pub(crate) struct Spread {
+    pub(crate) line: Line,
+    pub(crate) traces: Vec<Vec<(f64, f64)>>,
 }
 
 /// What a panel draws per series: a line, and maybe thin traces beneath it.
-pub trait Series {
+pub(crate) trait Series {
     fn line(&self) -> &Line;
 
     fn traces(&self) -> &[Vec<(f64, f64)>] {
@@ -51,15 +51,15 @@ impl Series for Spread {
     }
 }
 
-pub struct Panel<S = Line> {
-    pub title: String,
-    pub y_label: String,
-    pub lines: Vec<S>,
+pub(crate) struct Panel<S = Line> {
+    pub(crate) title: String,
+    pub(crate) y_label: String,
+    pub(crate) lines: Vec<S>,
 }
 
-pub struct LineChart<S = Line> {
-    pub x_label: String,
-    pub panels: Vec<Panel<S>>,
+pub(crate) struct LineChart<S = Line> {
+    pub(crate) x_label: String,
+    pub(crate) panels: Vec<Panel<S>>,
 }
 
 /// Markers along each line: enough to tell lines apart, few enough that a figure of thirteen
@@ -91,7 +91,7 @@ impl<S: Series> Figure for LineChart<S> {
 impl<S: Series> Panel<S> {
     /// The value axis: logarithmic where the lines and traces span more than two decades; a
     /// band edge at or below 0 is then cut at the axis floor.
-    pub fn axis(&self) -> ValueAxis {
+    pub(crate) fn axis(&self) -> ValueAxis {
         let shown: Vec<f64> = self.curves().flat_map(|c| c.iter().map(|p| p.1)).collect();
         let reach: Vec<f64> = self
             .lines

@@ -31,7 +31,7 @@ const SHAPES: [Shape; 7] = [
 ];
 
 /// How many markers there are: every shape filled, then every shape hollow.
-pub const MARKERS: usize = 2 * SHAPES.len();
+const MARKERS: usize = 2 * SHAPES.len();
 
 /// Series `series`'s shape and whether it is hollow.
 fn identity(series: usize) -> (Shape, bool) {
@@ -40,10 +40,10 @@ fn identity(series: usize) -> (Shape, bool) {
 }
 
 /// A marker: its shape filled (white where hollow), then outlined.
-pub type Marker<C, DB> = ComposedElement<C, DB, Polygon<Pixel>, PathElement<Pixel>>;
+type Marker<C, DB> = ComposedElement<C, DB, Polygon<Pixel>, PathElement<Pixel>>;
 
 /// Series `series`'s marker at `at`, `radius` pixels, in `colour`.
-pub fn marker<C, DB: DrawingBackend>(
+pub(crate) fn marker<C, DB: DrawingBackend>(
     at: C,
     series: usize,
     colour: RGBColor,
@@ -65,13 +65,13 @@ pub fn marker<C, DB: DrawingBackend>(
 /// What a legend entry draws behind its marker: a short line (curves) or a patch of the
 /// bar's colour (bars).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Behind {
+pub(crate) enum Behind {
     Line(RGBColor),
     Patch(RGBColor),
 }
 
 /// A legend entry's sample at `at`: series `series`'s marker in `colour` over `behind`.
-pub fn legend_sample<DB: DrawingBackend>(
+pub(crate) fn legend_sample<DB: DrawingBackend>(
     at: Pixel,
     series: usize,
     colour: RGBColor,

@@ -8,7 +8,7 @@ use world::palette;
 use super::figure::{ChartError, FONT};
 
 /// The series' legend, boxed on a translucent white, in the corner `position`.
-pub fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
     chart: &mut ChartContext<'a, DB, CT>,
     position: SeriesLabelPosition,
     font_size: u32,
@@ -25,18 +25,18 @@ pub fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
 
 /// The colour of series `index`: distinct for twenty, and the same series keeps its colour
 /// everywhere; [`marker::marker`] gives it its shape.
-pub fn series_colour(index: usize) -> RGBColor {
+pub(crate) fn series_colour(index: usize) -> RGBColor {
     rgb(palette::series(index))
 }
 
 /// A palette colour as plotters takes it.
-pub fn rgb([red, green, blue]: palette::Rgb) -> RGBColor {
+pub(crate) fn rgb([red, green, blue]: palette::Rgb) -> RGBColor {
     RGBColor(red, green, blue)
 }
 
 /// Blue at 0 through white to red at 1: a penalty's share of Rmax, or a heat map's place
 /// between its lowest and highest value.
-pub fn diverging(fraction: f64) -> RGBColor {
+pub(crate) fn diverging(fraction: f64) -> RGBColor {
     let t = fraction.clamp(0.0, 1.0);
     let (blue, red) = ((49.0, 54.0, 149.0), (165.0, 0.0, 38.0));
     let white = (247.0, 247.0, 247.0);
@@ -56,7 +56,7 @@ pub fn diverging(fraction: f64) -> RGBColor {
 
 /// A vertical colour bar headed `caption` in `area`: each of `strips` (from, to, colour)
 /// filled between its values on the axis `y`, ticked in values on the right.
-pub fn draw_colour_bar<DB: DrawingBackend, Y>(
+pub(crate) fn draw_colour_bar<DB: DrawingBackend, Y>(
     area: &DrawingArea<DB, Shift>,
     caption: &str,
     y: Y,
@@ -90,7 +90,7 @@ where
 /// An axis tick: at most three significant digits and no trailing zeros, in powers of ten
 /// beyond five digits (`250000.0` reads `2.5e5`). Ticks are sums of steps, so a zero may
 /// arrive as a rounding residue (`2.2e-16`).
-pub fn tick_label(value: &f64) -> String {
+pub(crate) fn tick_label(value: &f64) -> String {
     let value = *value;
     if value.abs() < 1e-9 {
         return "0".into();
@@ -117,7 +117,7 @@ fn trimmed(value: f64, decimals: usize) -> String {
 
 /// The label of the item at `x` when `x` is an item's centre (an integer), nothing between
 /// items: grouped bars and heat map cells sit at integers, their axes ticked halfway too.
-pub fn centre_label(labels: &[String], x: f64) -> String {
+pub(crate) fn centre_label(labels: &[String], x: f64) -> String {
     let nearest = x.round();
     if (x - nearest).abs() > 1e-6 || nearest < 0.0 {
         return String::new();
@@ -126,7 +126,10 @@ pub fn centre_label(labels: &[String], x: f64) -> String {
 }
 
 /// Axis range with a margin, never empty.
-pub fn padded_range(values: impl Iterator<Item = f64>, from_zero: bool) -> std::ops::Range<f64> {
+pub(crate) fn padded_range(
+    values: impl Iterator<Item = f64>,
+    from_zero: bool,
+) -> std::ops::Range<f64> {
     // An unbounded interval (one training run gives (-inf, inf)) cannot set a scale: it is
     // drawn to the plot's edge.
     let finite = values.filter(|v| v.is_finite());

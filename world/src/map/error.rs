@@ -6,13 +6,13 @@ use std::path::{Path, PathBuf};
 /// A map file that cannot be used, with where the problem is.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub struct MapError {
-    pub file: PathBuf,
-    pub line: Option<usize>,
-    pub kind: MapErrorKind,
+    pub(crate) file: PathBuf,
+    pub(crate) line: Option<usize>,
+    pub(crate) kind: MapErrorKind,
 }
 
 impl MapError {
-    pub fn new(file: &Path, line: Option<usize>, kind: MapErrorKind) -> Self {
+    pub(crate) fn new(file: &Path, line: Option<usize>, kind: MapErrorKind) -> Self {
         Self {
             file: file.to_owned(),
             line,

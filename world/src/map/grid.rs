@@ -174,7 +174,7 @@ impl Map {
         &self.free
     }
 
-    pub fn contains(&self, x: i64, y: i64) -> bool {
+    fn contains(&self, x: i64, y: i64) -> bool {
         x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height
     }
 

@@ -7,7 +7,7 @@ use std::path::Path;
 
 mod error;
 mod grid;
-pub mod polygon;
+mod polygon;
 
 pub use error::{MapError, MapErrorKind};
 pub use grid::{Cell, MAX_SIDE, MAX_TEXT_MAP_BYTES, Map};

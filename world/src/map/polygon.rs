@@ -16,7 +16,7 @@ use super::grid::{MAX_SIDE, Map};
 /// [`MAX_SIDE`] cells a side, so the format has no natural bound on their number; 4 MiB holds
 /// some 100,000 vertices, far beyond any drawn map, and keeps a wrong path (a device, a huge
 /// file) from filling memory.
-pub const MAX_POLYGON_FILE_BYTES: u64 = 4 << 20;
+const MAX_POLYGON_FILE_BYTES: u64 = 4 << 20;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -40,14 +40,14 @@ enum PolygonKind {
 }
 
 /// Loads the map `name` (or the only map) of a polygon file.
-pub fn load_polygon_map(path: &Path, name: Option<&str>) -> Result<Map, MapError> {
+pub(crate) fn load_polygon_map(path: &Path, name: Option<&str>) -> Result<Map, MapError> {
     let text = crate::input::read_bounded_text(path, MAX_POLYGON_FILE_BYTES, "a polygon map file")
         .map_err(MapError::from)?;
     parse_polygon_map(&text, path, name)
 }
 
 /// Parses a polygon file held in memory; `source` names it in errors.
-pub fn parse_polygon_map(text: &str, source: &Path, name: Option<&str>) -> Result<Map, MapError> {
+fn parse_polygon_map(text: &str, source: &Path, name: Option<&str>) -> Result<Map, MapError> {
     let maps: BTreeMap<String, PolygonMap> = serde_saphyr::from_str(text).map_err(|e| {
         let line = yaml_error_line(&e);
         MapError::new(source, line, MapErrorKind::Yaml(e.to_string()))

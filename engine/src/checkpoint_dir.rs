@@ -56,7 +56,7 @@ fn read(dir: &Path, name: &str) -> Result<Vec<u8>, CheckpointDirError> {
 
 /// Writes the weights, the optimiser state and the metadata (metadata last, so a folder whose
 /// metadata is readable has the matching tensors).
-pub fn write(dir: &Path, state: &TrainingState) -> Result<(), CheckpointDirError> {
+pub(crate) fn write(dir: &Path, state: &TrainingState) -> Result<(), CheckpointDirError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let files = checkpoint::save(state);
     let entries: [(&str, &[u8]); 3] = [

@@ -76,11 +76,11 @@ pub const TRAINING_TAGS: [(&str, &str); 15] = [
 /// The mean cumulative penalty of a test curve's point.
 pub(crate) const TEST_PENALTY: &str = "eval/test_penalty";
 /// The mean penalty of a validation of a run until converged.
-pub const VALIDATION_PENALTY: &str = "eval/validation_penalty";
+pub(crate) const VALIDATION_PENALTY: &str = "eval/validation_penalty";
 /// The lowest validation penalty so far: the best policy's.
 pub(crate) const BEST_VALIDATION_PENALTY: &str = "eval/best_validation_penalty";
 /// Where a run until converged stopped: 1 when the rule stopped it, 0 at its cap.
-pub const STOP: &str = "eval/stop";
+pub(crate) const STOP: &str = "eval/stop";
 
 #[derive(Debug, thiserror::Error)]
 pub enum EventsError {
@@ -148,7 +148,7 @@ fn file_safe(name: &str) -> String {
 }
 
 /// A training run's event file, open for writing.
-pub struct EventLog {
+pub(crate) struct EventLog {
     path: PathBuf,
     file: File,
     /// The last step written of each tag, in this file or the folder's earlier ones.
@@ -158,7 +158,7 @@ pub struct EventLog {
 impl EventLog {
     /// A new event file in `folder` (made if need be). A `fresh` run first removes the
     /// folder's event files; any other leaves them, and what they hold is not written again.
-    pub fn open(folder: &Path, fresh: bool) -> Result<Self, EventsError> {
+    pub(crate) fn open(folder: &Path, fresh: bool) -> Result<Self, EventsError> {
         std::fs::create_dir_all(folder).map_err(|e| io_error(folder, e))?;
         let earlier = event_files(folder)?;
         let mut last = HashMap::new();

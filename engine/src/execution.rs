@@ -62,9 +62,9 @@ pub enum CellError {
 
 /// Where a cell comes from, for its record.
 pub(crate) struct CellOrigin<'a> {
-    pub scenario: &'a str,
-    pub map_source: &'a str,
-    pub built_from: &'a BuiltFrom,
+    pub(crate) scenario: &'a str,
+    pub(crate) map_source: &'a str,
+    pub(crate) built_from: &'a BuiltFrom,
 }
 
 /// Training episodes between saves of a learned cell's run.

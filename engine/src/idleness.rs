@@ -42,7 +42,7 @@ pub(crate) struct IdlenessTracker {
 
 impl IdlenessTracker {
     /// Starts at step 0 of `episode`, which has just been reset: every age is 0.
-    pub fn new(episode: &Episode) -> Self {
+    pub(crate) fn new(episode: &Episode) -> Self {
         let map = episode.world().map();
         let row = map.width().next_multiple_of(LANES);
         Self {
@@ -55,7 +55,7 @@ impl IdlenessTracker {
     }
 
     /// Reads the step just taken.
-    pub fn observe(&mut self, episode: &Episode) {
+    pub(crate) fn observe(&mut self, episode: &Episode) {
         let penalty = episode.penalty();
         let (codes, pad, stride) = (penalty.codes(), penalty.pad(), penalty.stride());
         let rows = self.ages.chunks_exact_mut(self.row).enumerate();
@@ -73,7 +73,7 @@ impl IdlenessTracker {
     }
 
     /// The figures after `steps` observed steps.
-    pub fn finish(&self, steps: usize) -> Idleness {
+    pub(crate) fn finish(&self, steps: usize) -> Idleness {
         let cell_steps = (self.free_cells * steps).max(1);
         Idleness {
             average: self.total as f64 / cell_steps as f64,

@@ -23,5 +23,5 @@ mod test_curve;
 pub mod trace;
 pub mod training_log;
 pub mod training_run;
-pub mod trajectory;
-pub mod validation;
+mod trajectory;
+mod validation;

@@ -11,7 +11,7 @@ pub(crate) struct Progress {
 }
 
 impl Progress {
-    pub fn new(total_steps: u64) -> Self {
+    pub(crate) fn new(total_steps: u64) -> Self {
         let bars = MultiProgress::new();
         let overall = bars.add(ProgressBar::new(total_steps));
         overall.set_style(style(
@@ -31,7 +31,7 @@ impl Progress {
         }
     }
 
-    pub fn finish(&self) {
+    pub(crate) fn finish(&self) {
         self.overall.finish_and_clear();
     }
 }
@@ -43,7 +43,7 @@ pub(crate) struct CellProgress<'a> {
 }
 
 impl CellProgress<'_> {
-    pub fn advance(&self, steps: u64) {
+    pub(crate) fn advance(&self, steps: u64) {
         self.bar.inc(steps);
         self.progress.overall.inc(steps);
     }

@@ -20,7 +20,7 @@ use store::schema::{cell, training};
 use store::{CellRecord, Store, StoreError, tables};
 
 /// The scenario whose results are fingerprinted.
-pub const SCENARIO: &str = include_str!("../fingerprint/scenario.yaml");
+const SCENARIO: &str = include_str!("../fingerprint/scenario.yaml");
 
 #[derive(Debug, thiserror::Error)]
 pub enum FingerprintError {

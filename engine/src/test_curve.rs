@@ -34,26 +34,26 @@ use store::{MAX_FILE_BYTES, StoreError, TEST_CURVE_FILE};
 
 /// The test episodes played with the policy of one moment of training.
 #[derive(Clone, Debug, PartialEq)]
-pub struct CurvePoint {
+pub(crate) struct CurvePoint {
     /// Training episodes done when the policy was played.
-    pub training_episode: u64,
+    pub(crate) training_episode: u64,
     /// CPU-seconds of training so far (see the module's notes); playing the curve is not
     /// counted.
-    pub cpu_seconds: f64,
+    pub(crate) cpu_seconds: f64,
     /// The run's training wall seconds so far, as its checkpoint keeps them.
-    pub wall_seconds: f64,
-    pub rows: Vec<EpisodeRow>,
+    pub(crate) wall_seconds: f64,
+    pub(crate) rows: Vec<EpisodeRow>,
 }
 
 /// The points of one training run so far.
 #[derive(Clone, Debug, PartialEq)]
-pub struct TestCurve {
+pub(crate) struct TestCurve {
     every: u64,
     points: Vec<CurvePoint>,
 }
 
 impl TestCurve {
-    pub fn new(every: u64) -> Self {
+    fn new(every: u64) -> Self {
         Self {
             every: every.max(1),
             points: Vec::new(),
@@ -63,7 +63,7 @@ impl TestCurve {
     /// The points saved in `folder` by a run now resumed after `done` training episodes
     /// (points after them belong to training the run repeats, and are dropped); none when
     /// nothing was saved.
-    pub fn resume(folder: &Path, every: u64, done: u64) -> Result<Self, StoreError> {
+    pub(crate) fn resume(folder: &Path, every: u64, done: u64) -> Result<Self, StoreError> {
         let mut curve = Self::new(every);
         if let Some(frame) = read_in_progress(folder, TEST_CURVE_FILE, "a run's test curve")? {
             curve.points = points(&frame)?;
@@ -94,17 +94,17 @@ impl TestCurve {
         self.points.last().map(|p| (p.cpu_seconds, p.wall_seconds))
     }
 
-    pub fn push(&mut self, point: CurvePoint) {
+    pub(crate) fn push(&mut self, point: CurvePoint) {
         self.points.push(point);
     }
 
-    pub fn points(&self) -> &[CurvePoint] {
+    pub(crate) fn points(&self) -> &[CurvePoint] {
         &self.points
     }
 
     /// The curve as a cell's table: the episodes table's columns, with the training
     /// episode and CPU-seconds after the cell's.
-    pub fn frame(&self, key: &str, config: &CellConfig) -> Result<DataFrame, StoreError> {
+    pub(crate) fn frame(&self, key: &str, config: &CellConfig) -> Result<DataFrame, StoreError> {
         let rows: Vec<EpisodeRow> = self.points.iter().flat_map(|p| p.rows.clone()).collect();
         let mut frame = tables::episodes_frame(key, config, &rows)?;
         let per_row = |value: fn(&CurvePoint) -> f64| -> Vec<f64> {
@@ -126,7 +126,12 @@ impl TestCurve {
     }
 
     /// Writes the curve beside the run in progress in `folder`.
-    pub fn save(&self, folder: &Path, key: &str, config: &CellConfig) -> Result<(), StoreError> {
+    pub(crate) fn save(
+        &self,
+        folder: &Path,
+        key: &str,
+        config: &CellConfig,
+    ) -> Result<(), StoreError> {
         let bytes = tables::parquet_bytes(&self.frame(key, config)?)?;
         write_in_progress(folder, TEST_CURVE_FILE, &bytes)
     }
@@ -193,7 +198,7 @@ pub(crate) struct CpuMeter {
 }
 
 impl CpuMeter {
-    pub fn start() -> Self {
+    pub(crate) fn start() -> Self {
         Self {
             threads: rayon::current_num_threads(),
             thread: thread_cpu_time(),
@@ -201,7 +206,7 @@ impl CpuMeter {
         }
     }
 
-    pub fn seconds(&self) -> f64 {
+    pub(crate) fn seconds(&self) -> f64 {
         match self.threads {
             1 => (thread_cpu_time() - self.thread).as_secs_f64(),
             threads => self.wall.elapsed().as_secs_f64() * threads as f64,

@@ -64,7 +64,7 @@ pub fn from_parquet(bytes: &[u8]) -> PolarsResult<DataFrame> {
 }
 
 /// `earlier` (from the run resumed), keeping only its episodes before `first`, then `records`.
-pub fn append(
+pub(crate) fn append(
     earlier: &DataFrame,
     first: u64,
     records: &[EpisodeRecord],

@@ -130,7 +130,8 @@ impl TrainingRun {
         self.trainer.state()
     }
 
-    pub fn log(&self) -> &DataFrame {
+    #[cfg(test)]
+    fn log(&self) -> &DataFrame {
         &self.log
     }
 
@@ -149,7 +150,7 @@ impl TrainingRun {
     }
 
     /// The run's TensorBoard events, for what else is measured along it.
-    pub fn events(&mut self) -> Option<&mut EventLog> {
+    pub(crate) fn events(&mut self) -> Option<&mut EventLog> {
         self.events.as_mut()
     }
 

@@ -54,13 +54,13 @@ impl CellRecording {
     }
 
     /// Whether test episode `episode` is one to record.
-    pub fn records(&self, episode: u32) -> bool {
+    pub(crate) fn records(&self, episode: u32) -> bool {
         self.enabled && episode == 0
     }
 
     /// Records the episode's state after a step; `last` is the episode's final step, where
     /// the snapshot is taken.
-    pub fn observe(&mut self, episode: &Episode, n_test: u32, index: u32, last: usize) {
+    pub(crate) fn observe(&mut self, episode: &Episode, n_test: u32, index: u32, last: usize) {
         let step = episode.time();
         for (agent, cell) in episode.positions().iter().enumerate() {
             let s = &mut self.steps;
@@ -110,7 +110,7 @@ impl CellRecording {
     }
 
     /// The per-cell files: none when nothing was recorded.
-    pub fn files(
+    pub(crate) fn files(
         &self,
         key: &str,
         config: &CellConfig,

@@ -31,17 +31,17 @@ use crate::test_curve;
 
 /// One validation: the mean penalty of the validation episodes after `training_episode`.
 #[derive(Clone, Debug, PartialEq)]
-pub struct ValidationPoint {
-    pub training_episode: u64,
+pub(crate) struct ValidationPoint {
+    pub(crate) training_episode: u64,
     /// Training CPU-seconds so far (`test_curve`'s clock).
-    pub cpu_seconds: f64,
-    pub wall_seconds: f64,
-    pub penalty: f64,
+    pub(crate) cpu_seconds: f64,
+    pub(crate) wall_seconds: f64,
+    pub(crate) penalty: f64,
 }
 
 /// Why a run until converged stopped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Stop {
+pub(crate) enum Stop {
     /// The rule: no large enough improvement over `patience` validations.
     Converged,
     /// The cap (the policy's `episodes`) came first.
@@ -49,7 +49,7 @@ pub enum Stop {
 }
 
 impl Stop {
-    pub fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Stop::Converged => run::CONVERGED,
             Stop::Capped => run::CAPPED,
@@ -59,13 +59,13 @@ impl Stop {
 
 /// The validations of one run so far, under its rule.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Validation {
+pub(crate) struct Validation {
     rule: StoppingRule,
     points: Vec<ValidationPoint>,
 }
 
 impl Validation {
-    pub fn new(rule: StoppingRule) -> Self {
+    fn new(rule: StoppingRule) -> Self {
         Self {
             rule,
             points: Vec::new(),
@@ -74,7 +74,7 @@ impl Validation {
 
     /// The validations saved in `folder` by a run now resumed after `done` training
     /// episodes (later ones belong to training the run repeats); none when nothing was saved.
-    pub fn resume(folder: &Path, rule: StoppingRule, done: u64) -> Result<Self, StoreError> {
+    pub(crate) fn resume(folder: &Path, rule: StoppingRule, done: u64) -> Result<Self, StoreError> {
         let mut validation = Self::new(rule);
         let what = "a run's validation curve";
         if let Some(frame) = test_curve::read_in_progress(folder, VALIDATION_FILE, what)? {
@@ -100,15 +100,15 @@ impl Validation {
         test_curve::next_stop(self.every(), done, cap)
     }
 
-    pub fn push(&mut self, point: ValidationPoint) {
+    pub(crate) fn push(&mut self, point: ValidationPoint) {
         self.points.push(point);
     }
 
-    pub fn points(&self) -> &[ValidationPoint] {
+    pub(crate) fn points(&self) -> &[ValidationPoint] {
         &self.points
     }
 
-    pub fn rule(&self) -> &StoppingRule {
+    pub(crate) fn rule(&self) -> &StoppingRule {
         &self.rule
     }
 
@@ -118,13 +118,13 @@ impl Validation {
     }
 
     /// The validation with the lowest penalty, the earliest of equals.
-    pub fn best(&self) -> Option<&ValidationPoint> {
+    pub(crate) fn best(&self) -> Option<&ValidationPoint> {
         let lower = |a: &&ValidationPoint, b: &&ValidationPoint| a.penalty.total_cmp(&b.penalty);
         self.points.iter().min_by(lower)
     }
 
     /// Whether the run stops after `done` of at most `cap` episodes, validated there.
-    pub fn stop(&self, done: u64, cap: u64) -> Option<Stop> {
+    pub(crate) fn stop(&self, done: u64, cap: u64) -> Option<Stop> {
         if self.points.last()?.training_episode != done {
             return None;
         }
@@ -151,7 +151,7 @@ impl Validation {
     }
 
     /// The curve as a cell's table.
-    pub fn frame(&self, key: &str, config: &CellConfig) -> Result<DataFrame, StoreError> {
+    pub(crate) fn frame(&self, key: &str, config: &CellConfig) -> Result<DataFrame, StoreError> {
         let rows = self.points.len();
         let column = |f: fn(&ValidationPoint) -> f64| self.points.iter().map(f).collect::<Vec<_>>();
         let episodes: Vec<u64> = self.points.iter().map(|p| p.training_episode).collect();
@@ -166,14 +166,19 @@ impl Validation {
     }
 
     /// Writes the curve beside the run in progress in `folder`.
-    pub fn save(&self, folder: &Path, key: &str, config: &CellConfig) -> Result<(), StoreError> {
+    pub(crate) fn save(
+        &self,
+        folder: &Path,
+        key: &str,
+        config: &CellConfig,
+    ) -> Result<(), StoreError> {
         let bytes = tables::parquet_bytes(&self.frame(key, config)?)?;
         test_curve::write_in_progress(folder, VALIDATION_FILE, &bytes)
     }
 
     /// The cell's one-row table of where the run stopped and why, after `cpu_seconds` of
     /// training.
-    pub fn convergence_frame(
+    pub(crate) fn convergence_frame(
         &self,
         (key, config): (&str, &CellConfig),
         stop: Stop,
@@ -207,14 +212,14 @@ impl Validation {
 /// it is tested, never trained on).
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct BestPolicy {
-    pub episode: u64,
-    pub weights: Vec<u8>,
-    pub metadata: String,
+    pub(crate) episode: u64,
+    pub(crate) weights: Vec<u8>,
+    pub(crate) metadata: String,
 }
 
 impl BestPolicy {
     /// The policy of `state`, the run as it is now.
-    pub fn of(state: &TrainingState) -> Self {
+    pub(crate) fn of(state: &TrainingState) -> Self {
         let files = checkpoint::save(state);
         BestPolicy {
             episode: state.episodes_done,
@@ -226,7 +231,7 @@ impl BestPolicy {
     /// The best policy saved in `folder` when it is the one `validation` names best, or
     /// was saved at `done` (the validation there is about to be played again and will find
     /// it best again); `None` otherwise.
-    pub fn resume(folder: &Path, validation: &Validation, done: u64) -> Option<Self> {
+    pub(crate) fn resume(folder: &Path, validation: &Validation, done: u64) -> Option<Self> {
         let read = |name| store::read(&folder.join(name), MAX_FILE_BYTES, "a run's best policy");
         let weights = read(BEST_WEIGHTS_FILE).ok()?;
         let metadata = String::from_utf8(read(BEST_METADATA_FILE).ok()?).ok()?;
@@ -241,7 +246,7 @@ impl BestPolicy {
 
     /// Writes the policy beside the run in progress (metadata last: readable metadata has
     /// its weights).
-    pub fn save(&self, folder: &Path) -> Result<(), StoreError> {
+    pub(crate) fn save(&self, folder: &Path) -> Result<(), StoreError> {
         test_curve::write_in_progress(folder, BEST_WEIGHTS_FILE, &self.weights)?;
         test_curve::write_in_progress(folder, BEST_METADATA_FILE, self.metadata.as_bytes())
     }

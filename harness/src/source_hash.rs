@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 /// that running a cell reaches through its imports
 /// (`layers/tests/workspace.rs` checks that none is left out: the scenario resolves a policy's
 /// training configuration, the store writes the result files, the statistics the summary).
-pub const NUMERIC_SOURCES: [&str; 31] = [
+pub(crate) const NUMERIC_SOURCES: [&str; 31] = [
     "world/src",
     "world/Cargo.toml",
     "nn/src",
@@ -61,7 +61,7 @@ const NUMERIC_PACKAGES: [&str; 4] = ["world", "nn", "baselines", "learning"];
 /// The first 16 hex digits of blake3 over the numeric sources (path and contents, in path
 /// order) and the lock file's entries of the numeric crates' dependencies; empty where none of
 /// the sources exist (a build outside the workspace).
-pub fn source_hash(root: &Path) -> String {
+pub(crate) fn source_hash(root: &Path) -> String {
     let mut files = Vec::new();
     for source in NUMERIC_SOURCES {
         collect(&root.join(source), &mut files);

@@ -18,7 +18,12 @@ pub enum ActionChoice {
 
 impl ActionChoice {
     /// The action of batch row `row`; draws from `stream` only when sampling.
-    pub fn pick(self, policy: &CategoricalBatch<f32>, row: usize, stream: &mut Pcg64Mcg) -> usize {
+    pub(crate) fn pick(
+        self,
+        policy: &CategoricalBatch<f32>,
+        row: usize,
+        stream: &mut Pcg64Mcg,
+    ) -> usize {
         match self {
             ActionChoice::Sampled => policy.sample(row, stream.random::<f64>()),
             ActionChoice::Greedy => {

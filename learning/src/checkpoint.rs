@@ -58,21 +58,21 @@ const AFTER_VERSION_1: &str = "mini_map_block";
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CheckpointMetadata {
-    pub format_version: u32,
+    format_version: u32,
     /// The `policies` crate version that wrote the checkpoint.
-    pub crate_version: String,
+    crate_version: String,
     pub config: TrainingConfig,
     pub seed: u64,
     pub episodes_done: u64,
-    pub wall_seconds: f64,
+    wall_seconds: f64,
     /// Side of the observation images the network was built for.
-    pub image_side: usize,
-    pub adam_steps: u64,
-    pub parameters: usize,
+    image_side: usize,
+    adam_steps: u64,
+    parameters: usize,
     /// The critic's target statistics, when the run normalises values (left out otherwise,
     /// so that other runs write the metadata they always wrote).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub value_norm: Option<ValueNorm>,
+    value_norm: Option<ValueNorm>,
 }
 
 /// The three files' contents.

@@ -35,13 +35,13 @@ pub struct CellConfig {
     pub repetition: u32,
     pub training_seed: u64,
     /// Root of the test episodes' seeds: episode e with n agents uses `descend([n, e])`.
-    pub test_seed: u64,
+    test_seed: u64,
     pub test_episodes: u32,
     /// What each test episode is also played under.
     pub disturbances: Vec<Disturbance>,
     /// Root of the validation episodes' seeds (a learned policy `until: converged`): episode
     /// e uses `descend([N_train, e])`, a branch of the seed tree apart from the tests'.
-    pub validation_seed: Option<u64>,
+    validation_seed: Option<u64>,
     /// The training run of a learned policy's cell; `None` exactly for a baseline's.
     training: Option<TrainingConfig>,
 }
@@ -140,7 +140,7 @@ pub struct SweepCell {
 
 impl CellConfig {
     /// The content address: blake3 of the code version and the config's JSON.
-    pub fn key(&self) -> String {
+    fn key(&self) -> String {
         let json = serde_json::to_string(self).expect("a cell config serialises");
         let mut hasher = blake3::Hasher::new();
         hasher.update(code_version().as_bytes());

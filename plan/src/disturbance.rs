@@ -18,23 +18,23 @@ pub const UNDISTURBED: &str = "none";
 pub struct Disturbance {
     pub name: String,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub lose: Option<Loss>,
+    pub(crate) lose: Option<Loss>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub links: Option<LinkRule>,
+    pub(crate) links: Option<LinkRule>,
 }
 
 /// Robots that stop for good: after step `at`, they no longer move, see or send.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Loss {
-    pub robots: LostRobots,
+pub(crate) struct Loss {
+    pub(crate) robots: LostRobots,
     /// Steps 1..=at run with the whole team, steps at+1..=T without the lost robots.
-    pub at: u32,
+    pub(crate) at: u32,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
-pub enum LostRobots {
+pub(crate) enum LostRobots {
     /// This many, drawn from the episode's seed.
     Count(u32),
     /// These robots, by index.
@@ -45,15 +45,15 @@ pub enum LostRobots {
 /// from values `world::Links` accepts.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "LinkValues", into = "LinkValues")]
-pub struct LinkRule(LinkValues);
+pub(crate) struct LinkRule(LinkValues);
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct LinkValues {
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub radius: Option<f64>,
+    pub(crate) radius: Option<f64>,
     #[serde(default)]
-    pub drop: f64,
+    pub(crate) drop: f64,
 }
 
 impl TryFrom<LinkValues> for LinkRule {
@@ -80,7 +80,7 @@ impl LinkRule {
 impl Loss {
     /// The robots of a team of `agents` that this loss stops, in increasing order: the named
     /// ones that exist, or `Count` of them drawn from `seed` (the episode's).
-    pub fn robots(&self, agents: usize, seed: Seed) -> Vec<usize> {
+    fn robots(&self, agents: usize, seed: Seed) -> Vec<usize> {
         match &self.robots {
             LostRobots::Which(which) => {
                 let mut lost: Vec<usize> = which.iter().map(|&r| r as usize).collect();

@@ -18,14 +18,14 @@ pub(crate) const CURVE_BINS: usize = 50;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Adaptation {
     /// Mean per-step penalty over steps 1..=event; `None` without an event.
-    pub before: Option<f64>,
+    pub(crate) before: Option<f64>,
     /// Mean per-step penalty over steps event+1..=T; `None` without an event.
-    pub after: Option<f64>,
+    pub(crate) after: Option<f64>,
     /// Mean per-step penalty over the last quarter of the episode: its final level.
-    pub last_quarter: f64,
+    pub(crate) last_quarter: f64,
     /// Steps after the event until the per-step penalty (averaged over T/10 steps) stays
     /// within 10 % of the final level; `None` without an event.
-    pub settle_steps: Option<u32>,
+    pub(crate) settle_steps: Option<u32>,
 }
 
 impl Adaptation {

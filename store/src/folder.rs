@@ -259,7 +259,7 @@ impl Store {
     }
 
     /// Why cell `key`'s last run failed, if it did and has not finished since.
-    pub fn failure(&self, key: &str) -> Option<CellFailure> {
+    pub(crate) fn failure(&self, key: &str) -> Option<CellFailure> {
         if self.finished(key).is_some() {
             return None;
         }
@@ -552,7 +552,7 @@ pub struct TablesLock {
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TableHashes {
     pub cells: Vec<String>,
-    pub tables: BTreeMap<String, String>,
+    tables: BTreeMap<String, String>,
 }
 
 #[cfg(test)]

@@ -46,7 +46,7 @@ mod folder;
 mod layout;
 pub mod lease;
 pub mod provenance;
-pub mod reader;
+mod reader;
 pub mod record;
 pub mod schema;
 pub mod status;

@@ -75,8 +75,8 @@ pub struct Manifest {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CellFailure {
     pub error: String,
-    pub host: String,
+    pub(crate) host: String,
     /// UTC, ISO 8601.
     pub when: String,
-    pub code_version: String,
+    pub(crate) code_version: String,
 }

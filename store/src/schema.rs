@@ -34,7 +34,7 @@ pub mod episodes {
     pub const WORST_IDLENESS: &str = "worst_idleness";
     pub const STEPS: &str = "steps";
 
-    pub const EPISODE_COLUMNS: [&str; 7] = [
+    pub(crate) const EPISODE_COLUMNS: [&str; 7] = [
         N_TEST,
         EPISODE,
         TEST_SEED,
@@ -44,7 +44,7 @@ pub mod episodes {
         STEPS,
     ];
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         [&super::cell::COLUMNS[..], &EPISODE_COLUMNS].concat()
     }
 }
@@ -54,7 +54,7 @@ pub mod cells {
     use super::cell;
 
     pub const TABLE: &str = "cells";
-    pub const SCENARIO: &str = "scenario";
+    pub(crate) const SCENARIO: &str = "scenario";
     pub(crate) const MAP_SOURCE: &str = "map_source";
     pub const MAP_HASH: &str = "map_hash";
     pub const REPETITION: &str = "repetition";
@@ -67,14 +67,14 @@ pub mod cells {
     pub(crate) const TRAINING_HASH: &str = "training_hash";
     pub(crate) const CODE_VERSION: &str = "code_version";
     pub const GIT_COMMIT: &str = "git_commit";
-    pub const HOST: &str = "host";
+    pub(crate) const HOST: &str = "host";
     pub const CPU: &str = "cpu";
     pub const KERNELS: &str = "kernels";
     pub(crate) const STARTED: &str = "started";
     pub(crate) const FINISHED: &str = "finished";
     pub const WALL_SECONDS: &str = "wall_seconds";
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         vec![
             cell::KEY,
             SCENARIO,
@@ -153,7 +153,7 @@ pub mod training {
         WALL_SECONDS,
     ];
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         [&super::cell::COLUMNS[..], &LOG_COLUMNS].concat()
     }
 }
@@ -169,9 +169,9 @@ pub mod test_curve {
     pub const CPU_SECONDS: &str = "cpu_seconds";
     pub const WALL_SECONDS: &str = "wall_seconds";
 
-    pub const POINT_COLUMNS: [&str; 3] = [TRAINING_EPISODE, CPU_SECONDS, WALL_SECONDS];
+    const POINT_COLUMNS: [&str; 3] = [TRAINING_EPISODE, CPU_SECONDS, WALL_SECONDS];
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         [
             &super::cell::COLUMNS[..],
             &POINT_COLUMNS,
@@ -184,19 +184,19 @@ pub mod test_curve {
 /// The validation curve of a learned cell trained until converged: the mean penalty of its
 /// validation episodes at every validation, [`cell`] then these.
 pub mod validation {
-    pub const TABLE: &str = "validation";
+    pub(crate) const TABLE: &str = "validation";
     pub use super::test_curve::{CPU_SECONDS, TRAINING_EPISODE, WALL_SECONDS};
     /// The mean cumulative penalty of the validation episodes.
     pub const VALIDATION_PENALTY: &str = "validation_penalty";
 
-    pub const POINT_COLUMNS: [&str; 4] = [
+    const POINT_COLUMNS: [&str; 4] = [
         TRAINING_EPISODE,
         CPU_SECONDS,
         WALL_SECONDS,
         VALIDATION_PENALTY,
     ];
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         [&super::cell::COLUMNS[..], &POINT_COLUMNS].concat()
     }
 }
@@ -221,7 +221,7 @@ pub mod convergence {
     pub const CONVERGED: &str = "converged";
     pub const CAPPED: &str = "capped";
 
-    pub const RUN_COLUMNS: [&str; 8] = [
+    const RUN_COLUMNS: [&str; 8] = [
         STOP_EPISODE,
         STOP,
         BEST_EPISODE,
@@ -232,7 +232,7 @@ pub mod convergence {
         TESTED,
     ];
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         [&super::cell::COLUMNS[..], &RUN_COLUMNS].concat()
     }
 }
@@ -246,7 +246,7 @@ pub mod checkpoints {
     pub const TABLE: &str = "checkpoints";
     pub const CHECKPOINT: &str = "checkpoint";
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         [
             &super::cell::COLUMNS[..],
             &[CHECKPOINT],
@@ -279,7 +279,7 @@ pub mod summary {
     pub const WORST_IDLENESS_CI_LOW: &str = "worst_idleness_ci_low";
     pub const WORST_IDLENESS_CI_HIGH: &str = "worst_idleness_ci_high";
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         vec![
             cell::MAP,
             cell::POLICY,
@@ -317,7 +317,7 @@ pub mod trajectories {
     /// The map's total penalty after the step.
     pub const PENALTY: &str = "penalty";
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         let own = [
             episodes::N_TEST,
             episodes::EPISODE,
@@ -343,7 +343,7 @@ pub mod snapshots {
     pub const Y: &str = "y";
     pub const VALUE: &str = "value";
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         let own = [
             episodes::N_TEST,
             episodes::EPISODE,
@@ -387,7 +387,7 @@ pub mod disturbed {
     pub const AT_EVENT: &str = "at_event";
     pub const AT_END: &str = "at_end";
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         let own = [
             episodes::N_TEST,
             episodes::EPISODE,
@@ -415,7 +415,7 @@ pub mod disturbed_steps {
     pub const STEP: &str = "step";
     pub const PENALTY: &str = "penalty";
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         let own = [
             episodes::N_TEST,
             disturbed::DISTURBANCE,
@@ -441,7 +441,7 @@ pub mod behaviour_episodes {
     /// Which recorded episodes the roles were pooled with.
     pub const POOL: &str = "pool";
 
-    pub fn columns() -> Vec<&'static str> {
+    pub(crate) fn columns() -> Vec<&'static str> {
         vec![
             cell::MAP,
             cell::POLICY,

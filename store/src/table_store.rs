@@ -35,11 +35,11 @@ use plan::scenario::Output;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TableStoreMarker {
     /// What the folder is, for a reader who opens the file.
-    pub about: String,
+    about: String,
     /// The sweep's cells that its tables lack, as the report of the full store listed them.
     pub missing: Vec<MissingCell>,
     /// blake3 of every file of the table store, by path relative to its folder.
-    pub files: BTreeMap<String, String>,
+    files: BTreeMap<String, String>,
 }
 
 /// A cell of the sweep that the tables lack, and why (failed, still running, not run).

@@ -216,7 +216,7 @@ pub fn read_parquet(bytes: Vec<u8>) -> Result<DataFrame, StoreError> {
 }
 
 /// Writes `NAME.parquet` and `NAME.csv` in `folder`; returns each file's name and blake3.
-pub fn write_table(
+pub(crate) fn write_table(
     folder: &Path,
     name: &str,
     frame: &DataFrame,

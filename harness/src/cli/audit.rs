@@ -11,7 +11,7 @@ use store::Store;
 use store::provenance;
 
 #[derive(clap::Args)]
-pub struct AuditArgs {
+pub(crate) struct AuditArgs {
     /// The sweep's output folder.
     store: PathBuf,
     /// Rows to check, drawn at random (all rows if the table has fewer).
@@ -25,7 +25,7 @@ pub struct AuditArgs {
     seed: u64,
 }
 
-pub fn run(args: AuditArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: AuditArgs) -> anyhow::Result<()> {
     let store = Store::reader(&args.store);
     store.check_readable()?;
     // The tables first: the rows below are drawn from the episodes table.

@@ -19,7 +19,7 @@ use super::world_args::WorldArgs;
 
 #[derive(clap::Args)]
 #[command(subcommand_negates_reqs = true)]
-pub struct BenchArgs {
+pub(crate) struct BenchArgs {
     #[command(subcommand)]
     network: Option<BenchTarget>,
     #[command(flatten)]
@@ -134,7 +134,7 @@ struct NetworkArgs {
     threads: Option<usize>,
 }
 
-pub fn run(args: BenchArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: BenchArgs) -> anyhow::Result<()> {
     match args.network {
         Some(BenchTarget::Network(network)) => return run_network(&network),
         Some(BenchTarget::Training(training)) => return run_training(&training),

@@ -10,10 +10,10 @@ use plan::scenario::cost::Cost;
 use plan::scenario::{Limits, Scenario};
 use store::Store;
 
-pub use cpu_time::duration;
+pub(crate) use cpu_time::duration;
 
 #[derive(clap::Args)]
-pub struct CheckArgs {
+pub(crate) struct CheckArgs {
     /// Scenario file (YAML).
     scenario: PathBuf,
     /// The cache the sweep will use (`harness sweep --cache`): its cells cost nothing.
@@ -37,7 +37,7 @@ pub struct CheckArgs {
 /// totals come from the scenario's numbers ([`Scenario::size`]) and no cell is listed.
 const MOST_LISTED_CELLS: u64 = Limits::DEFAULT.cells;
 
-pub fn run(args: CheckArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: CheckArgs) -> anyhow::Result<()> {
     let scenario = Scenario::load_within(&args.scenario, &limits(args.no_limits))?;
     println!(
         "scenario {} ({}): {} maps, {} policies, N_train {:?}, N_test {:?}, {} repetitions, {} test episodes",
@@ -199,7 +199,7 @@ fn print_totals(scenario: &Scenario, totals: &Totals, jobs: Option<u16>) {
 }
 
 /// The size limits a command checks a scenario against.
-pub fn limits(no_limits: bool) -> Limits {
+pub(crate) fn limits(no_limits: bool) -> Limits {
     if no_limits {
         Limits::NONE
     } else {

@@ -7,7 +7,7 @@ use report::{StoreTables, markdown, store_claims, verdicts};
 use store::Store;
 
 #[derive(clap::Args)]
-pub struct ClaimsArgs {
+pub(crate) struct ClaimsArgs {
     /// A sweep's output folder, or a report's `store/` folder (a table store).
     dir: PathBuf,
     /// Test the claims of this scenario file instead of those the sweep ran with (checked
@@ -16,7 +16,7 @@ pub struct ClaimsArgs {
     scenario: Option<PathBuf>,
 }
 
-pub fn run(args: ClaimsArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: ClaimsArgs) -> anyhow::Result<()> {
     let store = Store::reader(&args.dir);
     anyhow::ensure!(
         store.manifest()?.is_some(),

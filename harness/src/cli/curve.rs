@@ -10,7 +10,7 @@ use engine::training_log;
 use stats::grouping::group_rows;
 
 #[derive(clap::Args)]
-pub struct CurveArgs {
+pub(crate) struct CurveArgs {
     /// A folder written by `harness train`.
     dir: PathBuf,
     /// Episodes per row.
@@ -18,7 +18,7 @@ pub struct CurveArgs {
     every: u64,
 }
 
-pub fn run(args: CurveArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: CurveArgs) -> anyhow::Result<()> {
     let path = args.dir.join("training.parquet");
     let bytes = world::read_bounded(&path, store::MAX_FILE_BYTES, "a store's file")?;
     let log = anyhow::Context::with_context(training_log::from_parquet(&bytes), || {

@@ -8,14 +8,14 @@ use store::Store;
 use store::atomic_file::write_atomic;
 
 #[derive(clap::Subcommand)]
-pub enum ExportCommand {
+pub(crate) enum ExportCommand {
     /// marl-eval's JSON (environment -> task -> algorithm -> run -> step); `return` is the
     /// negated cumulative penalty, since marl-eval takes higher as better.
     MarlEval(MarlEvalArgs),
 }
 
 #[derive(clap::Args)]
-pub struct MarlEvalArgs {
+pub(crate) struct MarlEvalArgs {
     /// A finished sweep's output folder.
     dir: PathBuf,
     /// The JSON file to write [default: DIR-marl-eval.json, beside DIR].
@@ -23,7 +23,7 @@ pub struct MarlEvalArgs {
     to: Option<PathBuf>,
 }
 
-pub fn run(command: ExportCommand) -> anyhow::Result<()> {
+pub(crate) fn run(command: ExportCommand) -> anyhow::Result<()> {
     match command {
         ExportCommand::MarlEval(args) => marl_eval(args),
     }

@@ -6,7 +6,7 @@ use engine::results_fingerprint::compute;
 use plan::code_version::pinned_fingerprint as pinned;
 
 #[derive(clap::Args)]
-pub struct FingerprintArgs {
+pub(crate) struct FingerprintArgs {
     /// Folder for the fingerprint's store; default a new temporary folder, removed after.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -15,7 +15,7 @@ pub struct FingerprintArgs {
     jobs: u16,
 }
 
-pub fn run(args: FingerprintArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: FingerprintArgs) -> anyhow::Result<()> {
     let temporary = std::env::temp_dir().join(format!("vpm-fingerprint-{}", std::process::id()));
     let out = args.out.clone().unwrap_or_else(|| temporary.clone());
     let computed = compute(&out, args.jobs as usize);

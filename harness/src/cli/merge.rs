@@ -6,7 +6,7 @@ use engine::merge::merge;
 use store::Store;
 
 #[derive(clap::Args)]
-pub struct MergeArgs {
+pub(crate) struct MergeArgs {
     /// The merged store's folder.
     #[arg(long)]
     out: PathBuf,
@@ -15,7 +15,7 @@ pub struct MergeArgs {
     shards: Vec<PathBuf>,
 }
 
-pub fn run(args: MergeArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: MergeArgs) -> anyhow::Result<()> {
     let shards: Vec<Store> = args.shards.iter().map(|s| Store::reader(s)).collect();
     let report = merge(&Store::new(&args.out), &shards)?;
     println!(

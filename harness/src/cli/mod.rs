@@ -26,7 +26,7 @@ use clap::{Parser, Subcommand};
     version,
     about = "Visibility-based persistent monitoring: runs, sweeps and reports"
 )]
-pub struct Cli {
+struct Cli {
     #[command(subcommand)]
     command: Command,
 }
@@ -95,7 +95,7 @@ fn ignore_file_size_signal() {
 }
 
 impl Cli {
-    pub fn run(self) -> anyhow::Result<()> {
+    fn run(self) -> anyhow::Result<()> {
         match self.command {
             // The sweep sizes its own pool (`--jobs`) and runs its cells on it.
             command @ (Command::Sweep(_) | Command::Fingerprint(_)) => command.run(),

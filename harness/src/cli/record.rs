@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use store::Store;
 
 #[derive(clap::Args)]
-pub struct RecordArgs {
+pub(crate) struct RecordArgs {
     /// The sweep's output folder.
     store: PathBuf,
     /// The cell's key (its folder name under cells/).
@@ -31,7 +31,7 @@ pub struct RecordArgs {
 }
 
 /// Fails in a build without recordings, before a sweep spends hours to fail at the end.
-pub fn ensure_built() -> anyhow::Result<()> {
+pub(crate) fn ensure_built() -> anyhow::Result<()> {
     anyhow::ensure!(
         cfg!(feature = "record"),
         "this harness was built without rerun recordings; build it with \
@@ -43,22 +43,22 @@ pub fn ensure_built() -> anyhow::Result<()> {
 
 /// Recordings of the first test episode of each cell in `keys`; how many were written.
 #[cfg(feature = "record")]
-pub fn cells(store: &Store, keys: &[String], folder: &Path) -> anyhow::Result<usize> {
+pub(crate) fn cells(store: &Store, keys: &[String], folder: &Path) -> anyhow::Result<usize> {
     Ok(record::record_cells(store, keys, folder)?)
 }
 
 #[cfg(not(feature = "record"))]
-pub fn cells(_store: &Store, _keys: &[String], _folder: &Path) -> anyhow::Result<usize> {
+pub(crate) fn cells(_store: &Store, _keys: &[String], _folder: &Path) -> anyhow::Result<usize> {
     ensure_built().map(|()| 0)
 }
 
 #[cfg(not(feature = "record"))]
-pub fn run(_args: RecordArgs) -> anyhow::Result<()> {
+pub(crate) fn run(_args: RecordArgs) -> anyhow::Result<()> {
     ensure_built()
 }
 
 #[cfg(feature = "record")]
-pub fn run(args: RecordArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: RecordArgs) -> anyhow::Result<()> {
     use anyhow::Context;
     use record::{EpisodeChoice, record_episode};
 

@@ -11,7 +11,7 @@ use store::{CellRecord, Store};
 use world::World;
 
 #[derive(clap::Args)]
-pub struct ReportArgs {
+pub(crate) struct ReportArgs {
     /// The sweep's output folder, or a report's `store/` folder (a table store).
     store: PathBuf,
     /// Folder of reports; the report goes to its subfolder named after the scenario.
@@ -19,7 +19,7 @@ pub struct ReportArgs {
     to: PathBuf,
 }
 
-pub fn run(args: ReportArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: ReportArgs) -> anyhow::Result<()> {
     let store = Store::reader(&args.store);
     tables_of_unfinished_sweep(&store)?;
     let summary = write_report(
@@ -44,7 +44,7 @@ pub fn run(args: ReportArgs) -> anyhow::Result<()> {
 /// verified (held in memory by a reader's store, which writes nothing), and the report names
 /// the missing ones. Every call says where its tables came from and how many of the sweep's
 /// cells they hold, when not all: a verdict is only as complete as its cells.
-pub fn tables_of_unfinished_sweep(store: &Store) -> anyhow::Result<()> {
+pub(crate) fn tables_of_unfinished_sweep(store: &Store) -> anyhow::Result<()> {
     store.check_readable()?;
     let root = store.root().display();
     let Some((finished, cells)) = engine::aggregate::build_missing_tables(store)? else {
@@ -101,7 +101,7 @@ fn say_how_many_cells(store: &Store) -> anyhow::Result<()> {
 
 /// Stored test episodes played again by the engine, as the cell's tests played them, for the
 /// behaviour claims a report measures (`report::Replay`): the report itself runs nothing.
-pub struct EngineReplay;
+pub(crate) struct EngineReplay;
 
 impl Replay for EngineReplay {
     fn play(

@@ -18,7 +18,7 @@ use world::Seed;
 use super::world_args::WorldArgs;
 
 #[derive(clap::Args)]
-pub struct RunArgs {
+pub(crate) struct RunArgs {
     #[command(flatten)]
     world: WorldArgs,
     /// Number of agents.
@@ -54,7 +54,7 @@ pub struct RunArgs {
     probe_steps: String,
 }
 
-pub fn run(args: RunArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: RunArgs) -> anyhow::Result<()> {
     check_counts(&args)?;
     let world = args.world.load()?;
     world

@@ -14,7 +14,7 @@ use plan::shard::{slices, weight};
 use store::Store;
 
 #[derive(clap::Args)]
-pub struct SlurmArgs {
+pub(crate) struct SlurmArgs {
     /// Scenario file (YAML).
     scenario: PathBuf,
     /// Output folder, on a file system that every node sees.
@@ -48,7 +48,7 @@ pub struct SlurmArgs {
     no_limits: bool,
 }
 
-pub fn run(args: SlurmArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: SlurmArgs) -> anyhow::Result<()> {
     let text = plan::scenario::read_scenario_text(&args.scenario)?;
     let limits = super::check::limits(args.no_limits);
     let scenario = Scenario::parse_within(&text, &args.scenario, &limits)?;

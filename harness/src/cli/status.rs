@@ -7,12 +7,12 @@ use store::LeaseHolder;
 use store::status::{CellState, SweepStatus, sweep_status};
 
 #[derive(clap::Args)]
-pub struct StatusArgs {
+pub(crate) struct StatusArgs {
     /// A sweep's output folder, a shard's, or the folder given to `harness slurm --out`.
     dir: PathBuf,
 }
 
-pub fn run(args: StatusArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: StatusArgs) -> anyhow::Result<()> {
     let status = sweep_status(&args.dir)?;
     match print(&status, &args.dir) {
         // A reader that stops early (`| head`) has all it wanted.

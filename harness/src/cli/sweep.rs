@@ -11,7 +11,7 @@ use store::Store;
 use store::taken::TakenTables;
 
 #[derive(clap::Args)]
-pub struct SweepArgs {
+pub(crate) struct SweepArgs {
     /// Scenario file (YAML).
     scenario: PathBuf,
     /// Output folder; default results/NAME, NAME being the scenario's name.
@@ -53,7 +53,7 @@ pub struct SweepArgs {
     no_events: bool,
 }
 
-pub fn run(args: SweepArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: SweepArgs) -> anyhow::Result<()> {
     let text = plan::scenario::read_scenario_text(&args.scenario)?;
     let limits = super::check::limits(args.no_limits);
     let scenario = Scenario::parse_within(&text, &args.scenario, &limits)?;

@@ -18,7 +18,7 @@ use engine::episode::mean_penalty;
 use engine::training_run::TrainingRun;
 
 #[derive(clap::Args)]
-pub struct TrainArgs {
+pub(crate) struct TrainArgs {
     #[command(flatten)]
     world: WorldArgs,
     /// Agents per training episode: N, or A..B to draw each episode's count from A..=B.
@@ -113,7 +113,7 @@ fn parse_agents(text: &str) -> anyhow::Result<AgentCount> {
     })
 }
 
-pub fn run(args: TrainArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: TrainArgs) -> anyhow::Result<()> {
     let world = args.world.load()?;
     let mut run = open(&args, &world)?;
     if !args.no_events {

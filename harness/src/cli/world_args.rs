@@ -3,24 +3,24 @@
 
 /// World parameters as given on a command line, checked into `WorldParams` once.
 #[derive(clap::Args, Clone, Debug)]
-pub struct WorldArgs {
+pub(crate) struct WorldArgs {
     /// Map file: text grid, or polygon YAML as FILE or FILE#NAME.
     #[arg(long)]
-    pub map: std::path::PathBuf,
+    pub(crate) map: std::path::PathBuf,
     /// Side L of the square field of view (odd).
     #[arg(long, default_value_t = world::params::PAPER_FOV)]
-    pub fov: usize,
+    pub(crate) fov: usize,
     /// Decay D of an unseen cell's penalty per step.
     #[arg(long, default_value_t = world::params::PAPER_DECAY)]
-    pub decay: f32,
+    pub(crate) decay: f32,
     /// Floor Rmax of the penalty.
     #[arg(long, default_value_t = world::params::PAPER_RMAX)]
-    pub rmax: f32,
+    pub(crate) rmax: f32,
 }
 
 impl WorldArgs {
     /// `map` with the paper's L, D and Rmax.
-    pub fn paper(map: &std::path::Path) -> Self {
+    pub(crate) fn paper(map: &std::path::Path) -> Self {
         WorldArgs {
             map: map.to_owned(),
             fov: world::params::PAPER_FOV,
@@ -29,7 +29,7 @@ impl WorldArgs {
         }
     }
 
-    pub fn load(&self) -> anyhow::Result<std::sync::Arc<world::World>> {
+    pub(crate) fn load(&self) -> anyhow::Result<std::sync::Arc<world::World>> {
         let map = world::Map::load(&self.map)?;
         let params = world::WorldParams::new(self.fov, self.decay, self.rmax)?;
         Ok(world::World::new(map, params))

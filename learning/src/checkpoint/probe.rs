@@ -16,16 +16,16 @@ const PROBE_AGENTS: usize = 3;
      weight is {largest:e}, in tensor `{tensor}`"
 )]
 pub struct Overflow {
-    pub output: &'static str,
-    pub tensor: String,
-    pub largest: f32,
+    output: &'static str,
+    tensor: String,
+    largest: f32,
 }
 
 /// Runs the probe: the policy's log-probabilities and entropies and the critic's values must
 /// all be finite. When they are not, every weight is finite (the load checked each), so no
 /// tensor is plainly bad; the error names the one with the largest magnitude, the likeliest
 /// cause.
-pub fn probe(model: &ActorCritic<f32>) -> Result<(), Overflow> {
+pub(crate) fn probe(model: &ActorCritic<f32>) -> Result<(), Overflow> {
     let Some(output) = non_finite_output(model) else {
         return Ok(());
     };

@@ -38,7 +38,7 @@ pub(crate) fn gae(
 
 /// To zero mean and unit standard deviation, as PyTorch's `(x - x.mean()) / (x.std() + 1e-5)`
 /// (unbiased standard deviation), summed in `f64`.
-pub fn normalise(values: &mut [f32]) {
+pub(crate) fn normalise(values: &mut [f32]) {
     let n = values.len();
     if n < 2 {
         return;

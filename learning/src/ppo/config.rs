@@ -40,10 +40,10 @@ impl Profile {
     pub const FAST: Profile = Profile::FastV2;
 
     /// Every profile.
-    pub const ALL: [Profile; 3] = [Profile::Paper, Profile::FastV1, Profile::FastV2];
+    const ALL: [Profile; 3] = [Profile::Paper, Profile::FastV1, Profile::FastV2];
 
     /// The names a user gives, with what each means: every profile's own name, and `fast`.
-    pub const NAMES: [(&'static str, Profile); 4] = [
+    const NAMES: [(&'static str, Profile); 4] = [
         ("paper", Profile::Paper),
         ("fast", Profile::FAST),
         ("fast-v1", Profile::FastV1),
@@ -106,7 +106,7 @@ impl<'de> Deserialize<'de> for Profile {
 /// A profile name that names none.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("unknown profile `{0}` (known: {known})", known = Profile::NAMES.map(|(name, _)| name).join(", "))]
-pub struct UnknownProfile(pub String);
+pub struct UnknownProfile(String);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -143,10 +143,10 @@ impl NeighbourRule {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ConvLayer {
-    pub out_channels: usize,
-    pub kernel: usize,
-    pub stride: usize,
-    pub padding: usize,
+    out_channels: usize,
+    pub(crate) kernel: usize,
+    pub(crate) stride: usize,
+    pub(crate) padding: usize,
 }
 
 /// The network's shapes. The paper's extractor needs 25 x 25 images (the paper's maps with

@@ -14,10 +14,10 @@ use nn::{ModelWorkspace, OutputGradients, Real};
 /// The loss's weights.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct LossCoefficients {
-    pub clip: f64,
-    pub value: f64,
-    pub entropy: f64,
-    pub attention_entropy: f64,
+    pub(crate) clip: f64,
+    pub(crate) value: f64,
+    pub(crate) entropy: f64,
+    pub(crate) attention_entropy: f64,
 }
 
 /// Where each sample's advantage comes from.
@@ -32,11 +32,11 @@ pub(crate) enum Advantages<'a, T> {
 
 /// The samples of a minibatch, one per batch row.
 #[derive(Debug, Clone, Copy)]
-pub struct Samples<'a, T> {
-    pub actions: &'a [usize],
-    pub old_log_probs: &'a [T],
-    pub returns: &'a [T],
-    pub advantages: Advantages<'a, T>,
+pub(crate) struct Samples<'a, T> {
+    pub(crate) actions: &'a [usize],
+    pub(crate) old_log_probs: &'a [T],
+    pub(crate) returns: &'a [T],
+    pub(crate) advantages: Advantages<'a, T>,
 }
 
 /// The loss's parts, averaged over the minibatch, and PPO's diagnostics.
@@ -70,14 +70,14 @@ impl LossTerms {
     }
 
     /// Adds `other` part by part (for means over minibatches).
-    pub fn add(&mut self, other: &LossTerms) {
+    pub(crate) fn add(&mut self, other: &LossTerms) {
         let mut other = *other;
         for (sum, part) in self.parts_mut().into_iter().zip(other.parts_mut()) {
             *sum += *part;
         }
     }
 
-    pub fn scale(&mut self, factor: f64) {
+    pub(crate) fn scale(&mut self, factor: f64) {
         self.parts_mut()
             .into_iter()
             .for_each(|part| *part *= factor);
@@ -97,7 +97,7 @@ pub(crate) struct LossGradients<T> {
 
 impl<T: Real> LossGradients<T> {
     /// The gradients in the form `backward` takes.
-    pub fn outputs(&self) -> OutputGradients<'_, T> {
+    pub(crate) fn outputs(&self) -> OutputGradients<'_, T> {
         let batch = self.values.len();
         OutputGradients {
             log_probs: ArrayView2::from_shape((batch, self.actions), &self.log_probs[..])

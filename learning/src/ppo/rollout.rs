@@ -26,24 +26,24 @@ pub(crate) struct EnvironmentRollout {
     reward_scale: f32,
     /// The robot this episode loses and the step after which it stops (`loss_probability`).
     loss: Option<(usize, usize)>,
-    pub agents: usize,
-    pub steps: usize,
+    pub(crate) agents: usize,
+    pub(crate) steps: usize,
     /// `steps + 1` observations per agent: the last one bootstraps GAE.
-    pub observations: Vec<f32>,
+    pub(crate) observations: Vec<f32>,
     /// Agent positions at each of the `steps + 1` observations, for the attention graph.
-    pub positions: Vec<world::Cell>,
-    pub actions: Vec<u8>,
-    pub log_probs: Vec<f32>,
+    positions: Vec<world::Cell>,
+    pub(crate) actions: Vec<u8>,
+    pub(crate) log_probs: Vec<f32>,
     /// One scaled reward per step, shared by the team.
-    pub rewards: Vec<f32>,
+    pub(crate) rewards: Vec<f32>,
     /// The paper's metric: the sum of |reward| over steps 1..=T.
-    pub penalty: f64,
+    pub(crate) penalty: f64,
 }
 
 impl EnvironmentRollout {
     /// An episode of training episode index `seed`, with its agent count drawn from the
     /// configured range, reset to its start.
-    pub fn new(
+    pub(crate) fn new(
         world: &Arc<World>,
         config: &TrainingConfig,
         seed: Seed,
@@ -93,17 +93,17 @@ impl EnvironmentRollout {
     }
 
     /// Floats per agent observation.
-    pub fn per_agent(&self) -> usize {
+    pub(crate) fn per_agent(&self) -> usize {
         self.observer.per_agent()
     }
 
     /// All agents' observations at step `t`.
-    pub fn observation(&self, t: usize) -> &[f32] {
+    fn observation(&self, t: usize) -> &[f32] {
         let len = self.agents * self.per_agent();
         &self.observations[t * len..(t + 1) * len]
     }
 
-    pub fn positions_at(&self, t: usize) -> &[world::Cell] {
+    fn positions_at(&self, t: usize) -> &[world::Cell] {
         &self.positions[t * self.agents..(t + 1) * self.agents]
     }
 
@@ -171,7 +171,7 @@ pub(crate) struct RolloutWorkspace {
 
 impl RolloutWorkspace {
     /// Runs every environment to the end of its episode.
-    pub fn run(
+    pub(crate) fn run(
         &mut self,
         model: &ActorCritic<f32>,
         neighbours: Neighbours,

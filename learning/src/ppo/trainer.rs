@@ -22,7 +22,7 @@ mod stream {
     /// The initial weights.
     pub(crate) const INIT: u64 = 0;
     /// Training episode `k` is `EPISODES`'s child `k` (starts, agent count, action draws).
-    pub const EPISODES: u64 = 1;
+    pub(crate) const EPISODES: u64 = 1;
     /// The minibatch order of the update after the round starting at episode `k`.
     pub(crate) const SHUFFLES: u64 = 2;
 }

@@ -61,7 +61,7 @@ impl UpdateWorkspace {
     /// Updates `model` on `environments`; `shuffle` seeds the minibatch order. `value_norm`
     /// holds the running statistics when the configuration normalises values; they take in
     /// this round's returns before the epochs.
-    pub fn update(
+    pub(crate) fn update(
         &mut self,
         model: &mut ActorCritic<f32>,
         adam: &mut Adam<f32>,

@@ -32,7 +32,7 @@ const MIN_VARIANCE: f64 = 1e-2;
 #[serde(deny_unknown_fields)]
 pub struct ValueNormalisation {
     /// The weight of the past in each update of the statistics, in [0, 1).
-    pub beta: f64,
+    pub(crate) beta: f64,
 }
 
 /// The running statistics; part of the training state and of its checkpoint.
@@ -49,7 +49,7 @@ pub struct ValueNorm {
 
 impl ValueNorm {
     /// Folds one batch of raw return targets into the statistics.
-    pub fn update(&mut self, beta: f64, returns: &[f32]) {
+    pub(crate) fn update(&mut self, beta: f64, returns: &[f32]) {
         if returns.is_empty() {
             return;
         }
@@ -63,7 +63,7 @@ impl ValueNorm {
     }
 
     /// The debiased mean and standard deviation.
-    pub fn moments(&self) -> (f64, f64) {
+    pub(crate) fn moments(&self) -> (f64, f64) {
         let weight = self.debiasing.max(DEBIASING_EPSILON);
         let mean = self.mean / weight;
         let variance = (self.mean_square / weight - mean * mean).max(MIN_VARIANCE);
@@ -71,7 +71,7 @@ impl ValueNorm {
     }
 
     /// Raw returns to the critic's scale.
-    pub fn normalise(&self, values: &mut [f32]) {
+    pub(crate) fn normalise(&self, values: &mut [f32]) {
         let (mean, deviation) = self.moments();
         values
             .iter_mut()
@@ -92,11 +92,11 @@ impl ValueNorm {
 mod exact {
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub fn serialize<S: Serializer>(value: &f64, serializer: S) -> Result<S::Ok, S::Error> {
+    pub(crate) fn serialize<S: Serializer>(value: &f64, serializer: S) -> Result<S::Ok, S::Error> {
         serializer.collect_str(value)
     }
 
-    pub fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<f64, D::Error> {
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<f64, D::Error> {
         let text = String::deserialize(deserializer)?;
         text.parse().map_err(serde::de::Error::custom)
     }

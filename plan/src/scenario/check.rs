@@ -16,7 +16,11 @@ use super::size::{Limits, check_size};
 use super::{Scenario, ScenarioMap, ScenarioPolicy, WorldConfig};
 use crate::scenario::claims::{ClaimContext, check_claims};
 
-pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenario, ScenarioError> {
+pub(crate) fn check(
+    spec: ScenarioFile,
+    file: &Path,
+    limits: &Limits,
+) -> Result<Scenario, ScenarioError> {
     let name = check_name(&spec.name, file)?;
     let maps = load_maps(&spec.maps, file)?;
     let policies = check_policies(&spec.policies, file)?;
@@ -55,11 +59,9 @@ pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenari
             .collect(),
     };
     let claims = check_claims(&spec.claims, Some(&context), file)?;
-    let earlier = check_earlier(spec.earlier.as_ref(), file)?;
+    check_earlier(spec.earlier.as_ref(), file)?;
     let scenario = Scenario {
         name,
-        description: spec.description.clone(),
-        file: file.to_owned(),
         maps,
         world,
         policies,
@@ -72,7 +74,6 @@ pub fn check(spec: ScenarioFile, file: &Path, limits: &Limits) -> Result<Scenari
         outputs,
         disturbances,
         claims,
-        earlier,
     };
     check_size(&scenario, &spec, limits, file)?;
     Ok(scenario)

@@ -1,12 +1,9 @@
 //! The checked scenario (`Scenario`) and its maps, as the plan holds them once `check` has
 //! built them from a scenario file: a leaf below the modules that build, size and cost it.
 
-use std::path::PathBuf;
-
 use learning::ppo::TrainingConfig;
 use world::Map;
 
-use super::earlier;
 use super::format::Output;
 use super::policy::ScenarioPolicy;
 use super::world_config::WorldConfig;
@@ -15,9 +12,6 @@ use super::world_config::WorldConfig;
 #[derive(Debug)]
 pub struct Scenario {
     pub(crate) name: String,
-    pub(crate) description: String,
-    /// The file it was read from, for messages.
-    pub(crate) file: PathBuf,
     pub(crate) maps: Vec<ScenarioMap>,
     pub(crate) world: WorldConfig,
     pub(crate) policies: Vec<ScenarioPolicy>,
@@ -34,8 +28,6 @@ pub struct Scenario {
     pub(crate) disturbances: Vec<crate::disturbance::Disturbance>,
     /// Checked against the scenario's maps, policies and agent counts.
     pub(crate) claims: Vec<crate::scenario::claims::Claim>,
-    /// The verdicts of an earlier answer, for the report's "what changed".
-    pub(crate) earlier: Option<earlier::Earlier>,
 }
 
 /// A checked scenario is read, never changed: its fields are the plan's, its accessors
@@ -43,15 +35,6 @@ pub struct Scenario {
 impl Scenario {
     pub fn name(&self) -> &str {
         &self.name
-    }
-
-    pub fn description(&self) -> &str {
-        &self.description
-    }
-
-    /// The file it was read from, for messages.
-    pub fn file(&self) -> &std::path::Path {
-        &self.file
     }
 
     pub fn maps(&self) -> &[ScenarioMap] {
@@ -74,11 +57,6 @@ impl Scenario {
         &self.test_agents
     }
 
-    /// The root of the scenario's seed tree.
-    pub fn seed(&self) -> u64 {
-        self.seed
-    }
-
     /// Training runs per (map, policy, N_train).
     pub fn repetitions(&self) -> u32 {
         self.repetitions
@@ -92,16 +70,6 @@ impl Scenario {
     /// The sweep-level tables to build.
     pub fn outputs(&self) -> &[Output] {
         &self.outputs
-    }
-
-    /// What the test episodes are also played under, besides undisturbed.
-    pub fn disturbances(&self) -> &[crate::disturbance::Disturbance] {
-        &self.disturbances
-    }
-
-    /// Checked against the scenario's maps, policies and agent counts.
-    pub fn earlier(&self) -> Option<&earlier::Earlier> {
-        self.earlier.as_ref()
     }
 
     pub fn claims(&self) -> &[crate::scenario::claims::Claim] {
@@ -120,7 +88,7 @@ pub struct ScenarioMap {
 }
 
 impl ScenarioMap {
-    pub fn new(map: Map, source: String) -> Self {
+    pub(crate) fn new(map: Map, source: String) -> Self {
         let hash = map_hash(&map);
         Self { map, source, hash }
     }

@@ -15,7 +15,7 @@ pub struct Cost {
     pub env_steps: u64,
     /// Estimated CPU time in units of `work::UNIT_SECONDS`, so that shards can be balanced
     /// between cells that train and cells that do not.
-    pub work: u64,
+    pub(crate) work: u64,
 }
 
 impl Cost {
@@ -145,7 +145,7 @@ impl Cost {
     }
 
     /// `count` cells of this cost.
-    pub fn times(self, count: u64) -> Cost {
+    pub(crate) fn times(self, count: u64) -> Cost {
         Cost {
             training_episodes: self.training_episodes.saturating_mul(count),
             test_episodes: self.test_episodes.saturating_mul(count),

@@ -30,19 +30,19 @@ pub const VERDICT_WORDS: [&str; 5] = [
 #[serde(deny_unknown_fields)]
 pub(crate) struct EarlierSpec {
     /// Which answer: the report and commit, its budget and its statistics.
-    pub source: Spanned<String>,
-    pub verdicts: Spanned<Vec<Spanned<EarlierVerdictSpec>>>,
+    source: Spanned<String>,
+    verdicts: Spanned<Vec<Spanned<EarlierVerdictSpec>>>,
 }
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct EarlierVerdictSpec {
-    pub claim: Spanned<String>,
-    pub verdict: Spanned<String>,
+    claim: Spanned<String>,
+    verdict: Spanned<String>,
     #[serde(default)]
-    pub why: Vec<Reason>,
+    why: Vec<Reason>,
     #[serde(default)]
-    pub note: String,
+    note: String,
 }
 
 /// Why a verdict changed between the earlier answer and this one.

@@ -9,14 +9,19 @@ use serde_saphyr::{Location, Spanned};
 /// `rq1.yaml:14: agents.test[2]: 2501 agents do not fit on map "open" (2284 free cells)`.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub struct ScenarioError {
-    pub file: PathBuf,
+    file: PathBuf,
     pub line: Option<usize>,
-    pub field: String,
+    field: String,
     pub problem: String,
 }
 
 impl ScenarioError {
-    pub fn new(file: &Path, line: Option<usize>, field: &str, problem: impl fmt::Display) -> Self {
+    pub(crate) fn new(
+        file: &Path,
+        line: Option<usize>,
+        field: &str,
+        problem: impl fmt::Display,
+    ) -> Self {
         Self {
             file: file.to_owned(),
             line,
@@ -26,7 +31,12 @@ impl ScenarioError {
     }
 
     /// An error about a value read from the file, placed at that value.
-    pub fn at<T>(file: &Path, value: &Spanned<T>, field: &str, problem: impl fmt::Display) -> Self {
+    pub(crate) fn at<T>(
+        file: &Path,
+        value: &Spanned<T>,
+        field: &str,
+        problem: impl fmt::Display,
+    ) -> Self {
         Self::new(file, line_of(value.referenced), field, problem)
     }
 }

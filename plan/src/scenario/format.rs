@@ -15,33 +15,34 @@ use super::stopping::{StoppingRule, Until};
 #[serde(deny_unknown_fields)]
 pub(crate) struct ScenarioFile {
     /// Names the sweep: the default output folder and the `scenario` column.
-    pub name: Spanned<String>,
+    pub(crate) name: Spanned<String>,
+    /// Checked as text and otherwise unread here: the store's copy of the file is read for it.
+    #[serde(default, rename = "description")]
+    _description: String,
+    pub(crate) maps: Spanned<Vec<Spanned<MapSpec>>>,
     #[serde(default)]
-    pub description: String,
-    pub maps: Spanned<Vec<Spanned<MapSpec>>>,
-    #[serde(default)]
-    pub world: WorldSpec,
-    pub policies: Spanned<Vec<Spanned<PolicySpec<ProfileName>>>>,
-    pub agents: AgentsSpec,
+    pub(crate) world: WorldSpec,
+    pub(crate) policies: Spanned<Vec<Spanned<PolicySpec<ProfileName>>>>,
+    pub(crate) agents: AgentsSpec,
     /// Root of the scenario's seed tree.
-    pub seed: u64,
+    pub(crate) seed: u64,
     /// Training runs per (map, policy, N_train), each with its own training seed.
     #[serde(default = "one")]
-    pub repetitions: Spanned<u32>,
+    pub(crate) repetitions: Spanned<u32>,
     /// Test episodes per (cell, N_test).
-    pub test_episodes: Spanned<u32>,
+    pub(crate) test_episodes: Spanned<u32>,
     /// The sweep-level tables to build; the per-cell results are always kept.
     #[serde(default = "Output::all")]
-    pub outputs: Spanned<Vec<Output>>,
+    pub(crate) outputs: Spanned<Vec<Output>>,
     /// Disturbances every cell's test episodes are also played under (`crate::disturbance`).
     #[serde(default = "nothing")]
-    pub disturbances: Spanned<Vec<Spanned<DisturbanceSpec>>>,
+    pub(crate) disturbances: Spanned<Vec<Spanned<DisturbanceSpec>>>,
     /// The paper's statements this experiment tests (`claims::format::ClaimSpec`).
     #[serde(default)]
-    pub claims: Vec<Spanned<crate::scenario::claims::format::ClaimSpec>>,
+    pub(crate) claims: Vec<Spanned<crate::scenario::claims::format::ClaimSpec>>,
     /// The verdicts of an earlier answer to the question (`scenario::earlier`).
     #[serde(default)]
-    pub earlier: Option<Spanned<crate::scenario::earlier::EarlierSpec>>,
+    pub(crate) earlier: Option<Spanned<crate::scenario::earlier::EarlierSpec>>,
 }
 
 /// A map by file (relative to the scenario file; `FILE#NAME` picks a polygon map) or inline.
@@ -57,17 +58,17 @@ pub(crate) enum MapSpec {
 pub(crate) struct WorldSpec {
     /// Side L of the field of view.
     #[serde(default = "paper_fov")]
-    pub fov: Spanned<usize>,
+    pub(crate) fov: Spanned<usize>,
     #[serde(default = "paper_decay")]
-    pub decay: Spanned<f32>,
+    pub(crate) decay: Spanned<f32>,
     #[serde(default = "paper_rmax")]
-    pub rmax: Spanned<f32>,
+    pub(crate) rmax: Spanned<f32>,
     /// Steps per training episode (T = 1000 in the paper).
     #[serde(default = "paper_train_steps")]
-    pub train_steps: Spanned<u32>,
+    pub(crate) train_steps: Spanned<u32>,
     /// Steps per test episode (T = 2000 in the paper).
     #[serde(default = "paper_test_steps")]
-    pub test_steps: Spanned<u32>,
+    pub(crate) test_steps: Spanned<u32>,
 }
 
 impl Default for WorldSpec {
@@ -89,19 +90,19 @@ impl Default for WorldSpec {
 #[serde(deny_unknown_fields)]
 pub(crate) struct AgentsSpec {
     #[serde(default = "nothing")]
-    pub train: Spanned<Vec<Spanned<u32>>>,
-    pub test: Spanned<Vec<Spanned<u32>>>,
+    pub(crate) train: Spanned<Vec<Spanned<u32>>>,
+    pub(crate) test: Spanned<Vec<Spanned<u32>>>,
 }
 
 /// A disturbance by name: robots lost after a step, links cut, or both.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct DisturbanceSpec {
-    pub name: Spanned<String>,
+    pub(crate) name: Spanned<String>,
     #[serde(default)]
-    pub lose: Option<Spanned<LoseSpec>>,
+    pub(crate) lose: Option<Spanned<LoseSpec>>,
     #[serde(default)]
-    pub links: Option<Spanned<LinksSpec>>,
+    pub(crate) links: Option<Spanned<LinksSpec>>,
 }
 
 /// `robots` (how many, drawn per episode) or `which` (by index), lost after step `at`.
@@ -109,10 +110,10 @@ pub(crate) struct DisturbanceSpec {
 #[serde(deny_unknown_fields)]
 pub(crate) struct LoseSpec {
     #[serde(default)]
-    pub robots: Option<Spanned<u32>>,
+    pub(crate) robots: Option<Spanned<u32>>,
     #[serde(default)]
-    pub which: Option<Spanned<Vec<u32>>>,
-    pub at: Spanned<u32>,
+    pub(crate) which: Option<Spanned<Vec<u32>>>,
+    pub(crate) at: Spanned<u32>,
 }
 
 /// Messages only within `radius` cells, and/or each link down with probability `drop` per
@@ -121,9 +122,9 @@ pub(crate) struct LoseSpec {
 #[serde(deny_unknown_fields)]
 pub(crate) struct LinksSpec {
     #[serde(default)]
-    pub radius: Option<Spanned<f64>>,
+    pub(crate) radius: Option<Spanned<f64>>,
     #[serde(default)]
-    pub drop: Option<Spanned<f64>>,
+    pub(crate) drop: Option<Spanned<f64>>,
 }
 
 /// One policy of the sweep: a baseline by name, or a learned architecture with its training.
@@ -146,7 +147,7 @@ pub(crate) enum PolicySpec<P = Profile> {
 
 /// A profile as a scenario file names it: `paper` (the default), `fast`, `fast-v1` or `fast-v2`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub(crate) struct ProfileName(pub Profile);
+pub(crate) struct ProfileName(Profile);
 
 impl<'de> Deserialize<'de> for ProfileName {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
@@ -159,7 +160,7 @@ impl<'de> Deserialize<'de> for ProfileName {
 
 impl PolicySpec<ProfileName> {
     /// The policy as its cells' keys write it.
-    pub fn resolved(self) -> PolicySpec {
+    pub(crate) fn resolved(self) -> PolicySpec {
         let resolve = |spec: LearnedSpec<ProfileName>| LearnedSpec {
             profile: spec.profile.0,
             name: spec.name,
@@ -182,7 +183,7 @@ impl PolicySpec<ProfileName> {
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct BaselineSpec {
-    pub name: String,
+    pub(crate) name: String,
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
@@ -191,40 +192,40 @@ pub(crate) struct LearnedSpec<P = Profile> {
     /// The policy's name in tables, when the default (the architecture with its non-default
     /// channels and profile) does not tell two of a scenario's policies apart.
     #[serde(default)]
-    pub name: Option<String>,
+    pub(crate) name: Option<String>,
     /// The named set of training hyper-parameters the run starts from: `paper` (the released
     /// code's), `fast` (our default), `fast-v1` (our first) or `fast-v2` (one episode per
     /// update, the profile study's winner).
     #[serde(default)]
-    pub profile: P,
+    pub(crate) profile: P,
     /// The images the policy sees: `[local, mini]` (the paper's full model), `[local]` or
     /// `[mini]` (RQ2).
     #[serde(default = "both_channels")]
-    pub channels: Vec<Channel>,
+    pub(crate) channels: Vec<Channel>,
     /// Training episodes.
-    pub episodes: u32,
+    pub(crate) episodes: u32,
     /// Any other field of the training configuration (as `harness train --set`), e.g.
     /// `{learning_rate: 1.0e-4, network: compact}`; the scenario's own fields (agents,
     /// episodes, steps, channels, architecture) are set elsewhere.
     #[serde(default)]
-    pub set: BTreeMap<String, serde_json::Value>,
+    pub(crate) set: BTreeMap<String, serde_json::Value>,
     /// How test episodes pick actions: `sampled` (the paper) or `greedy`.
     #[serde(default)]
-    pub test_actions: TestActions,
+    pub(crate) test_actions: TestActions,
     /// Play the cell's test episodes at N_train before training and after every this many
     /// training episodes (and at the end): the learning curve in test units, the table
     /// `test_curve`. Absent (the default, and left out of the key): no curve.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub evaluate_every: Option<u32>,
+    pub(crate) evaluate_every: Option<u32>,
     /// `converged`: train until the validation penalty stops improving (`stopping`), with
     /// `episodes` as the cap; `episodes` (the default, left out of the key): exactly
     /// `episodes`.
     #[serde(default, skip_serializing_if = "Until::is_episodes")]
-    pub until: Until,
+    pub(crate) until: Until,
     /// The stopping rule's values under `until: converged` (`scenario::stopping`); the
     /// defaults where left out.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stopping: Option<StoppingRule>,
+    pub(crate) stopping: Option<StoppingRule>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]

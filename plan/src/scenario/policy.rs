@@ -29,15 +29,15 @@ pub enum ScenarioPolicy {
 /// A learned policy: its architecture and what its training starts from.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Learned {
-    pub architecture: ArchitectureName,
+    pub(crate) architecture: ArchitectureName,
     /// The name in tables, when the scenario gives one.
-    pub name: Option<String>,
-    pub profile: Profile,
-    pub channels: Channels,
-    pub episodes: u32,
+    name: Option<String>,
+    profile: Profile,
+    channels: Channels,
+    pub(crate) episodes: u32,
     /// Training fields beyond the profile, none of them a field the scenario sets itself;
     /// checked against every N_train and map when the scenario is loaded.
-    pub set: BTreeMap<String, serde_json::Value>,
+    set: BTreeMap<String, serde_json::Value>,
     pub test_actions: ActionChoice,
     /// Training episodes between two plays of the test episodes (`test_curve`), if any.
     pub evaluate_every: Option<u32>,
@@ -130,7 +130,7 @@ impl Learned {
 
     /// The training run with `n_train` agents: the profile, then `set`, then the fields the
     /// scenario owns (architecture, channels, N_train, episodes, T).
-    pub fn training_config(
+    pub(crate) fn training_config(
         &self,
         world: &WorldConfig,
         n_train: u32,

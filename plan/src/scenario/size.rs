@@ -18,8 +18,8 @@ use crate::scenario::cost::Cost;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Limits {
     pub cells: u64,
-    pub test_episodes: u64,
-    pub cpu_seconds: f64,
+    test_episodes: u64,
+    cpu_seconds: f64,
     pub memory_bytes: u64,
 }
 
@@ -49,7 +49,7 @@ pub struct Size {
     /// two largest cells' working memory at once (a training run, or a tour's planning).
     pub memory_bytes: u64,
     /// The part of `memory_bytes` that the maps' size makes: their worlds and plans.
-    pub map_bytes: u64,
+    map_bytes: u64,
 }
 
 /// Bytes of an `episodes` row in memory (its key, names and a dozen numbers).

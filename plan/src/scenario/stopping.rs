@@ -92,8 +92,8 @@ impl Default for StoppingRule {
 #[derive(Debug, thiserror::Error)]
 #[error("stopping.{field}: {reason}")]
 pub(crate) struct StoppingError {
-    pub field: &'static str,
-    pub reason: String,
+    field: &'static str,
+    reason: String,
 }
 
 impl StoppingRule {

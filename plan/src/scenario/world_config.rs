@@ -7,8 +7,8 @@ use world::WorldParams;
 /// The world parameters shared by every cell of a scenario.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct WorldConfig {
-    pub fov: usize,
-    pub decay: f32,
+    pub(crate) fov: usize,
+    pub(crate) decay: f32,
     pub rmax: f32,
     pub train_steps: u32,
     pub test_steps: u32,

@@ -2,7 +2,7 @@
 //! for the estimates of `check`, its pilot and `slurm`.
 
 /// A rough duration, in the unit that reads best.
-pub fn duration(seconds: f64) -> String {
+pub(crate) fn duration(seconds: f64) -> String {
     match seconds {
         s if s < 120.0 => format!("{s:.0} s"),
         s if s < 7200.0 => format!("{:.0} min", s / 60.0),

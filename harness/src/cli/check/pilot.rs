@@ -31,7 +31,7 @@ of a few runs is itself uncertain: each figure is a rough guide, off by a factor
 either way.";
 
 /// Prints, per claim and point, what deciding it would take; errors name the pilot's folder.
-pub fn print(claims: &[Claim], pilot: &Path) -> anyhow::Result<()> {
+pub(crate) fn print(claims: &[Claim], pilot: &Path) -> anyhow::Result<()> {
     let (results, seconds) =
         judge(claims, pilot).with_context(|| format!("pilot {}", pilot.display()))?;
     println!("pilot {}: {HOW}", pilot.display());

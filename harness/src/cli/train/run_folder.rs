@@ -22,7 +22,7 @@ use world::World;
 use crate::cli::world_args::WorldArgs;
 
 /// The record of the world a run trained in.
-pub const WORLD_FILE: &str = "world.json";
+const WORLD_FILE: &str = "world.json";
 
 /// The files that make a folder a training run (`world.json` alone, left by a run stopped
 /// before its first save, does not).
@@ -33,20 +33,20 @@ const RUN_FILES: [&str; 4] = [METADATA_FILE, WEIGHTS_FILE, OPTIMIZER_FILE, LOG_F
 type Settings = Map<String, Value>;
 
 /// What a resuming command asks for besides its configuration overrides.
-pub struct Asked<'a> {
+pub(crate) struct Asked<'a> {
     /// `key=value` overrides of the saved configuration (the named flags and `--set`).
-    pub overrides: &'a [String],
+    pub(crate) overrides: &'a [String],
     /// `--profile`, when given.
-    pub profile: Option<Profile>,
+    pub(crate) profile: Option<Profile>,
     /// `--seed`, when given.
-    pub seed: Option<u64>,
+    pub(crate) seed: Option<u64>,
     /// The world the command loaded, as [`world_record`] gives it.
-    pub world: &'a Settings,
+    pub(crate) world: &'a Settings,
 }
 
 /// The world record of a command's world: the map as named on the command line, the hash of
 /// its content (the sweep's map hash), and the world parameters.
-pub fn world_record(args: &WorldArgs, world: &World) -> Settings {
+pub(crate) fn world_record(args: &WorldArgs, world: &World) -> Settings {
     let record = json!({
         "map": args.map.to_string_lossy(),
         "map_hash": map_hash(world.map()),
@@ -61,7 +61,7 @@ pub fn world_record(args: &WorldArgs, world: &World) -> Settings {
 }
 
 /// Refuses a folder that holds a training run, unless `replace` says to replace it.
-pub fn refuse_existing_run(folder: &Path, replace: bool) -> anyhow::Result<()> {
+pub(crate) fn refuse_existing_run(folder: &Path, replace: bool) -> anyhow::Result<()> {
     let found = present(folder, &RUN_FILES);
     if found.is_empty() || replace {
         return Ok(());
@@ -77,7 +77,7 @@ pub fn refuse_existing_run(folder: &Path, replace: bool) -> anyhow::Result<()> {
 /// Makes `folder` the home of a new run: removes an old run's files (so that a new run
 /// stopped before its first save leaves no old checkpoint under the new world record), then
 /// writes the world record.
-pub fn begin(folder: &Path, world: &Settings) -> anyhow::Result<()> {
+pub(crate) fn begin(folder: &Path, world: &Settings) -> anyhow::Result<()> {
     for name in present(folder, &[&RUN_FILES[..], &[WORLD_FILE]].concat()) {
         let path = folder.join(name);
         std::fs::remove_file(&path)
@@ -92,7 +92,7 @@ pub fn begin(folder: &Path, world: &Settings) -> anyhow::Result<()> {
 
 /// Refuses to resume the run in `folder` unless the command asks for the run that was saved,
 /// naming every field that differs and both of its values. Reads only.
-pub fn check_resume(folder: &Path, asked: &Asked) -> anyhow::Result<()> {
+pub(crate) fn check_resume(folder: &Path, asked: &Asked) -> anyhow::Result<()> {
     let refused = || format!("cannot resume {}", folder.display());
     anyhow::ensure!(
         folder.join(METADATA_FILE).exists(),

@@ -15,13 +15,13 @@ use learning::ppo::Profile;
 /// What a scenario offers claims to name.
 pub(crate) struct ClaimContext {
     /// Every policy's table label, and whether it is learned.
-    pub policies: Vec<(String, bool)>,
-    pub maps: Vec<String>,
-    pub train_agents: Vec<u32>,
-    pub test_agents: Vec<u32>,
+    pub(crate) policies: Vec<(String, bool)>,
+    pub(crate) maps: Vec<String>,
+    pub(crate) train_agents: Vec<u32>,
+    pub(crate) test_agents: Vec<u32>,
     /// Every disturbance's name, with the robots it loses (`None`: it loses none, or how many
     /// is not fixed).
-    pub disturbances: Vec<(String, Option<u32>)>,
+    pub(crate) disturbances: Vec<(String, Option<u32>)>,
 }
 
 /// A failed check: the value it is about, its field, the problem.

@@ -102,19 +102,15 @@ pub enum Scale {
 }
 
 impl Scale {
-    pub const NAMES: [&'static str; 3] = ["b", "random", "absolute"];
+    pub(crate) const NAMES: [&'static str; 3] = ["b", "random", "absolute"];
 
-    pub fn parse(name: &str) -> Option<Scale> {
+    pub(crate) fn parse(name: &str) -> Option<Scale> {
         match name {
             "b" => Some(Scale::B),
             "random" => Some(Scale::Random),
             "absolute" => Some(Scale::Absolute),
             _ => None,
         }
-    }
-
-    pub fn name(self) -> &'static str {
-        Self::NAMES[self as usize]
     }
 }
 

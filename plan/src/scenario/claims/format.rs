@@ -9,41 +9,41 @@ use serde_saphyr::Spanned;
 #[serde(deny_unknown_fields)]
 pub(crate) struct ClaimSpec {
     /// Names the claim in verdict tables.
-    pub id: String,
+    pub(crate) id: String,
     /// The paper's words (and numbers) that the claim tests, shown beside the verdict.
     #[serde(default)]
-    pub paper: String,
+    pub(crate) paper: String,
     /// `a` has a lower mean penalty than `b` at every point.
-    pub lower: Option<PairSpec>,
+    pub(crate) lower: Option<PairSpec>,
     /// `a`'s mean penalty is within `tolerance` (relative to `b`'s) of `b`'s at every point.
-    pub within: Option<PairSpec>,
+    pub(crate) within: Option<PairSpec>,
     /// `a`'s mean penalty is at most `tolerance` (relative to `b`'s) above `b`'s at every point.
-    pub not_worse: Option<PairSpec>,
+    pub(crate) not_worse: Option<PairSpec>,
     /// Every training run of the learned `a` has a mean penalty below `b`'s at every point:
     /// no run diverged or learned nothing (with `b: random`).
-    pub every_run_lower: Option<PairSpec>,
+    pub(crate) every_run_lower: Option<PairSpec>,
     /// `b`'s penalty minus `a`'s grows along the points in the order `n` lists them (one map).
-    pub gap_grows: Option<PairSpec>,
+    pub(crate) gap_grows: Option<PairSpec>,
     /// In every N_test column of `n`, the policy trained with N_train = N_test is the best.
-    pub diagonal_best: Option<DiagonalSpec>,
+    pub(crate) diagonal_best: Option<DiagonalSpec>,
     /// `a`'s training penalty is below `b`'s over a range of episodes.
-    pub curve_below: Option<CurveSpec>,
+    pub(crate) curve_below: Option<CurveSpec>,
     /// What the recorded test episode of one setting shows (RQ3).
-    pub behaviour: Option<BehaviourSpec>,
+    pub(crate) behaviour: Option<BehaviourSpec>,
     /// `a`'s adaptation ratio under a loss is lower than `b`'s at every point.
-    pub adapts_better: Option<AdaptationSpec>,
+    pub(crate) adapts_better: Option<AdaptationSpec>,
     /// `a`'s training reaches `reference`'s test penalty in at most `ratio` times the CPU
     /// `b`'s takes, at every point (time to quality, from the runs' test curves).
-    pub faster: Option<FasterSpec>,
+    pub(crate) faster: Option<FasterSpec>,
     /// A statement of the paper the store cannot test, with the reason: it stays in the
     /// verdict table as "not tested".
-    pub not_tested: Option<Spanned<String>>,
+    pub(crate) not_tested: Option<Spanned<String>>,
     /// The training episodes the statement assumes: the paper's 30,000 on every statement
     /// about its trained policies, since every result it reports comes from such policies.
     /// Runs that trained fewer and were not trained until converged make it "not tested at
     /// this budget".
     #[serde(default)]
-    pub budget: Option<Spanned<u64>>,
+    pub(crate) budget: Option<Spanned<u64>>,
 }
 
 impl ClaimSpec {
@@ -88,36 +88,36 @@ impl ClaimSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct PairSpec {
-    pub a: Spanned<String>,
-    pub b: Spanned<String>,
-    pub maps: Spanned<Vec<Spanned<String>>>,
-    pub n: Spanned<Vec<Spanned<u32>>>,
+    pub(crate) a: Spanned<String>,
+    pub(crate) b: Spanned<String>,
+    pub(crate) maps: Spanned<Vec<Spanned<String>>>,
+    pub(crate) n: Spanned<Vec<Spanned<u32>>>,
     #[serde(default)]
-    pub n_train: Option<Spanned<u32>>,
+    pub(crate) n_train: Option<Spanned<u32>>,
     /// One N_test column: `n` then lists the learned policies' N_train (RQ5's generalisation
     /// gap at a fixed team size).
     #[serde(default)]
-    pub n_test: Option<Spanned<u32>>,
+    pub(crate) n_test: Option<Spanned<u32>>,
     /// For `within`: the largest |a - b| still called equal; for `not_worse`: the largest
     /// a - b still called not worse; both in units of `scale`.
     #[serde(default)]
-    pub tolerance: Option<Spanned<f64>>,
+    pub(crate) tolerance: Option<Spanned<f64>>,
     /// What the tolerance is relative to: `b` (b's mean, the default: for penalties far from
     /// 0), `random` (Random's mean at the point: where b is near 0) or `absolute` (10^6).
     /// For `gap_grows`, what each gap is divided by: `absolute` (the default) or `b`, so that
     /// a trend in the ratio a / b is not mistaken for the fall of every penalty with N.
     #[serde(default)]
-    pub scale: Option<Spanned<String>>,
+    pub(crate) scale: Option<Spanned<String>>,
     /// Take `a`'s (`b`'s) test episodes as played under this disturbance of the scenario.
     #[serde(default)]
-    pub a_under: Option<Spanned<String>>,
+    pub(crate) a_under: Option<Spanned<String>>,
     #[serde(default)]
-    pub b_under: Option<Spanned<String>>,
+    pub(crate) b_under: Option<Spanned<String>>,
     /// Judge the learned policies after this many training episodes, from their test curves
     /// (`evaluate_every`; at each run's first point at or after it), not after their whole
     /// training. Baselines do not train: their test episodes serve as they are.
     #[serde(default)]
-    pub at_episode: Option<Spanned<u64>>,
+    pub(crate) at_episode: Option<Spanned<u64>>,
 }
 
 /// Two policies' adaptation ratios under a disturbance that loses robots, at (map, N): the
@@ -126,11 +126,11 @@ pub(crate) struct PairSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct AdaptationSpec {
-    pub a: Spanned<String>,
-    pub b: Spanned<String>,
-    pub disturbance: Spanned<String>,
-    pub maps: Spanned<Vec<Spanned<String>>>,
-    pub n: Spanned<Vec<Spanned<u32>>>,
+    pub(crate) a: Spanned<String>,
+    pub(crate) b: Spanned<String>,
+    pub(crate) disturbance: Spanned<String>,
+    pub(crate) maps: Spanned<Vec<Spanned<String>>>,
+    pub(crate) n: Spanned<Vec<Spanned<u32>>>,
 }
 
 /// Two learned policies' time to quality at (map, N): a training run's CPU-seconds until its
@@ -140,35 +140,35 @@ pub(crate) struct AdaptationSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct FasterSpec {
-    pub a: Spanned<String>,
-    pub b: Spanned<String>,
+    pub(crate) a: Spanned<String>,
+    pub(crate) b: Spanned<String>,
     #[serde(default)]
-    pub reference: Option<Spanned<String>>,
-    pub maps: Spanned<Vec<Spanned<String>>>,
-    pub n: Spanned<Vec<Spanned<u32>>>,
+    pub(crate) reference: Option<Spanned<String>>,
+    pub(crate) maps: Spanned<Vec<Spanned<String>>>,
+    pub(crate) n: Spanned<Vec<Spanned<u32>>>,
     /// The largest ratio of the runs' median times (a over b) still called faster: 1 for
     /// "faster", 1/3 for "in a third of the CPU".
-    pub ratio: Spanned<f64>,
+    pub(crate) ratio: Spanned<f64>,
 }
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct DiagonalSpec {
-    pub policy: Spanned<String>,
-    pub map: Spanned<String>,
-    pub n: Spanned<Vec<Spanned<u32>>>,
+    pub(crate) policy: Spanned<String>,
+    pub(crate) map: Spanned<String>,
+    pub(crate) n: Spanned<Vec<Spanned<u32>>>,
 }
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct CurveSpec {
-    pub a: Spanned<String>,
-    pub b: Spanned<String>,
-    pub map: Spanned<String>,
-    pub n_train: Spanned<u32>,
+    pub(crate) a: Spanned<String>,
+    pub(crate) b: Spanned<String>,
+    pub(crate) map: Spanned<String>,
+    pub(crate) n_train: Spanned<u32>,
     /// `[first, last]`: training episodes as the training table numbers them (from 0), both
     /// included.
-    pub episodes: Spanned<[u64; 2]>,
+    pub(crate) episodes: Spanned<[u64; 2]>,
 }
 
 /// The test episodes of `policy` on `map` with `n_test` agents (trained with `n_train`,
@@ -177,22 +177,22 @@ pub(crate) struct CurveSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct BehaviourSpec {
-    pub policy: Spanned<String>,
-    pub map: Spanned<String>,
-    pub n_test: Spanned<u32>,
+    pub(crate) policy: Spanned<String>,
+    pub(crate) map: Spanned<String>,
+    pub(crate) n_test: Spanned<u32>,
     #[serde(default)]
-    pub n_train: Option<Spanned<u32>>,
+    pub(crate) n_train: Option<Spanned<u32>>,
     #[serde(default)]
-    pub stationary: Option<usize>,
+    pub(crate) stationary: Option<usize>,
     #[serde(default)]
-    pub touring: Option<usize>,
+    pub(crate) touring: Option<usize>,
     #[serde(default)]
-    pub periodic: Option<bool>,
+    pub(crate) periodic: Option<bool>,
 }
 
 /// A scenario file read for its claims alone (the store's copy, whose maps may not resolve).
 #[derive(Debug, Deserialize)]
 pub(crate) struct ClaimsOnly {
     #[serde(default)]
-    pub claims: Vec<Spanned<ClaimSpec>>,
+    pub(crate) claims: Vec<Spanned<ClaimSpec>>,
 }

@@ -12,7 +12,7 @@
 
 mod check;
 mod claim;
-pub mod format;
+pub(crate) mod format;
 
 use std::path::Path;
 

@@ -5,7 +5,7 @@
 //! or on runs still learning, says little about the paper's 30,000.
 
 use polars::prelude::*;
-use store::schema::{cell, cells, episodes, training};
+use store::schema::{cell, cells, convergence as run, episodes, training};
 
 use super::columns::{
     PolicyKey, distinct, f64s, group_rows, named_seed, optional_u32s, strings, trained_keys,
@@ -57,7 +57,7 @@ pub(crate) fn section(
         Some(cells) => vec![
             training_line(cells, tables.training)?,
             testing,
-            compute_line(cells, tables.training)?,
+            compute_line(cells, tables.training, tables.convergence)?,
             code,
             format!("- **CPU**: {}.", platforms(cells)?),
         ],
@@ -211,7 +211,14 @@ fn testing_line(episodes: &DataFrame) -> Result<String, ReportError> {
 /// far the estimate that budgeted the sweep was from the bill. A cell that took its training
 /// run from the cache records only its tests, so the training runs' own wall time (their logs'
 /// last) is given too: without it a question whose runs another sweep trained looks cheap.
-fn compute_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResult<String> {
+/// Cells and logs keep wall time, which is a cell's CPU time only on an idle core, so it is
+/// called wall time; runs until converged also keep their training thread's own CPU clock
+/// (the convergence table's), given beside it.
+fn compute_line(
+    cells: &DataFrame,
+    training: Option<&DataFrame>,
+    convergence: Option<&DataFrame>,
+) -> PolarsResult<String> {
     let seconds: f64 = f64s(cells, cells::WALL_SECONDS)?.iter().sum();
     let estimated = strings(cells, cells::CONFIG)?
         .iter()
@@ -219,7 +226,7 @@ fn compute_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResult
         .sum::<Result<f64, _>>();
     let estimate = match estimated {
         Ok(estimated) => format!(
-            "; `harness check` estimated {:.2} for the cells, each with its training",
+            "; `harness check` estimated {:.2} CPU hours for the cells, each with its training",
             estimated / 3600.0
         ),
         Err(_) => String::new(),
@@ -228,25 +235,51 @@ fn compute_line(cells: &DataFrame, training: Option<&DataFrame>) -> PolarsResult
         Some(training) => training_runs_clause(training)?,
         None => String::new(),
     };
+    let cpu = match convergence {
+        Some(convergence) => converged_cpu_clause(convergence)?,
+        None => String::new(),
+    };
+    let cache = match runs.is_empty() {
+        true => "",
+        false => {
+            "; a cell whose training run the cache gave, trained by another sweep, counts \
+                  only its tests"
+        }
+    };
     Ok(format!(
-        "- **Compute**: {:.2} CPU hours ({seconds:.0} s), the wall time of the {} cells \
-         summed{runs}{estimate}.",
+        "- **Compute**: {:.2} hours ({seconds:.0} s) of wall time, the {} cells' summed (a \
+         cell runs on one thread: its wall time is its CPU time on an idle core, more beside \
+         other jobs{cache}){runs}{cpu}{estimate}.",
         seconds / 3600.0,
         cells.height()
     ))
 }
 
-/// "...; the 48 training runs took 7.18 CPU hours by their logs": a run's wall time is its
-/// log's last (the log counts from the run's start, across resumes); one cell holds one run.
+/// "...; the 48 training runs took 7.18 hours of wall time by their logs": a run's wall time
+/// is its log's last (the log counts from the run's start, across resumes); one cell holds one
+/// run.
 fn training_runs_clause(training: &DataFrame) -> PolarsResult<String> {
     let by_setting = super::training_run_seconds(training)?;
     let runs: Vec<f64> = by_setting.into_values().flatten().collect();
     Ok(match runs.len() {
         0 => String::new(),
         n => format!(
-            " (a cell whose training run the cache gave, trained by another sweep, counts only \
-             its tests); the {n} training runs took {:.2} CPU hours by their logs",
+            "; the {n} training runs took {:.2} hours of wall time by their logs",
             runs.iter().sum::<f64>() / 3600.0
+        ),
+    })
+}
+
+/// "...; the 28 runs until converged took 4.52 CPU hours to their stops by their training
+/// threads' own clock (validations and tests not counted)".
+fn converged_cpu_clause(convergence: &DataFrame) -> PolarsResult<String> {
+    let cpu = f64s(convergence, run::CPU_SECONDS)?;
+    Ok(match cpu.len() {
+        0 => String::new(),
+        n => format!(
+            "; the {n} runs until converged took {:.2} CPU hours to their stops by their \
+             training threads' own clock (validations and tests not counted)",
+            cpu.iter().sum::<f64>() / 3600.0
         ),
     })
 }
@@ -545,10 +578,27 @@ mod tests {
         .unwrap();
         let line = training_runs_clause(&training).unwrap();
         assert!(
-            line.ends_with("the 2 training runs took 3.00 CPU hours by their logs"),
+            line.ends_with("the 2 training runs took 3.00 hours of wall time by their logs"),
             "{line}"
         );
         assert_eq!(training_runs_clause(&training.head(Some(0))).unwrap(), "");
+    }
+
+    /// Runs until converged keep their training thread's CPU clock: the header sums it,
+    /// called CPU, beside the wall times.
+    #[test]
+    fn runs_until_converged_give_their_threads_cpu_time() {
+        let convergence = df!(run::CPU_SECONDS => [1800.0, 5400.0]).unwrap();
+        let clause = converged_cpu_clause(&convergence).unwrap();
+        assert_eq!(
+            clause,
+            "; the 2 runs until converged took 2.00 CPU hours to their stops by their training \
+             threads' own clock (validations and tests not counted)"
+        );
+        assert_eq!(
+            converged_cpu_clause(&convergence.head(Some(0))).unwrap(),
+            ""
+        );
     }
 
     #[test]

@@ -576,7 +576,7 @@ fn a_report_rebuilds_byte_for_byte_from_its_table_store() {
         "8 episodes per training run, against the paper's 30,000",
         "2 training runs (seeds) per learned",
         "4 test episodes per cell and N_test, each of T = 60 steps",
-        "hours of wall time, the",
+        "of wall time, the 6 cells' summed",
         "`harness check` estimated",
         "| rooms | ma-g-ppo@fast | 2 | 2 | 8 | 2 |",
     ] {

@@ -38,6 +38,7 @@
 
 pub mod adaptation;
 pub mod atomic_file;
+mod cell_records;
 pub mod columns;
 pub mod disturbance;
 mod error;
@@ -50,13 +51,14 @@ mod reader;
 pub mod record;
 pub mod schema;
 pub mod status;
+mod table_files;
 mod table_store;
 pub mod tables;
 pub mod taken;
 
 pub use error::StoreError;
 pub use files::{MAX_FILE_BYTES, read};
-pub use folder::{Store, TableHashes, TablesLock};
+pub use folder::Store;
 pub use layout::{
     BEST_METADATA_FILE, BEST_WEIGHTS_FILE, CHECKPOINTS_FILE, CONVERGENCE_FILE, DISTURBED_FILE,
     DISTURBED_STEPS_FILE, EPISODES_FILE, SNAPSHOTS_FILE, TEST_CURVE_FILE, TRAINING_FILE,
@@ -64,4 +66,5 @@ pub use layout::{
 };
 pub use lease::{Lease, LeaseHolder};
 pub use record::{CellFailure, CellRecord, Manifest};
+pub use table_files::{TableHashes, TablesLock};
 pub use table_store::{MissingCell, TableStoreMarker};

@@ -31,7 +31,7 @@ mod units;
 pub mod verdicts;
 mod writer;
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 use polars::prelude::*;
@@ -219,6 +219,17 @@ pub struct StoreTables {
 }
 
 impl StoreTables {
+    /// Each learned setting's training runs' CPU seconds (`run_seconds`): what more runs of
+    /// it cost. Empty without a training table.
+    pub fn run_cpu_seconds(&self) -> PolarsResult<BTreeMap<LearnedSetting, Vec<f64>>> {
+        match &self.training {
+            Some(training) => {
+                run_seconds::training_run_cpu_seconds(training, self.convergence.as_ref())
+            }
+            None => Ok(BTreeMap::new()),
+        }
+    }
+
     /// The tables of a sweep's store or of a table store (its files checked against its
     /// marker first).
     pub fn load(store: &Store) -> Result<Self, ReportError> {

@@ -11,7 +11,7 @@ use plan::scenario::claims::{Claim, ClaimTest};
 use report::judgement::Verdict;
 use report::markdown::{interval, number};
 use report::verdicts::{ClaimResult, Decision, PointPower};
-use report::{LearnedSetting, StoreTables, training_run_seconds};
+use report::{LearnedSetting, StoreTables};
 use store::Store;
 
 use super::cpu_time::duration;
@@ -20,15 +20,16 @@ use super::cpu_time::duration;
 /// setting serves every point that compares it.
 type Extra = BTreeMap<LearnedSetting, u64>;
 
-/// Each learned setting's training runs' seconds in the pilot (`training_run_seconds`).
+/// Each learned setting's training runs' CPU seconds in the pilot (`StoreTables::run_cpu_seconds`).
 type RunSeconds = BTreeMap<LearnedSetting, Vec<f64>>;
 
 /// What the figures are, under the pilot's name.
 const HOW: &str = "per undecided point, the training runs a side that would find its observed
 difference with 80 % power at two-sided 5 %, n (h / z(0.975) x (z(0.975) + z(0.8)) / d)^2 (the
-report's \"decided by\"), and the further runs' CPU time by the pilot's training logs. The spread
-of a few runs is itself uncertain: each figure is a rough guide, off by a factor of about two
-either way.";
+report's \"decided by\"), and the further runs' CPU time by the pilot's runs (a run until
+converged by its training thread's clock, another by its log's wall time). The spread of a few
+runs is itself uncertain: each figure is a rough guide, off by a factor of about two either
+way.";
 
 /// Prints, per claim and point, what deciding it would take; errors name the pilot's folder.
 pub(crate) fn print(claims: &[Claim], pilot: &Path) -> anyhow::Result<()> {
@@ -62,10 +63,7 @@ fn judge(claims: &[Claim], pilot: &Path) -> anyhow::Result<(Vec<ClaimResult>, Ru
     );
     crate::cli::report::tables_of_unfinished_sweep(&store)?;
     let tables = StoreTables::load(&store)?;
-    let seconds = match &tables.training {
-        Some(training) => training_run_seconds(training)?,
-        None => BTreeMap::new(),
-    };
+    let seconds = tables.run_cpu_seconds()?;
     let judged: Vec<Claim> = (claims.iter())
         .filter(|c| !matches!(c.test, ClaimTest::Behaviour { .. }))
         .cloned()

@@ -3,6 +3,8 @@
 //! final one. For such runs this replaces the header's "still improving" table: a run either
 //! converged by the rule or was capped before converging, and the report says which.
 
+use std::collections::HashMap;
+
 use polars::prelude::*;
 use store::schema::{cell, checkpoints, convergence as run, episodes};
 
@@ -13,9 +15,11 @@ use plan::scenario::claims::Claim;
 use stats::{mean, median};
 
 /// The section, with the best-against-final table when the store has both policies' tests.
+/// `tests` is the episodes table: the tested policy's test episodes.
 pub(crate) fn section(
     report: &mut ReportWriter,
     convergence: &DataFrame,
+    tests: &DataFrame,
     both: Option<&DataFrame>,
 ) -> Result<(), ReportError> {
     report.heading(3, "Did the training runs converge?");
@@ -25,11 +29,13 @@ pub(crate) fn section(
          than the rule's minimum over its last `patience` validations) and how many reached \
          their cap first (*capped before converging*: longer training may change the \
          verdicts below), each run's stop episode and training CPU-minutes to the stop \
-         (validations not counted), the episode of its best validation, and which policy the \
-         test episodes and claims use. Validation episodes have their own seeds, never a \
-         test episode's.",
+         (validations not counted; their median beside them), the episode of its best \
+         validation, which policy the test episodes and claims use, and that policy's mean \
+         test penalty (10^6) at N_test = N_train, run by run and the median: what the runs \
+         cost and what they reached. Validation episodes have their own seeds, never a test \
+         episode's.",
     );
-    report.table("convergence", &convergence_frame(convergence)?)?;
+    report.table("convergence", &convergence_frame(convergence, tests)?)?;
     if let Some(both) = both {
         report.heading(3, "The best policy against the final one");
         report.paragraph(
@@ -81,8 +87,29 @@ fn listed<T: std::fmt::Display>(values: impl IntoIterator<Item = T>) -> String {
     texts.join(", ")
 }
 
-fn convergence_frame(table: &DataFrame) -> Result<DataFrame, ReportError> {
+/// Each run's (cell key's) mean test penalty (10^6) at N_test = N_train, from the episodes
+/// table; a run without test episodes at its own N has none.
+fn own_n_test_means(table: &DataFrame, tests: &DataFrame) -> Result<Vec<Option<f64>>, ReportError> {
+    let (keys, n_tests) = (strings(tests, cell::KEY)?, f64s(tests, episodes::N_TEST)?);
+    let penalties = f64s(tests, episodes::CUMULATIVE_PENALTY)?;
+    let mut by_run: HashMap<(&str, u32), Vec<f64>> = HashMap::new();
+    for ((key, n_test), penalty) in keys.iter().zip(&n_tests).zip(&penalties) {
+        let run = by_run.entry((key.as_str(), *n_test as u32)).or_default();
+        run.push(penalty / PENALTY_UNIT);
+    }
+    let runs = strings(table, cell::KEY)?;
+    let n_trains = trained_keys(table)?;
+    let mut means = Vec::with_capacity(runs.len());
+    for (key, (_, policy)) in runs.iter().zip(&n_trains) {
+        let own = policy.n_train.and_then(|n| by_run.get(&(key.as_str(), n)));
+        means.push(own.map(|values| mean(values)).transpose()?);
+    }
+    Ok(means)
+}
+
+fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, ReportError> {
     let settings = trained_keys(table)?;
+    let tested_means = own_n_test_means(table, tests)?;
     let stops = f64s(table, run::STOP_EPISODE)?;
     let best = f64s(table, run::BEST_EPISODE)?;
     let reasons = strings(table, run::STOP)?;
@@ -93,10 +120,9 @@ fn convergence_frame(table: &DataFrame) -> Result<DataFrame, ReportError> {
     for ((map, policy), within) in &groups {
         let of = |values: &[f64]| within.iter().map(|&r| values[r]).collect::<Vec<f64>>();
         let count = |reason: &str| within.iter().filter(|&&r| reasons[r] == reason).count();
-        let minutes = of(&cpu)
-            .iter()
-            .map(|s| format!("{:.1}", s / 60.0))
-            .collect::<Vec<_>>();
+        let minutes: Vec<f64> = of(&cpu).iter().map(|s| s / 60.0).collect();
+        let of_runs: Vec<Option<f64>> = within.iter().map(|&r| tested_means[r]).collect();
+        let penalties: Vec<f64> = of_runs.iter().flatten().copied().collect();
         rows.push(SettingRow {
             map: map.clone(),
             policy: policy.clone(),
@@ -105,9 +131,17 @@ fn convergence_frame(table: &DataFrame) -> Result<DataFrame, ReportError> {
             capped: count(run::CAPPED) as u32,
             median_stop: median(&of(&stops))?,
             stops: listed(of(&stops)),
-            cpu_minutes: minutes.join(", "),
+            cpu_minutes: one_decimal(&minutes),
+            median_cpu_minutes: median(&minutes)?,
             best: listed(of(&best)),
             tested: distinct(within.iter().map(|&r| tested[r].as_str())).join(", "),
+            test_penalties: listed(of_runs.iter().map(|mean| match mean {
+                Some(mean) => format!("{mean:.1}"),
+                None => "-".to_owned(),
+            })),
+            median_test_penalty: (!penalties.is_empty())
+                .then(|| median(&penalties))
+                .transpose()?,
         });
     }
     Ok(df!(
@@ -120,9 +154,17 @@ fn convergence_frame(table: &DataFrame) -> Result<DataFrame, ReportError> {
         "median_stop" => rows.iter().map(|r| r.median_stop).collect::<Vec<_>>(),
         "stop_episodes" => rows.iter().map(|r| r.stops.as_str()).collect::<Vec<_>>(),
         "cpu_minutes" => rows.iter().map(|r| r.cpu_minutes.as_str()).collect::<Vec<_>>(),
+        "median_cpu_minutes" => rows.iter().map(|r| r.median_cpu_minutes).collect::<Vec<_>>(),
         "best_episodes" => rows.iter().map(|r| r.best.as_str()).collect::<Vec<_>>(),
         "tested" => rows.iter().map(|r| r.tested.as_str()).collect::<Vec<_>>(),
+        "test_penalties" => rows.iter().map(|r| r.test_penalties.as_str()).collect::<Vec<_>>(),
+        "median_test_penalty" => rows.iter().map(|r| r.median_test_penalty).collect::<Vec<_>>(),
     )?)
+}
+
+/// Values as text with one decimal, in run order: "4.0, 5.7, 4.8".
+fn one_decimal(values: &[f64]) -> String {
+    listed(values.iter().map(|v| format!("{v:.1}")))
 }
 
 /// One learned setting's row of the convergence table.
@@ -135,8 +177,13 @@ struct SettingRow {
     median_stop: f64,
     stops: String,
     cpu_minutes: String,
+    median_cpu_minutes: f64,
     best: String,
     tested: String,
+    /// The tested policy's mean test penalty per run at N_test = N_train ("-" for a run
+    /// without such test episodes), and their median.
+    test_penalties: String,
+    median_test_penalty: Option<f64>,
 }
 
 /// Per (map, policy, N_train, N_test): the mean over runs of each policy's run mean.
@@ -205,9 +252,20 @@ mod tests {
         .unwrap()
     }
 
+    /// Test episodes of runs `a` (two at N_test = 4, one at 2) and `b` (one at 4); `c` has none.
+    fn test_episodes() -> DataFrame {
+        let unit = PENALTY_UNIT;
+        df!(
+            cell::KEY => ["a", "a", "a", "b"],
+            episodes::N_TEST => [4u32, 4, 2, 4],
+            episodes::CUMULATIVE_PENALTY => [20.0 * unit, 30.0 * unit, 900.0 * unit, 40.0 * unit],
+        )
+        .unwrap()
+    }
+
     #[test]
     fn a_setting_counts_its_converged_and_capped_runs() {
-        let frame = convergence_frame(&convergence_table()).unwrap();
+        let frame = convergence_frame(&convergence_table(), &test_episodes()).unwrap();
         assert_eq!(frame.height(), 1);
         let text = |name: &str| {
             frame
@@ -230,5 +288,11 @@ mod tests {
         assert_eq!(text("tested"), "best");
         let median_stop = frame.column("median_stop").unwrap().f64().unwrap().get(0);
         assert_eq!(median_stop, Some(500.0));
+        let float = |name: &str| frame.column(name).unwrap().f64().unwrap().get(0);
+        assert_eq!(float("median_cpu_minutes"), Some(15.0));
+        // Only N_test = N_train counts; the run without test episodes shows "-", left out of
+        // the median.
+        assert_eq!(text("test_penalties"), "25.0, 40.0, -");
+        assert_eq!(float("median_test_penalty"), Some(32.5));
     }
 }

@@ -71,7 +71,7 @@ pub(crate) fn section(
     };
     report.paragraph(&lines.join("\n"));
     if let Some(convergence) = tables.convergence {
-        super::convergence::section(report, convergence, tables.checkpoints)?;
+        super::convergence::section(report, convergence, tables.episodes, tables.checkpoints)?;
     } else if let Some(training) = tables.training {
         improving_section(report, training)?;
     }

@@ -167,6 +167,12 @@ fn missing_cells(store: &Store) -> Result<Vec<MissingCell>, ReportError> {
                 CellState::Done { .. } => return None,
                 CellState::Failed { failure, .. } => format!("failed: {}", failure.error),
                 CellState::Running { .. } => "still running".to_owned(),
+                CellState::Missing {
+                    saved_training: Some(_),
+                    ..
+                } => {
+                    "stopped while training, its run saved: the next sweep continues it".to_owned()
+                }
                 CellState::Missing { .. } => "not run".to_owned(),
                 CellState::Damaged { why, .. } => format!("damaged: {why}"),
             };

@@ -40,9 +40,12 @@ pub enum CellState {
         folder: PathBuf,
         failure: CellFailure,
     },
-    /// Not done and not running; `interrupted` when a killed process left its lease.
+    /// Not done and not running; `interrupted` when a killed process left its lease,
+    /// `saved_training` the folder whose store keeps a learned cell's training run as it was
+    /// saved (the next sweep continues it there rather than starting over).
     Missing {
         interrupted: Option<(PathBuf, LeaseHolder)>,
+        saved_training: Option<PathBuf>,
     },
     /// Its record is there but a file is missing or differs from its recorded hash: the next
     /// sweep computes it again, and readers refuse it until then.
@@ -182,6 +185,32 @@ fn cell_state(stores: &[(PathBuf, Store)], key: &str) -> CellState {
                 .into_iter()
                 .next()
                 .map(|(folder, holder)| (folder.clone(), holder)),
+            saved_training: stores
+                .iter()
+                .find(|(_, store)| store.partial_training_folder(key).is_dir())
+                .map(|(folder, _)| folder.clone()),
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cell_not_done_says_where_its_saved_training_run_is() {
+        let dir = std::env::temp_dir().join(format!("store-saved-{}", std::process::id()));
+        let store = Store::new(&dir);
+        let stores = [(PathBuf::from("."), store.clone())];
+        let saved = |key: &str| match cell_state(&stores, key) {
+            CellState::Missing { saved_training, .. } => saved_training,
+            _ => panic!("{key} should be missing"),
+        };
+        std::fs::create_dir_all(store.partial_training_folder("saved")).unwrap();
+        std::fs::create_dir_all(dir.join("cells").join("unsaved")).unwrap();
+        assert_eq!(saved("saved"), Some(PathBuf::from(".")));
+        assert_eq!(saved("unsaved"), None);
+        assert_eq!(saved("absent"), None);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -54,22 +54,35 @@ fn print(status: &SweepStatus, dir: &Path) -> std::io::Result<()> {
             CellState::Damaged { folder, why } => {
                 ("damaged", format!("in {}: {why}", folder.display()))
             }
-            CellState::Missing { interrupted: None } => ("missing", String::new()),
             CellState::Missing {
-                interrupted: Some((folder, holder)),
-            } => (
-                "missing",
-                format!(
-                    "interrupted in {}, {} (gone)",
-                    folder.display(),
-                    holder_text(holder)
-                ),
-            ),
+                interrupted,
+                saved_training,
+            } => ("missing", missing_text(interrupted, saved_training)),
         };
         let line = format!("{state:<8} {}  {:<36} {place}", cell.key, cell.label);
         writeln!(out, "{}", line.trim_end())?;
     }
     Ok(())
+}
+
+/// Why a cell not done is where it is: a process killed while holding it, and the training
+/// run it saved (which the next sweep continues).
+fn missing_text(
+    interrupted: &Option<(PathBuf, LeaseHolder)>,
+    saved_training: &Option<PathBuf>,
+) -> String {
+    let mut parts = Vec::new();
+    if let Some((folder, holder)) = interrupted {
+        let holder = holder_text(holder);
+        parts.push(format!(
+            "interrupted in {}, {holder} (gone)",
+            folder.display()
+        ));
+    }
+    if let Some(folder) = saved_training {
+        parts.push(format!("training run saved in {}", folder.display()));
+    }
+    parts.join("; ")
 }
 
 fn holder_text(holder: &LeaseHolder) -> String {

@@ -33,7 +33,9 @@ pub(crate) fn section(
          validation, which policy the test episodes and claims use, and that policy's mean \
          test penalty (10^6) at N_test = N_train, run by run and the median: what the runs \
          cost and what they reached. Validation episodes have their own seeds, never a test \
-         episode's.",
+         episode's. The claims are judged on the tested policy; where judging them on the \
+         runs' other policy gives another verdict, the claim's text adds that verdict and its \
+         numbers.",
     );
     report.table("convergence", &convergence_frame(convergence, tests)?)?;
     if let Some(both) = both {
@@ -76,6 +78,60 @@ pub(crate) fn name_tested(
                 "policies"
             };
             result.ours = format!("{} (tested {policy}: {})", result.ours, named.join("; "));
+        }
+    }
+    Ok(())
+}
+
+/// The episodes table with every run until converged playing its other policy: its
+/// checkpoints-table rows of the policy the claims do not use (`final` where they use `best`)
+/// in place of its episodes-table rows; every other row (baselines, runs of fixed length) as
+/// it is. The claims judged on it say whether a verdict depends on which policy was tested.
+pub(crate) fn other_policy_episodes(
+    episodes: &DataFrame,
+    convergence: &DataFrame,
+    checkpoints: &DataFrame,
+) -> Result<DataFrame, ReportError> {
+    let runs = strings(convergence, cell::KEY)?;
+    let tested: HashMap<String, String> = runs
+        .into_iter()
+        .zip(strings(convergence, run::TESTED)?)
+        .collect();
+    let keys = strings(episodes, cell::KEY)?;
+    let kept: BooleanChunked = keys.iter().map(|k| !tested.contains_key(k)).collect();
+    let (keys, which) = (
+        strings(checkpoints, cell::KEY)?,
+        strings(checkpoints, checkpoints::CHECKPOINT)?,
+    );
+    let other: BooleanChunked = (keys.iter().zip(&which))
+        .map(|(key, checkpoint)| tested.get(key).is_some_and(|t| t != checkpoint))
+        .collect();
+    let columns = episodes.get_column_names_owned();
+    let swapped = checkpoints.filter(&other)?.select(columns)?;
+    Ok(episodes.filter(&kept)?.vstack(&swapped)?)
+}
+
+/// Adds to each statistical claim's text, where its verdict on the runs' other policies
+/// (`others`, judged on [`other_policy_episodes`]) differs, that verdict and its numbers.
+pub(crate) fn name_other_verdicts(
+    results: &mut [ClaimResult],
+    others: &[ClaimResult],
+    convergence: &DataFrame,
+) -> Result<(), ReportError> {
+    let tested = distinct(strings(convergence, run::TESTED)?);
+    let other = match tested.as_slice() {
+        [one] if one == "best" => "final",
+        [one] if one == "final" => "best",
+        _ => "untested",
+    };
+    for (result, alternative) in results.iter_mut().zip(others) {
+        if result.kind != "behaviour" && alternative.verdict != result.verdict {
+            result.ours = format!(
+                "{}; judged on the runs' {other} policies instead: {} ({})",
+                result.ours,
+                alternative.verdict.name(),
+                alternative.ours
+            );
         }
     }
     Ok(())
@@ -232,6 +288,7 @@ fn best_against_final(both: &DataFrame) -> Result<DataFrame, ReportError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::judgement::Verdict;
 
     fn convergence_table() -> DataFrame {
         df!(
@@ -294,5 +351,75 @@ mod tests {
         // the median.
         assert_eq!(text("test_penalties"), "25.0, 40.0, -");
         assert_eq!(float("median_test_penalty"), Some(32.5));
+    }
+
+    /// Episodes of run `a` (until converged, its best tested) and of baseline cell `g`; `a`'s
+    /// both policies in the checkpoints table.
+    fn both_policies() -> (DataFrame, DataFrame, DataFrame) {
+        let episodes = df!(
+            cell::KEY => ["a", "g"],
+            episodes::N_TEST => [4u32, 4],
+            episodes::CUMULATIVE_PENALTY => [10.0, 50.0],
+        )
+        .unwrap();
+        let checkpoints = df!(
+            cell::KEY => ["a", "a"],
+            checkpoints::CHECKPOINT => ["best", "final"],
+            episodes::N_TEST => [4u32, 4],
+            episodes::CUMULATIVE_PENALTY => [10.0, 90.0],
+        )
+        .unwrap();
+        let convergence = df!(cell::KEY => ["a"], run::TESTED => ["best"]).unwrap();
+        (episodes, convergence, checkpoints)
+    }
+
+    #[test]
+    fn the_other_policys_episodes_replace_the_tested_ones_of_runs_until_converged() {
+        let (episodes, convergence, checkpoints) = both_policies();
+        let other = other_policy_episodes(&episodes, &convergence, &checkpoints).unwrap();
+        assert_eq!(other.get_column_names(), episodes.get_column_names());
+        let penalty = |key: &str| {
+            let rows = (strings(&other, cell::KEY).unwrap().into_iter())
+                .zip(f64s(&other, episodes::CUMULATIVE_PENALTY).unwrap());
+            rows.filter(|(k, _)| k == key)
+                .map(|(_, p)| p)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            penalty("a"),
+            [90.0],
+            "the final policy's episode, the best's gone"
+        );
+        assert_eq!(penalty("g"), [50.0], "a baseline's episodes stay");
+    }
+
+    #[test]
+    fn a_verdict_that_changes_with_the_policy_tested_says_so() {
+        let result = |verdict, ours: &str| ClaimResult {
+            id: "c".to_owned(),
+            kind: "lower",
+            paper: String::new(),
+            ours: ours.to_owned(),
+            verdict,
+            power: Vec::new(),
+        };
+        let (_, convergence, _) = both_policies();
+        let mut results = [
+            result(Verdict::Supported, "best: 1 vs 2"),
+            result(Verdict::Inconclusive, "best: 3 vs 3"),
+        ];
+        let others = [
+            result(Verdict::Inconclusive, "final: 1 vs 1"),
+            result(Verdict::Inconclusive, "final: 3 vs 4"),
+        ];
+        name_other_verdicts(&mut results, &others, &convergence).unwrap();
+        assert_eq!(
+            results[0].ours,
+            "best: 1 vs 2; judged on the runs' final policies instead: inconclusive (final: 1 vs 1)"
+        );
+        assert_eq!(
+            results[1].ours, "best: 3 vs 3",
+            "the same verdict adds nothing"
+        );
     }
 }

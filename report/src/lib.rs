@@ -284,6 +284,19 @@ impl StoreTables {
         if let Some(convergence) = &self.convergence {
             convergence::name_tested(&mut results, claims, convergence)?;
         }
+        if let (Some(convergence), Some(checkpoints)) = (&self.convergence, &self.checkpoints) {
+            let episodes =
+                convergence::other_policy_episodes(&self.episodes, convergence, checkpoints)?;
+            let others = verdicts::evaluate(
+                claims,
+                &verdicts::Recorded {
+                    episodes: &episodes,
+                    behaviours: None,
+                    ..recorded
+                },
+            )?;
+            convergence::name_other_verdicts(&mut results, &others, convergence)?;
+        }
         Ok(results)
     }
 

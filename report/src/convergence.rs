@@ -9,9 +9,10 @@ use polars::prelude::*;
 use store::schema::{cell, checkpoints, convergence as run, episodes};
 
 use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
+use super::comparison::samples;
 use super::verdicts::ClaimResult;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use plan::scenario::claims::Claim;
+use plan::scenario::claims::{Claim, ClaimTest};
 use stats::{mean, median};
 
 /// The section, with the best-against-final table when the store has both policies' tests.
@@ -111,10 +112,28 @@ pub(crate) fn other_policy_episodes(
     Ok(episodes.filter(&kept)?.vstack(&swapped)?)
 }
 
-/// Adds to each statistical claim's text, where its verdict on the runs' other policies
-/// (`others`, judged on [`other_policy_episodes`]) differs, that verdict and its numbers.
+/// The statistical claims (by index) that name a policy with runs until converged: the
+/// ones whose verdict may hang on which of the runs' policies was tested.
+pub(crate) fn claims_on_converged_runs(
+    claims: &[Claim],
+    convergence: &DataFrame,
+) -> Result<Vec<usize>, ReportError> {
+    let policies = distinct(strings(convergence, cell::POLICY)?);
+    Ok((claims.iter().enumerate())
+        .filter(|(_, claim)| !matches!(claim.test, ClaimTest::Behaviour { .. }))
+        .filter(|(_, claim)| {
+            (claim.test.policies().iter()).any(|p| policies.contains(&p.to_string()))
+        })
+        .map(|(index, _)| index)
+        .collect())
+}
+
+/// Adds to the text of each claim judged again (`judged`, by index, with `others`, its
+/// verdicts on [`other_policy_episodes`]), where the verdict differs, that verdict and its
+/// numbers.
 pub(crate) fn name_other_verdicts(
     results: &mut [ClaimResult],
+    judged: &[usize],
     others: &[ClaimResult],
     convergence: &DataFrame,
 ) -> Result<(), ReportError> {
@@ -124,8 +143,9 @@ pub(crate) fn name_other_verdicts(
         [one] if one == "final" => "best",
         _ => "untested",
     };
-    for (result, alternative) in results.iter_mut().zip(others) {
-        if result.kind != "behaviour" && alternative.verdict != result.verdict {
+    for (&index, alternative) in judged.iter().zip(others) {
+        let result = &mut results[index];
+        if alternative.verdict != result.verdict {
             result.ours = format!(
                 "{}; judged on the runs' {other} policies instead: {} ({})",
                 result.ours,
@@ -144,23 +164,18 @@ fn listed<T: std::fmt::Display>(values: impl IntoIterator<Item = T>) -> String {
 }
 
 /// Each run's (cell key's) mean test penalty (10^6) at N_test = N_train, from the episodes
-/// table; a run without test episodes at its own N has none.
+/// table's samples; a run without test episodes at its own N has none.
 fn own_n_test_means(table: &DataFrame, tests: &DataFrame) -> Result<Vec<Option<f64>>, ReportError> {
-    let (keys, n_tests) = (strings(tests, cell::KEY)?, f64s(tests, episodes::N_TEST)?);
-    let penalties = f64s(tests, episodes::CUMULATIVE_PENALTY)?;
-    let mut by_run: HashMap<(&str, u32), Vec<f64>> = HashMap::new();
-    for ((key, n_test), penalty) in keys.iter().zip(&n_tests).zip(&penalties) {
-        let run = by_run.entry((key.as_str(), *n_test as u32)).or_default();
-        run.push(penalty / PENALTY_UNIT);
+    let mut by_run: HashMap<String, f64> = HashMap::new();
+    for sample in samples(tests)? {
+        if sample.group.policy.n_train == Some(sample.group.n_test) {
+            for (cell, stratum) in sample.cells.iter().zip(&sample.strata) {
+                by_run.insert(cell.clone(), mean(stratum)?);
+            }
+        }
     }
     let runs = strings(table, cell::KEY)?;
-    let n_trains = trained_keys(table)?;
-    let mut means = Vec::with_capacity(runs.len());
-    for (key, (_, policy)) in runs.iter().zip(&n_trains) {
-        let own = policy.n_train.and_then(|n| by_run.get(&(key.as_str(), n)));
-        means.push(own.map(|values| mean(values)).transpose()?);
-    }
-    Ok(means)
+    Ok(runs.iter().map(|key| by_run.get(key).copied()).collect())
 }
 
 fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, ReportError> {
@@ -314,7 +329,11 @@ mod tests {
         let unit = PENALTY_UNIT;
         df!(
             cell::KEY => ["a", "a", "a", "b"],
+            cell::MAP => ["open"; 4],
+            cell::POLICY => ["ma-g-ppo"; 4],
+            cell::N_TRAIN => [Some(4u32); 4],
             episodes::N_TEST => [4u32, 4, 2, 4],
+            episodes::EPISODE => [0u32, 1, 0, 0],
             episodes::CUMULATIVE_PENALTY => [20.0 * unit, 30.0 * unit, 900.0 * unit, 40.0 * unit],
         )
         .unwrap()
@@ -412,7 +431,7 @@ mod tests {
             result(Verdict::Inconclusive, "final: 1 vs 1"),
             result(Verdict::Inconclusive, "final: 3 vs 4"),
         ];
-        name_other_verdicts(&mut results, &others, &convergence).unwrap();
+        name_other_verdicts(&mut results, &[0, 1], &others, &convergence).unwrap();
         assert_eq!(
             results[0].ours,
             "best: 1 vs 2; judged on the runs' final policies instead: inconclusive (final: 1 vs 1)"
@@ -420,6 +439,25 @@ mod tests {
         assert_eq!(
             results[1].ours, "best: 3 vs 3",
             "the same verdict adds nothing"
+        );
+    }
+
+    #[test]
+    fn only_statistical_claims_on_a_policy_with_runs_until_converged_are_judged_again() {
+        let text = "claims:
+  - id: learned
+    lower: {a: ma-g-ppo, b: gcs, maps: [open], n: [4]}
+  - id: baselines
+    lower: {a: tspc, b: gcs, maps: [open], n: [4]}
+  - id: roles
+    behaviour: {policy: ma-g-ppo, map: open, n_test: 4, stationary: 1, touring: 3}
+";
+        let claims =
+            plan::scenario::claims::claims_of_text(text, std::path::Path::new("c.yaml")).unwrap();
+        let convergence = df!(cell::POLICY => ["ma-g-ppo"]).unwrap();
+        assert_eq!(
+            claims_on_converged_runs(&claims, &convergence).unwrap(),
+            [0]
         );
     }
 }

@@ -285,17 +285,18 @@ impl StoreTables {
             convergence::name_tested(&mut results, claims, convergence)?;
         }
         if let (Some(convergence), Some(checkpoints)) = (&self.convergence, &self.checkpoints) {
+            let judged = convergence::claims_on_converged_runs(claims, convergence)?;
+            let again: Vec<_> = judged.iter().map(|&i| claims[i].clone()).collect();
             let episodes =
                 convergence::other_policy_episodes(&self.episodes, convergence, checkpoints)?;
             let others = verdicts::evaluate(
-                claims,
+                &again,
                 &verdicts::Recorded {
                     episodes: &episodes,
-                    behaviours: None,
                     ..recorded
                 },
             )?;
-            convergence::name_other_verdicts(&mut results, &others, convergence)?;
+            convergence::name_other_verdicts(&mut results, &judged, &others, convergence)?;
         }
         Ok(results)
     }

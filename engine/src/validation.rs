@@ -6,7 +6,8 @@
 //! curve does. The rule is a function of the curve alone: the *reference* is the first
 //! validation penalty, replaced by a later one only when that is lower by `min_improvement`
 //! (relative); the run stops once `patience` validations have passed since the reference was
-//! last replaced (Keras's `EarlyStopping` with `min_delta` relative), or at its cap. The best
+//! last replaced (Keras's `EarlyStopping` with `min_delta` relative), or at its cap; a rule
+//! with `wait_for_improvement` does not count while the reference is still the first. The best
 //! policy is the one with the lowest validation penalty of all (the earliest of equals),
 //! whether or not its improvement counted for the rule.
 //!
@@ -136,7 +137,8 @@ impl Validation {
     }
 
     /// Whether `patience` validations have passed since the reference penalty was last
-    /// lowered by at least `min_improvement` of itself.
+    /// lowered by at least `min_improvement` of itself (and, where the rule waits for
+    /// improvement, whether it ever was).
     fn patience_spent(&self) -> bool {
         let Some(first) = self.points.first() else {
             return false;
@@ -146,6 +148,9 @@ impl Validation {
             if point.penalty < reference.1 * (1.0 - self.rule.min_improvement) {
                 reference = (i, point.penalty);
             }
+        }
+        if self.rule.wait_for_improvement && reference.0 == 0 {
+            return false;
         }
         self.points.len() - 1 - reference.0 >= self.rule.patience as usize
     }
@@ -313,6 +318,23 @@ mod tests {
             with(&[5.0, 3.0, 3.0], 9).best().unwrap().training_episode,
             10
         );
+    }
+
+    #[test]
+    fn a_rule_that_waits_for_improvement_never_stops_a_run_that_did_not_learn() {
+        // No validation improves on the untrained policy's: the first form stops, the
+        // waiting one trains on to the cap.
+        let flat = [100.0, 120.0, 99.0, 110.0];
+        assert_eq!(with(&flat, 2).stop(30, 1000), Some(Stop::Converged));
+        let mut waiting = with(&flat, 2);
+        waiting.rule.wait_for_improvement = true;
+        assert_eq!(waiting.stop(30, 1000), None);
+        assert_eq!(waiting.stop(30, 30), Some(Stop::Capped));
+        // Once it learned, it stops where the first form does.
+        let learned = [100.0, 85.0, 80.0, 79.0];
+        let mut waiting = with(&learned, 2);
+        waiting.rule.wait_for_improvement = true;
+        assert_eq!(waiting.stop(30, 1000), with(&learned, 2).stop(30, 1000));
     }
 
     #[test]

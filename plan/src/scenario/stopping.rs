@@ -56,6 +56,14 @@ pub struct StoppingRule {
     /// The relative improvement of the best validation penalty that counts (0.02: 2 %).
     #[serde(default = "defaults::min_improvement")]
     pub min_improvement: f64,
+    /// Whether the patience count waits for the run to learn: it starts only once a
+    /// validation has improved on the first one (the untrained policy's) by
+    /// `min_improvement`, so a run that never learns trains to its cap and is counted
+    /// capped, instead of "converging" on its initial weights (one run of the profile
+    /// study did, at its sixth validation). Left out of the key when false, the rule's
+    /// first form, so that the keys of runs under it hold.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub wait_for_improvement: bool,
     /// The policy the cell's test episodes and claims use.
     #[serde(default)]
     pub tested: Checkpoint,
@@ -83,6 +91,7 @@ impl Default for StoppingRule {
             validation_episodes: defaults::validation_episodes(),
             patience: defaults::patience(),
             min_improvement: defaults::min_improvement(),
+            wait_for_improvement: false,
             tested: Checkpoint::Best,
         }
     }
@@ -155,6 +164,15 @@ mod tests {
             }
         );
         rule.check().unwrap();
+        // The waiting is written only where it is asked for: the rule's first keys hold.
+        assert!(!serde_json::to_string(&rule).unwrap().contains("wait"));
+        let waiting: StoppingRule =
+            serde_json::from_str(r#"{"wait_for_improvement": true}"#).unwrap();
+        let written = serde_json::to_string(&waiting).unwrap();
+        assert!(
+            written.contains(r#""wait_for_improvement":true"#),
+            "{written}"
+        );
         let unknown = serde_json::from_str::<StoppingRule>(r#"{"patiense": 3}"#);
         assert!(unknown.unwrap_err().to_string().contains("patiense"));
         for (json, field) in [

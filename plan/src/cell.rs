@@ -20,13 +20,22 @@ mod branch {
 }
 
 /// Everything that determines a cell's result, and nothing else (not the scenario's name, not
-/// where the map file lives), so that equal work in two scenarios has one key; and, for a
-/// learned policy, its training run resolved from them once (when the scenario is checked, or
-/// when a stored cell is read), so that no reader resolves it again or meets a cell without
-/// one. Its fields are read, never written: the training run follows from them.
+/// where the map file lives), so that equal work in two scenarios has one key: its fields
+/// (read through `Deref`, never written), and, for a learned policy, its training run
+/// resolved from them once (when the scenario is checked, or when a stored cell is read), so
+/// that no reader resolves it again or meets a cell without one.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "CellFields", into = "CellFields")]
 pub struct CellConfig {
+    fields: CellFields,
+    /// The training run of a learned policy's cell; `None` exactly for a baseline's.
+    training: Option<TrainingConfig>,
+}
+
+/// A cell's fields, as its key and its files write them: the training run is resolved from
+/// them when read.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellFields {
     pub map: MapIdentity,
     pub world: WorldConfig,
     pub policy: ScenarioPolicy,
@@ -37,35 +46,23 @@ pub struct CellConfig {
     /// Root of the test episodes' seeds: episode e with n agents uses `descend([n, e])`.
     test_seed: u64,
     pub test_episodes: u32,
-    /// What each test episode is also played under.
+    /// What each test episode is also played under; absent from the key when there is none,
+    /// so scenarios without disturbances keep their cells.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub disturbances: Vec<Disturbance>,
     /// Root of the validation episodes' seeds (a learned policy `until: converged`): episode
     /// e uses `descend([N_train, e])`, a branch of the seed tree apart from the tests'.
-    validation_seed: Option<u64>,
-    /// The training run of a learned policy's cell; `None` exactly for a baseline's.
-    training: Option<TrainingConfig>,
-}
-
-/// A cell config as its key and its files write it: the fields alone, the training run
-/// resolved from them when read.
-#[derive(Clone, Serialize, Deserialize)]
-struct CellFields {
-    map: MapIdentity,
-    world: WorldConfig,
-    policy: ScenarioPolicy,
-    n_train: Option<u32>,
-    n_test: Vec<u32>,
-    repetition: u32,
-    training_seed: u64,
-    test_seed: u64,
-    test_episodes: u32,
-    /// Absent from the key when there is none, so scenarios without disturbances keep their
-    /// cells.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    disturbances: Vec<Disturbance>,
     /// Absent from the key for a run of fixed length.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     validation_seed: Option<u64>,
+}
+
+impl std::ops::Deref for CellConfig {
+    type Target = CellFields;
+
+    fn deref(&self) -> &CellFields {
+        &self.fields
+    }
 }
 
 /// What a cell plays: a baseline, or a learned policy with its N_train and training run.
@@ -106,19 +103,7 @@ impl TryFrom<CellFields> for CellConfig {
 
 impl From<CellConfig> for CellFields {
     fn from(config: CellConfig) -> Self {
-        CellFields {
-            map: config.map,
-            world: config.world,
-            policy: config.policy,
-            n_train: config.n_train,
-            n_test: config.n_test,
-            repetition: config.repetition,
-            training_seed: config.training_seed,
-            test_seed: config.test_seed,
-            test_episodes: config.test_episodes,
-            disturbances: config.disturbances,
-            validation_seed: config.validation_seed,
-        }
+        config.fields
     }
 }
 
@@ -256,20 +241,7 @@ impl CellConfig {
 
     /// A config from its fields and their training run, resolved by the caller from them.
     fn with_training(fields: CellFields, training: Option<TrainingConfig>) -> Self {
-        CellConfig {
-            map: fields.map,
-            world: fields.world,
-            policy: fields.policy,
-            n_train: fields.n_train,
-            n_test: fields.n_test,
-            repetition: fields.repetition,
-            training_seed: fields.training_seed,
-            test_seed: fields.test_seed,
-            test_episodes: fields.test_episodes,
-            disturbances: fields.disturbances,
-            validation_seed: fields.validation_seed,
-            training,
-        }
+        CellConfig { fields, training }
     }
 }
 

@@ -310,6 +310,12 @@ pub struct TrainingParams {
     /// left out of the file): one clip over both together.
     #[serde(default, skip_serializing_if = "is_false")]
     pub grad_clip_per_network: bool,
+    /// Halve the learning rate every this many training episodes (`learning_rate` x
+    /// 0.5^(episode / half-life)): a decay that does not depend on `episodes`, so a run until
+    /// converged may settle without its cap deciding where (`anneal_learning_rate` reaches 0
+    /// at the cap). `null` (the default, left out of the file): no decay.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learning_rate_half_life: Option<f64>,
 }
 
 // Defaults are left out of the JSON, so that a field added later keeps every cell's key.
@@ -418,6 +424,7 @@ impl TrainingParams {
             loss_probability: 0.0,
             value_normalisation: None,
             grad_clip_per_network: false,
+            learning_rate_half_life: None,
         }
     }
 
@@ -600,6 +607,16 @@ impl TrainingParams {
         if self.grad_clip_per_network && self.max_grad_norm.is_none() {
             let problem = "clips to max_grad_norm, which is null";
             return Err(invalid("grad_clip_per_network", problem));
+        }
+        if let Some(half_life) = self.learning_rate_half_life {
+            if !(half_life > 0.0 && half_life.is_finite()) {
+                let problem = format!("{half_life} episodes must be finite and > 0");
+                return Err(invalid("learning_rate_half_life", problem));
+            }
+            if self.anneal_learning_rate {
+                let problem = "two schedules at once; set anneal_learning_rate=false";
+                return Err(invalid("learning_rate_half_life", problem));
+            }
         }
         Ok(())
     }

@@ -227,6 +227,8 @@ fn learning_rate(config: &TrainingConfig, first: u64) -> f64 {
     if config.anneal_learning_rate {
         let left = 1.0 - first as f64 / config.episodes as f64;
         config.learning_rate * left.max(0.0)
+    } else if let Some(half_life) = config.learning_rate_half_life {
+        config.learning_rate * 0.5f64.powf(first as f64 / half_life)
     } else {
         config.learning_rate
     }
@@ -289,6 +291,38 @@ mod tests {
     }
 
     #[test]
+    fn the_half_life_halves_the_rate_whatever_the_cap() {
+        let at = |episodes: &str, first| {
+            let overrides = [
+                "learning_rate=0.001",
+                "anneal_learning_rate=false",
+                "learning_rate_half_life=100",
+                episodes,
+            ];
+            learning_rate(&tiny_config(&overrides), first)
+        };
+        assert_eq!(at("episodes=1000", 0), 0.001);
+        assert_eq!(at("episodes=1000", 100), 0.0005);
+        assert_eq!(at("episodes=1000", 300), 0.000125);
+        assert!((at("episodes=1000", 50) - 0.001 / 2f64.sqrt()).abs() < 1e-15);
+        // The cap does not enter: a longer run is the shorter one continued.
+        for first in [0, 37, 300, 999] {
+            assert_eq!(at("episodes=1000", first), at("episodes=4000", first));
+        }
+        let both = ["anneal_learning_rate=true", "learning_rate_half_life=100"];
+        let error = TrainingConfig::profile(crate::ppo::Profile::FastV2).with_overrides(&both);
+        assert!(
+            error
+                .unwrap_err()
+                .to_string()
+                .contains("learning_rate_half_life")
+        );
+        let zero = ["anneal_learning_rate=false", "learning_rate_half_life=0"];
+        let error = TrainingConfig::profile(crate::ppo::Profile::FastV2).with_overrides(&zero);
+        assert!(error.unwrap_err().to_string().contains("> 0"));
+    }
+
+    #[test]
     fn a_run_whose_weights_stop_being_finite_stops_with_an_error() {
         let config = tiny_config(&["learning_rate=1e38", "anneal_learning_rate=false"]);
         let mut trainer = Trainer::new(tiny_world(), config, 3).unwrap();
@@ -312,6 +346,7 @@ mod tests {
                 "normalise_returns=true",
             ][..],
             &[VALUE_NORMALISATION, "grad_clip_per_network=true"][..],
+            &["anneal_learning_rate=false", "learning_rate_half_life=3"][..],
         ] {
             let config = tiny_config(profile);
             let mut straight = Trainer::new(tiny_world(), config.clone(), 9).unwrap();

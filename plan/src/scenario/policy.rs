@@ -146,7 +146,7 @@ impl Learned {
             ),
         ]
         .map(|(field, value)| (field.to_owned(), value.expect("plain values serialise")));
-        // Under the stopping rule the learning rate is constant (`scenario::stopping`).
+        // Under the stopping rule the learning rate does not anneal (`scenario::stopping`).
         let constant = self
             .stopping
             .map(|_| (ANNEAL.to_owned(), serde_json::Value::Bool(false)));

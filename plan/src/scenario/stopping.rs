@@ -8,10 +8,11 @@
 //! policy's `episodes`). The stop depends on validation penalties alone, never on time, so a
 //! run stops at the same episode with the same bits on every machine.
 //!
-//! The learning rate is constant under this rule: a schedule over the cap (fast profiles
+//! The learning rate does not anneal under this rule: a schedule over the cap (fast profiles
 //! anneal linearly to 0 at `episodes`) would make every update depend on the cap, so a run
 //! capped at 2,000 episodes would not be the first 2,000 episodes of one capped at 4,000,
-//! and the cap would decide where the run converges.
+//! and the cap would decide where the run converges. It is constant, or halves every
+//! `learning_rate_half_life` episodes, a decay that does not know the cap.
 
 use serde::{Deserialize, Serialize};
 

@@ -13,7 +13,7 @@ use super::comparison::samples;
 use super::verdicts::ClaimResult;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use plan::scenario::claims::{Claim, ClaimTest};
-use stats::{mean, median};
+use stats::{mean, median, standard_deviation};
 
 /// The section, with the best-against-final table when the store has both policies' tests.
 /// `tests` is the episodes table: the tested policy's test episodes.
@@ -33,7 +33,8 @@ pub(crate) fn section(
          (validations not counted; their median beside them), the episode of its best \
          validation, which policy the test episodes and claims use, and that policy's mean \
          test penalty (10^6) at N_test = N_train, run by run and the median: what the runs \
-         cost and what they reached. Validation episodes have their own seeds, never a test \
+         cost and what they reached, with the runs' standard deviation (the spread that sets \
+         how many runs a claim needs). Validation episodes have their own seeds, never a test \
          episode's. The claims are judged on the tested policy; where judging them on the \
          runs' other policy gives another verdict, the claim's text adds that verdict and its \
          numbers.",
@@ -213,6 +214,9 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
             median_test_penalty: (!penalties.is_empty())
                 .then(|| median(&penalties))
                 .transpose()?,
+            sd_test_penalty: (penalties.len() > 1)
+                .then(|| standard_deviation(&penalties))
+                .transpose()?,
         });
     }
     Ok(df!(
@@ -230,6 +234,7 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
         "tested" => rows.iter().map(|r| r.tested.as_str()).collect::<Vec<_>>(),
         "test_penalties" => rows.iter().map(|r| r.test_penalties.as_str()).collect::<Vec<_>>(),
         "median_test_penalty" => rows.iter().map(|r| r.median_test_penalty).collect::<Vec<_>>(),
+        "sd_test_penalty" => rows.iter().map(|r| r.sd_test_penalty).collect::<Vec<_>>(),
     )?)
 }
 
@@ -255,6 +260,9 @@ struct SettingRow {
     /// without such test episodes), and their median.
     test_penalties: String,
     median_test_penalty: Option<f64>,
+    /// Their sample standard deviation (two runs or more): the spread that sets how many
+    /// runs a claim on them needs.
+    sd_test_penalty: Option<f64>,
 }
 
 /// Per (map, policy, N_train, N_test): the mean over runs of each policy's run mean.
@@ -370,6 +378,9 @@ mod tests {
         // the median.
         assert_eq!(text("test_penalties"), "25.0, 40.0, -");
         assert_eq!(float("median_test_penalty"), Some(32.5));
+        // Sample SD of 25 and 40: 15 / sqrt(2).
+        let sd = float("sd_test_penalty").unwrap();
+        assert!((sd - 15.0 / 2f64.sqrt()).abs() < 1e-12, "{sd}");
     }
 
     /// Episodes of run `a` (until converged, its best tested) and of baseline cell `g`; `a`'s

@@ -56,6 +56,14 @@ impl Sample {
     pub(crate) fn runs(&self) -> usize {
         self.strata.len()
     }
+
+    /// Its spread split into its test episodes' part and the rest (`stats::power`).
+    pub(crate) fn episode_noise(&self) -> Option<stats::power::EpisodeNoise> {
+        match self.unit() {
+            Unit::Run => stats::power::EpisodeNoise::of_runs(&self.strata),
+            Unit::Episode => stats::power::EpisodeNoise::of_episodes(&self.strata),
+        }
+    }
 }
 
 /// How `samples` are drawn together: samples holding the same cells (one policy's runs under

@@ -23,7 +23,7 @@ use super::time_to_quality;
 use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use plan::scenario::claims::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
-use stats::power::runs_to_decide;
+use stats::power::{EpisodeNoise, runs_to_decide, runs_with_episodes};
 use stats::{Bootstrap, StatsError, least_squares_slope, mean, mean_difference};
 
 /// One claim's verdict and the numbers behind it.
@@ -56,6 +56,9 @@ pub struct PointPower {
     /// The runs per side the interval rests on: the harmonic mean where the sides differ.
     pub runs: f64,
     pub decision: Decision,
+    /// Each side's spread split into its test episodes' part and the rest, for independent
+    /// sides of two runs or more (empty otherwise): what more test episodes would save.
+    noise: Vec<EpisodeNoise>,
 }
 
 /// One learned side of a comparison: its setting, where more runs would be trained, and its
@@ -134,6 +137,10 @@ impl PointPower {
             (true, Some(runs)) => Decision::Runs(runs),
             (true, None) => Decision::Never,
         };
+        let noise: Option<Vec<EpisodeNoise>> = match a.cells == b.cells {
+            true => None,
+            false => [a, b].iter().map(|side| side.episode_noise()).collect(),
+        };
         Some(Self {
             point: String::new(),
             estimate,
@@ -142,7 +149,31 @@ impl PointPower {
             sides,
             runs,
             decision,
+            noise: noise.unwrap_or_default(),
         })
+    }
+
+    /// The test episodes a cell played (the first side's) and the share of the difference's
+    /// variance that they make; `None` where the sides' spread cannot be split.
+    pub fn episode_noise(&self) -> Option<(f64, f64)> {
+        let first = self.noise.first()?;
+        let total: f64 = self.noise.iter().map(|side| side.variance).sum();
+        let episodes: f64 = (self.noise.iter())
+            .map(|side| side.variance * side.episode_share)
+            .sum();
+        (total > 0.0).then(|| (first.episodes, episodes / total))
+    }
+
+    /// The runs a side that would decide the point were every cell to play `episodes` test
+    /// episodes (`stats::power::runs_with_episodes`); `None` for a decided point, or where
+    /// the sides' spread cannot be split (paired runs, a side of one run).
+    pub fn runs_with_episodes(&self, episodes: f64) -> Option<u64> {
+        let Decision::Runs(runs) = self.decision else {
+            return None;
+        };
+        (!self.noise.is_empty())
+            .then(|| runs_with_episodes(runs, &self.noise, episodes))
+            .flatten()
     }
 
     fn at(self, point: String) -> Self {

@@ -52,11 +52,137 @@ fn runs_for(variance: f64, delta: f64) -> Option<u64> {
     usable.then(|| (variance * ((Z_TWO_SIDED_95 + Z_POWER_80) / delta).powi(2)).ceil() as u64)
 }
 
+/// One side of a comparison, split by where its spread comes from: the variance of the side's
+/// mean, the share of it that its test episodes make (the rest is between training runs),
+/// and the test episodes a cell plays. More test episodes per cell shrink that share alone.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EpisodeNoise {
+    pub variance: f64,
+    pub episode_share: f64,
+    pub episodes: f64,
+}
+
+impl EpisodeNoise {
+    /// A learned side, its runs' test penalties by run (`runs`, each run's episodes): the
+    /// variance of a run's mean is a between-run part plus the episodes' variance over their
+    /// number, the last estimated by the mean within-run variance over the run's episodes
+    /// (one-way random effects). `None` without two runs of two episodes.
+    pub fn of_runs(runs: &[Vec<f64>]) -> Option<Self> {
+        if runs.len() < 2 || runs.iter().any(|run| run.len() < 2) {
+            return None;
+        }
+        let means: Vec<f64> = runs
+            .iter()
+            .filter_map(|run| crate::mean(run).ok())
+            .collect();
+        let of_means = crate::standard_deviation(&means).ok()?.powi(2);
+        let within: Vec<f64> = (runs.iter())
+            .filter_map(|run| Some(crate::standard_deviation(run).ok()?.powi(2) / run.len() as f64))
+            .collect();
+        let from_episodes = crate::mean(&within).ok()?;
+        let episodes = runs.iter().map(Vec::len).sum::<usize>() as f64 / runs.len() as f64;
+        Some(Self {
+            variance: of_means / runs.len() as f64,
+            episode_share: if of_means > 0.0 {
+                (from_episodes / of_means).min(1.0)
+            } else {
+                1.0
+            },
+            episodes,
+        })
+    }
+
+    /// A baseline's side, its test episodes by cell (`cells`): episodes are its units, so all
+    /// of its spread is theirs.
+    pub fn of_episodes(cells: &[Vec<f64>]) -> Option<Self> {
+        let values = cells.concat();
+        let variance = crate::standard_deviation(&values).ok()?.powi(2) / values.len() as f64;
+        let episodes = values.len() as f64 / cells.len().max(1) as f64;
+        Some(Self {
+            variance,
+            episode_share: 1.0,
+            episodes,
+        })
+    }
+
+    /// Its variance were every cell to play `episodes` test episodes.
+    fn variance_with(&self, episodes: f64) -> f64 {
+        let share = self.episode_share;
+        self.variance * (1.0 - share + share * self.episodes / episodes)
+    }
+}
+
+/// The runs a side that decide a comparison of independent sides (`sides`) with `episodes`
+/// test episodes a cell, from the `runs` they need as they are: the runs needed grow with the
+/// variance of the difference, and more episodes shrink only its episodes' part. `None`
+/// where the sides have no spread or the new variance is not finite.
+pub fn runs_with_episodes(runs: u64, sides: &[EpisodeNoise], episodes: f64) -> Option<u64> {
+    let now: f64 = sides.iter().map(|side| side.variance).sum();
+    let then: f64 = sides.iter().map(|side| side.variance_with(episodes)).sum();
+    let usable = now > 0.0 && then.is_finite() && episodes > 0.0;
+    usable.then(|| (runs as f64 * then / now).ceil() as u64)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::distributions::normal_quantile;
     use rand::RngExt;
+
+    #[test]
+    fn more_test_episodes_shrink_only_the_episodes_part_of_the_runs_needed() {
+        // Runs with the same level whose means differ by their episodes' draw alone: all of
+        // their spread is the episodes'.
+        let same = vec![vec![1.0, 3.0], vec![1.0, 5.0], vec![3.0, 1.0]];
+        let noise = EpisodeNoise::of_runs(&same).unwrap();
+        assert_eq!(noise.episode_share, 1.0);
+        // Runs that differ by their level alone (no spread within a run): none of it is.
+        let levels = vec![vec![1.0, 1.0], vec![5.0, 5.0], vec![9.0, 9.0]];
+        let noise = EpisodeNoise::of_runs(&levels).unwrap();
+        assert_eq!(noise.episode_share, 0.0);
+        assert_eq!(noise.variance, 16.0 / 3.0);
+        assert_eq!(runs_with_episodes(100, &[noise], 40.0), Some(100));
+        // All of it the episodes': four times the episodes, a quarter of the runs.
+        let all = EpisodeNoise {
+            variance: 2.0,
+            episode_share: 1.0,
+            episodes: 10.0,
+        };
+        assert_eq!(runs_with_episodes(100, &[all], 40.0), Some(25));
+        // Two sides of equal variance, half of one side's the episodes', none of the other's:
+        let half = EpisodeNoise {
+            variance: 2.0,
+            episode_share: 0.5,
+            episodes: 10.0,
+        };
+        let none = EpisodeNoise {
+            episode_share: 0.0,
+            ..half
+        };
+        // (2 (0.5 + 0.125) + 2) / 4 = 0.8125 of the runs.
+        assert_eq!(runs_with_episodes(80, &[half, none], 40.0), Some(65));
+        assert_eq!(EpisodeNoise::of_runs(&[vec![1.0, 2.0]]), None);
+    }
+
+    /// The split on simulated runs: a between-run spread of 2 and an episode spread of 6
+    /// over 9 episodes give run means of variance 4 + 36 / 9 = 8, half of it the episodes'.
+    #[test]
+    fn the_split_finds_the_episodes_share_of_simulated_runs() {
+        let mut rng = world::Seed::new(7).rng();
+        let mut normal = || {
+            let (u, v): (f64, f64) = (rng.random(), rng.random());
+            (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        };
+        let runs: Vec<Vec<f64>> = (0..4000)
+            .map(|_| {
+                let level = 2.0 * normal();
+                (0..9).map(|_| level + 6.0 * normal()).collect()
+            })
+            .collect();
+        let noise = EpisodeNoise::of_runs(&runs).unwrap();
+        assert!((noise.episode_share - 0.5).abs() < 0.05, "{noise:?}");
+        assert_eq!(noise.episodes, 9.0);
+    }
 
     #[test]
     fn the_critical_values_are_the_normal_quantiles() {

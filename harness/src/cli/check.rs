@@ -30,6 +30,11 @@ pub(crate) struct CheckArgs {
     /// pilot's runs, and their CPU time by the pilot's training logs.
     #[arg(long)]
     pilot: Option<PathBuf>,
+    /// With --pilot: also the runs each undecided point would need were every cell to play
+    /// this many test episodes (more episodes shrink the part of the runs' spread that comes
+    /// from their test episodes, not the part between runs). Default: four times the pilot's.
+    #[arg(long, requires = "pilot", value_parser = clap::value_parser!(u32).range(1..))]
+    test_episodes: Option<u32>,
 }
 
 /// The most cells `check` lists one by one. A scenario past the limits (`--no-limits`) may
@@ -57,7 +62,7 @@ pub(crate) fn run(args: CheckArgs) -> anyhow::Result<()> {
     };
     print_totals(&scenario, &totals, args.jobs);
     match &args.pilot {
-        Some(store) => pilot::print(scenario.claims(), store),
+        Some(store) => pilot::print(scenario.claims(), store, args.test_episodes),
         None => Ok(()),
     }
 }

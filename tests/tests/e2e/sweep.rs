@@ -673,6 +673,28 @@ fn check_with_a_pilot_gives_the_seeds_each_undecided_point_needs() {
     }
     assert!(undecided > 0, "rq4 is inconclusive at every N: {printed}");
     assert!(printed.contains("all claims: "), "{printed}");
+    // Each undecided point also says what four times the test episodes would save: never
+    // more runs than it needs with the pilot's own.
+    let more: Vec<&str> = (printed.lines())
+        .filter(|l| l.starts_with("    with 40 test episodes a cell (the pilot's 10): about "))
+        .collect();
+    assert_eq!(more.len(), undecided, "{printed}");
+    for (line, point) in more
+        .iter()
+        .zip(points.iter().filter(|l| !l.ends_with(": decided")))
+    {
+        let runs = |text: &str| -> u64 {
+            let after = text.split(": about ").nth(1).unwrap();
+            after.split(' ').next().unwrap().parse().unwrap()
+        };
+        assert!(runs(line) <= runs(point), "{line} against {point}");
+    }
+    let asked = ["--pilot", &pilot, "--test-episodes", "100"];
+    let printed = succeed(harness(&[&["check", &scenario][..], &asked[..]].concat()));
+    assert!(
+        printed.contains("with 100 test episodes a cell"),
+        "{printed}"
+    );
 }
 
 /// `harness check --pilot` on a folder that holds no sweep fails naming it, without a panic.

@@ -31,15 +31,23 @@ converged by its training thread's clock, another by its log's wall time). The s
 runs is itself uncertain: each figure is a rough guide, off by a factor of about two either
 way.";
 
-/// Prints, per claim and point, what deciding it would take; errors name the pilot's folder.
-pub(crate) fn print(claims: &[Claim], pilot: &Path) -> anyhow::Result<()> {
+/// Prints, per claim and point, what deciding it would take (also with `test_episodes` test
+/// episodes a cell, by default four times the pilot's); errors name the pilot's folder.
+pub(crate) fn print(
+    claims: &[Claim],
+    pilot: &Path,
+    test_episodes: Option<u32>,
+) -> anyhow::Result<()> {
     let (results, seconds) =
         judge(claims, pilot).with_context(|| format!("pilot {}", pilot.display()))?;
     println!("pilot {}: {HOW}", pilot.display());
     let mut everything = Extra::new();
     for claim in claims {
         match results.iter().find(|r| r.id == claim.id) {
-            Some(result) => everything = merge(everything, print_claim(result, &seconds)),
+            Some(result) => {
+                let extra = print_claim(result, &seconds, test_episodes);
+                everything = merge(everything, extra);
+            }
             None => println!(
                 "claim {} (behaviour): measured episodes, not an interval: no seeds figure",
                 claim.id
@@ -72,7 +80,7 @@ fn judge(claims: &[Claim], pilot: &Path) -> anyhow::Result<(Vec<ClaimResult>, Ru
 }
 
 /// One claim's lines; returns the further runs its undecided points ask for.
-fn print_claim(result: &ClaimResult, seconds: &RunSeconds) -> Extra {
+fn print_claim(result: &ClaimResult, seconds: &RunSeconds, test_episodes: Option<u32>) -> Extra {
     println!(
         "claim {} ({}): {} in the pilot",
         result.id,
@@ -98,6 +106,9 @@ fn print_claim(result: &ClaimResult, seconds: &RunSeconds) -> Extra {
     for point in &result.power {
         let extra = extra_runs(point);
         println!("  {}: {}", point.point, point_line(point, &extra, seconds));
+        if let Some(line) = more_episodes_line(point, test_episodes) {
+            println!("    {line}");
+        }
         claim = merge(claim, extra);
     }
     if !claim.is_empty() {
@@ -126,6 +137,20 @@ fn point_line(point: &PointPower, extra: &Extra, seconds: &RunSeconds) -> String
             priced(extra, seconds)
         ),
     }
+}
+
+/// "with 40 test episodes a cell (the pilot's 10): about 220 runs a side; 54 % of the runs'
+/// spread is their test episodes'", for an undecided point whose sides' spread splits.
+fn more_episodes_line(point: &PointPower, test_episodes: Option<u32>) -> Option<String> {
+    let (pilot, share) = point.episode_noise()?;
+    let episodes = test_episodes.map_or(4.0 * pilot, f64::from);
+    let runs = point.runs_with_episodes(episodes)?;
+    Some(format!(
+        "with {episodes} test episodes a cell (the pilot's {pilot}): about {runs} runs {}; \
+         {:.0} % of the variance of the difference is the test episodes'",
+        point.sides.per(),
+        100.0 * share
+    ))
 }
 
 /// The runs each learned side of an undecided point needs beyond those it has.

@@ -11,6 +11,7 @@
 mod distributions;
 mod error;
 pub mod grouping;
+mod moments;
 mod multiplicity;
 pub mod power;
 mod resampling;
@@ -19,6 +20,7 @@ use world::Seed;
 
 pub use error::StatsError;
 use error::check;
+pub use moments::{mean, standard_deviation};
 pub use multiplicity::holm;
 pub use resampling::{Block, Bootstrap, Pairing, Sample, Unit, UnitsStatistic, bootstrap};
 
@@ -32,21 +34,6 @@ pub struct Summary {
     pub mean: f64,
     pub low: f64,
     pub high: f64,
-}
-
-pub fn mean(values: &[f64]) -> Result<f64, StatsError> {
-    check(values)?;
-    Ok(values.iter().sum::<f64>() / values.len() as f64)
-}
-
-/// The sample standard deviation (divisor n - 1); 0 for a single value.
-pub fn standard_deviation(values: &[f64]) -> Result<f64, StatsError> {
-    let centre = mean(values)?;
-    if values.len() == 1 {
-        return Ok(0.0);
-    }
-    let squares: f64 = values.iter().map(|v| (v - centre).powi(2)).sum();
-    Ok((squares / (values.len() - 1) as f64).sqrt())
 }
 
 /// A seed named by text, so a statistic's resampling does not depend on row order.

@@ -8,6 +8,8 @@
 //! errors from 0. An observed interval gives the standard error as its half-width over
 //! z(0.975), so the runs that would shrink it enough follow from the runs it rests on.
 
+use crate::moments::{mean, standard_deviation};
+
 /// z(0.975): the two-sided 5 % critical value of the standard normal.
 const Z_TWO_SIDED_95: f64 = 1.959_963_984_540_054;
 
@@ -71,15 +73,12 @@ impl EpisodeNoise {
         if runs.len() < 2 || runs.iter().any(|run| run.len() < 2) {
             return None;
         }
-        let means: Vec<f64> = runs
-            .iter()
-            .filter_map(|run| crate::mean(run).ok())
-            .collect();
-        let of_means = crate::standard_deviation(&means).ok()?.powi(2);
+        let means: Vec<f64> = runs.iter().filter_map(|run| mean(run).ok()).collect();
+        let of_means = standard_deviation(&means).ok()?.powi(2);
         let within: Vec<f64> = (runs.iter())
-            .filter_map(|run| Some(crate::standard_deviation(run).ok()?.powi(2) / run.len() as f64))
+            .filter_map(|run| Some(standard_deviation(run).ok()?.powi(2) / run.len() as f64))
             .collect();
-        let from_episodes = crate::mean(&within).ok()?;
+        let from_episodes = mean(&within).ok()?;
         let episodes = runs.iter().map(Vec::len).sum::<usize>() as f64 / runs.len() as f64;
         Some(Self {
             variance: of_means / runs.len() as f64,
@@ -96,7 +95,7 @@ impl EpisodeNoise {
     /// of its spread is theirs.
     pub fn of_episodes(cells: &[Vec<f64>]) -> Option<Self> {
         let values = cells.concat();
-        let variance = crate::standard_deviation(&values).ok()?.powi(2) / values.len() as f64;
+        let variance = standard_deviation(&values).ok()?.powi(2) / values.len() as f64;
         let episodes = values.len() as f64 / cells.len().max(1) as f64;
         Some(Self {
             variance,

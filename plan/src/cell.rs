@@ -97,7 +97,7 @@ impl TryFrom<CellFields> for CellConfig {
                 });
             }
         };
-        Ok(CellConfig::with_training(fields, training))
+        Ok(CellConfig { fields, training })
     }
 }
 
@@ -238,11 +238,6 @@ impl CellConfig {
             CellPolicy::Learned(learned) => Some(learned),
         }
     }
-
-    /// A config from its fields and their training run, resolved by the caller from them.
-    fn with_training(fields: CellFields, training: Option<TrainingConfig>) -> Self {
-        CellConfig { fields, training }
-    }
 }
 
 impl Scenario {
@@ -276,7 +271,8 @@ impl Scenario {
                             .value()
                     }),
                 };
-                let config = CellConfig::with_training(fields, training.cloned());
+                let training = training.cloned();
+                let config = CellConfig { fields, training };
                 cells.push(SweepCell {
                     index: cells.len(),
                     map_index,

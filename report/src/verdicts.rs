@@ -171,9 +171,7 @@ impl PointPower {
         let Decision::Runs(runs) = self.decision else {
             return None;
         };
-        (!self.noise.is_empty())
-            .then(|| runs_with_episodes(runs, &self.noise, episodes))
-            .flatten()
+        runs_with_episodes(runs, &self.noise, episodes)
     }
 
     fn at(self, point: String) -> Self {

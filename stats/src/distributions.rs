@@ -90,6 +90,14 @@ fn beta_fraction(a: f64, b: f64, x: f64) -> f64 {
     fraction
 }
 
+/// A standard normal draw by Box-Muller from two uniforms, for the tests that simulate
+/// experiments.
+#[cfg(test)]
+pub(crate) fn standard_normal(rng: &mut impl rand::RngExt) -> f64 {
+    let (u, v): (f64, f64) = (rng.random(), rng.random());
+    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -125,8 +125,7 @@ pub fn runs_with_episodes(runs: u64, sides: &[EpisodeNoise], episodes: f64) -> O
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::distributions::normal_quantile;
-    use rand::RngExt;
+    use crate::distributions::{normal_quantile, standard_normal};
 
     #[test]
     fn more_test_episodes_shrink_only_the_episodes_part_of_the_runs_needed() {
@@ -168,10 +167,7 @@ mod tests {
     #[test]
     fn the_split_finds_the_episodes_share_of_simulated_runs() {
         let mut rng = world::Seed::new(7).rng();
-        let mut normal = || {
-            let (u, v): (f64, f64) = (rng.random(), rng.random());
-            (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-        };
+        let mut normal = || standard_normal(&mut rng);
         let runs: Vec<Vec<f64>> = (0..4000)
             .map(|_| {
                 let level = 2.0 * normal();
@@ -233,11 +229,7 @@ mod tests {
         let mut rng = world::Seed::new(53).rng();
         let experiments = 20_000;
         let found = (0..experiments)
-            .filter(|_| {
-                let (u, v): (f64, f64) = (rng.random(), rng.random());
-                let normal = (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos();
-                delta + normal * error > Z_TWO_SIDED_95 * error
-            })
+            .filter(|_| delta + standard_normal(&mut rng) * error > Z_TWO_SIDED_95 * error)
             .count();
         let power = found as f64 / experiments as f64;
         // 63 runs, not 62.8: a shade above 80 %.

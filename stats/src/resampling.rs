@@ -381,11 +381,7 @@ mod tests {
     /// 95 % interval of the mean holds 0.
     fn coverage(runs: usize, episodes: usize, s_run: f64, s_ep: f64, experiments: u64) -> f64 {
         let mut rng = Seed::new(7).rng();
-        // Box-Muller: two uniforms to a standard normal.
-        let mut normal = move || {
-            let (u, v): (f64, f64) = (rng.random(), rng.random());
-            (-2.0 * (1.0 - u).ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
-        };
+        let mut normal = move || crate::distributions::standard_normal(&mut rng);
         let mut covered = 0;
         for experiment in 0..experiments {
             let data: Vec<Vec<f64>> = (0..runs)

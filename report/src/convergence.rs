@@ -12,7 +12,7 @@ use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_key
 use super::comparison::samples;
 use super::verdicts::ClaimResult;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use plan::scenario::claims::{Claim, ClaimTest};
+use plan::scenario::claims::{Claim, ClaimTest, RANDOM};
 use stats::{mean, median, standard_deviation};
 
 /// The section, with the best-against-final table when the store has both policies' tests.
@@ -34,10 +34,12 @@ pub(crate) fn section(
          validation, which policy the test episodes and claims use, and that policy's mean \
          test penalty (10^6) at N_test = N_train, run by run and the median: what the runs \
          cost and what they reached, with the runs' standard deviation (the spread that sets \
-         how many runs a claim needs). Validation episodes have their own seeds, never a test \
-         episode's. The claims are judged on the tested policy; where judging them on the \
-         runs' other policy gives another verdict, the claim's text adds that verdict and its \
-         numbers.",
+         how many runs a claim needs) and, run by run, how many of those test episodes left \
+         more than Random's mean at that map and N (`-` where the sweep has no Random): \
+         failed episodes, each of which moves its run's mean far. Validation episodes have \
+         their own seeds, never a test episode's. The claims are judged on the tested \
+         policy; where judging them on the runs' other policy gives another verdict, the \
+         claim's text adds that verdict and its numbers.",
     );
     report.table("convergence", &convergence_frame(convergence, tests)?)?;
     if let Some(both) = both {
@@ -164,24 +166,56 @@ fn listed<T: std::fmt::Display>(values: impl IntoIterator<Item = T>) -> String {
     texts.join(", ")
 }
 
-/// Each run's (cell key's) mean test penalty (10^6) at N_test = N_train, from the episodes
-/// table's samples; a run without test episodes at its own N has none.
-fn own_n_test_means(table: &DataFrame, tests: &DataFrame) -> Result<Vec<Option<f64>>, ReportError> {
-    let mut by_run: HashMap<String, f64> = HashMap::new();
-    for sample in samples(tests)? {
+/// What a run's tested policy left at N_test = N_train.
+#[derive(Clone, Copy)]
+struct OwnTests {
+    /// Its mean test penalty (10^6).
+    mean: f64,
+    /// How many of its test episodes left more than Random's mean there, when the store
+    /// has Random at that map and N_test.
+    worse_than_random: Option<usize>,
+}
+
+/// Each run's (cell key's) [`OwnTests`], from the episodes table's samples; a run without
+/// test episodes at its own N has none.
+fn own_n_test_results(
+    table: &DataFrame,
+    tests: &DataFrame,
+) -> Result<Vec<Option<OwnTests>>, ReportError> {
+    let samples = samples(tests)?;
+    let mut random: HashMap<(&str, u32), f64> = HashMap::new();
+    for sample in &samples {
+        if sample.group.policy.policy == RANDOM && sample.group.policy.n_train.is_none() {
+            random.insert(
+                (&sample.group.map, sample.group.n_test),
+                mean(&sample.values())?,
+            );
+        }
+    }
+    let mut by_run: HashMap<&str, OwnTests> = HashMap::new();
+    for sample in &samples {
         if sample.group.policy.n_train == Some(sample.group.n_test) {
+            let random = random.get(&(sample.group.map.as_str(), sample.group.n_test));
             for (cell, stratum) in sample.cells.iter().zip(&sample.strata) {
-                by_run.insert(cell.clone(), mean(stratum)?);
+                let worse = |random: &f64| stratum.iter().filter(|&v| v > random).count();
+                let own = OwnTests {
+                    mean: mean(stratum)?,
+                    worse_than_random: random.map(worse),
+                };
+                by_run.insert(cell, own);
             }
         }
     }
     let runs = strings(table, cell::KEY)?;
-    Ok(runs.iter().map(|key| by_run.get(key).copied()).collect())
+    Ok(runs
+        .iter()
+        .map(|key| by_run.get(key.as_str()).copied())
+        .collect())
 }
 
 fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, ReportError> {
     let settings = trained_keys(table)?;
-    let tested_means = own_n_test_means(table, tests)?;
+    let own_tests = own_n_test_results(table, tests)?;
     let stops = f64s(table, run::STOP_EPISODE)?;
     let best = f64s(table, run::BEST_EPISODE)?;
     let reasons = strings(table, run::STOP)?;
@@ -193,8 +227,8 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
         let of = |values: &[f64]| within.iter().map(|&r| values[r]).collect::<Vec<f64>>();
         let count = |reason: &str| within.iter().filter(|&&r| reasons[r] == reason).count();
         let minutes: Vec<f64> = of(&cpu).iter().map(|s| s / 60.0).collect();
-        let of_runs: Vec<Option<f64>> = within.iter().map(|&r| tested_means[r]).collect();
-        let penalties: Vec<f64> = of_runs.iter().flatten().copied().collect();
+        let of_runs: Vec<Option<OwnTests>> = within.iter().map(|&r| own_tests[r]).collect();
+        let penalties: Vec<f64> = of_runs.iter().flatten().map(|own| own.mean).collect();
         rows.push(SettingRow {
             map: map.clone(),
             policy: policy.clone(),
@@ -207,9 +241,15 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
             median_cpu_minutes: median(&minutes)?,
             best: listed(of(&best)),
             tested: distinct(within.iter().map(|&r| tested[r].as_str())).join(", "),
-            test_penalties: listed(of_runs.iter().map(|mean| match mean {
-                Some(mean) => format!("{mean:.1}"),
+            test_penalties: listed(of_runs.iter().map(|own| match own {
+                Some(own) => format!("{:.1}", own.mean),
                 None => "-".to_owned(),
+            })),
+            worse_than_random: listed(of_runs.iter().map(|own| {
+                match own.and_then(|own| own.worse_than_random) {
+                    Some(count) => count.to_string(),
+                    None => "-".to_owned(),
+                }
             })),
             median_test_penalty: (!penalties.is_empty())
                 .then(|| median(&penalties))
@@ -235,6 +275,7 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
         "test_penalties" => rows.iter().map(|r| r.test_penalties.as_str()).collect::<Vec<_>>(),
         "median_test_penalty" => rows.iter().map(|r| r.median_test_penalty).collect::<Vec<_>>(),
         "sd_test_penalty" => rows.iter().map(|r| r.sd_test_penalty).collect::<Vec<_>>(),
+        "worse_than_random" => rows.iter().map(|r| r.worse_than_random.as_str()).collect::<Vec<_>>(),
     )?)
 }
 
@@ -263,6 +304,9 @@ struct SettingRow {
     /// Their sample standard deviation (two runs or more): the spread that sets how many
     /// runs a claim on them needs.
     sd_test_penalty: Option<f64>,
+    /// Per run, how many of those test episodes left more than Random's mean ("-" where the
+    /// store has no Random there): the failed episodes that widen a run's mean.
+    worse_than_random: String,
 }
 
 /// Per (map, policy, N_train, N_test): the mean over runs of each policy's run mean.
@@ -332,17 +376,18 @@ mod tests {
         .unwrap()
     }
 
-    /// Test episodes of runs `a` (two at N_test = 4, one at 2) and `b` (one at 4); `c` has none.
+    /// Test episodes of runs `a` (two at N_test = 4, one at 2) and `b` (one at 4); `c` has none;
+    /// Random's two at N_test = 4 (mean 35).
     fn test_episodes() -> DataFrame {
         let unit = PENALTY_UNIT;
         df!(
-            cell::KEY => ["a", "a", "a", "b"],
-            cell::MAP => ["open"; 4],
-            cell::POLICY => ["ma-g-ppo"; 4],
-            cell::N_TRAIN => [Some(4u32); 4],
-            episodes::N_TEST => [4u32, 4, 2, 4],
-            episodes::EPISODE => [0u32, 1, 0, 0],
-            episodes::CUMULATIVE_PENALTY => [20.0 * unit, 30.0 * unit, 900.0 * unit, 40.0 * unit],
+            cell::KEY => ["a", "a", "a", "b", "r", "r"],
+            cell::MAP => ["open"; 6],
+            cell::POLICY => ["ma-g-ppo", "ma-g-ppo", "ma-g-ppo", "ma-g-ppo", RANDOM, RANDOM],
+            cell::N_TRAIN => [Some(4u32), Some(4), Some(4), Some(4), None, None],
+            episodes::N_TEST => [4u32, 4, 2, 4, 4, 4],
+            episodes::EPISODE => [0u32, 1, 0, 0, 0, 1],
+            episodes::CUMULATIVE_PENALTY => [20.0, 30.0, 900.0, 40.0, 30.0, 40.0].map(|v| v * unit),
         )
         .unwrap()
     }
@@ -381,6 +426,8 @@ mod tests {
         // Sample SD of 25 and 40: 15 / sqrt(2).
         let sd = float("sd_test_penalty").unwrap();
         assert!((sd - 15.0 / 2f64.sqrt()).abs() < 1e-12, "{sd}");
+        // Above Random's mean of 35 at N = 4: none of a's (20, 30), b's 40.
+        assert_eq!(text("worse_than_random"), "0, 1, -");
     }
 
     /// Episodes of run `a` (until converged, its best tested) and of baseline cell `g`; `a`'s

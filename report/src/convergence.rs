@@ -34,9 +34,11 @@ pub(crate) fn section(
          validation, which policy the test episodes and claims use, and that policy's mean \
          test penalty (10^6) at N_test = N_train, run by run and the median: what the runs \
          cost and what they reached, with the runs' standard deviation (the spread that sets \
-         how many runs a claim needs) and, run by run, how many of those test episodes left \
-         more than Random's mean at that map and N (`-` where the sweep has no Random): \
-         failed episodes, each of which moves its run's mean far. Validation episodes have \
+         how many runs a claim needs) and the share of its square that their test episodes \
+         make (a one-way split: more test episodes a cell shrink that part alone), and, run \
+         by run, how many of those test episodes left more than Random's mean at that map \
+         and N (`-` where the sweep has no Random): failed episodes, each of which moves its \
+         run's mean far. Validation episodes have \
          their own seeds, never a test episode's. The claims are judged on the tested \
          policy; where judging them on the runs' other policy gives another verdict, the \
          claim's text adds that verdict and its numbers.",
@@ -213,9 +215,24 @@ fn own_n_test_results(
         .collect())
 }
 
+/// Each learned (map, policy) setting's share of its runs' variance at N_test = N_train that
+/// their test episodes make (`stats::power::EpisodeNoise`): the part more test episodes a
+/// cell would shrink, the rest lying between the runs themselves.
+fn episode_shares(tests: &DataFrame) -> Result<HashMap<(String, PolicyKey), f64>, ReportError> {
+    Ok(samples(tests)?
+        .into_iter()
+        .filter(|sample| sample.group.policy.n_train == Some(sample.group.n_test))
+        .filter_map(|sample| {
+            let share = sample.episode_noise()?.episode_share;
+            Some(((sample.group.map, sample.group.policy), share))
+        })
+        .collect())
+}
+
 fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, ReportError> {
     let settings = trained_keys(table)?;
     let own_tests = own_n_test_results(table, tests)?;
+    let shares = episode_shares(tests)?;
     let stops = f64s(table, run::STOP_EPISODE)?;
     let best = f64s(table, run::BEST_EPISODE)?;
     let reasons = strings(table, run::STOP)?;
@@ -257,6 +274,7 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
             sd_test_penalty: (penalties.len() > 1)
                 .then(|| standard_deviation(&penalties))
                 .transpose()?,
+            episode_share: shares.get(&(map.clone(), policy.clone())).copied(),
         });
     }
     Ok(df!(
@@ -275,6 +293,7 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
         "test_penalties" => rows.iter().map(|r| r.test_penalties.as_str()).collect::<Vec<_>>(),
         "median_test_penalty" => rows.iter().map(|r| r.median_test_penalty).collect::<Vec<_>>(),
         "sd_test_penalty" => rows.iter().map(|r| r.sd_test_penalty).collect::<Vec<_>>(),
+        "episode_share" => rows.iter().map(|r| r.episode_share).collect::<Vec<_>>(),
         "worse_than_random" => rows.iter().map(|r| r.worse_than_random.as_str()).collect::<Vec<_>>(),
     )?)
 }
@@ -304,6 +323,8 @@ struct SettingRow {
     /// Their sample standard deviation (two runs or more): the spread that sets how many
     /// runs a claim on them needs.
     sd_test_penalty: Option<f64>,
+    /// The share of their variance that the runs' test episodes make ([`episode_shares`]).
+    episode_share: Option<f64>,
     /// Per run, how many of those test episodes left more than Random's mean ("-" where the
     /// store has no Random there): the failed episodes that widen a run's mean.
     worse_than_random: String,
@@ -376,18 +397,20 @@ mod tests {
         .unwrap()
     }
 
-    /// Test episodes of runs `a` (two at N_test = 4, one at 2) and `b` (one at 4); `c` has none;
-    /// Random's two at N_test = 4 (mean 35).
+    /// Test episodes of runs `a` (two at N_test = 4, one at 2) and `b` (two at 4); `c` has
+    /// none; Random's two at N_test = 4 (mean 35).
     fn test_episodes() -> DataFrame {
         let unit = PENALTY_UNIT;
+        let learned = "ma-g-ppo";
         df!(
-            cell::KEY => ["a", "a", "a", "b", "r", "r"],
-            cell::MAP => ["open"; 6],
-            cell::POLICY => ["ma-g-ppo", "ma-g-ppo", "ma-g-ppo", "ma-g-ppo", RANDOM, RANDOM],
-            cell::N_TRAIN => [Some(4u32), Some(4), Some(4), Some(4), None, None],
-            episodes::N_TEST => [4u32, 4, 2, 4, 4, 4],
-            episodes::EPISODE => [0u32, 1, 0, 0, 0, 1],
-            episodes::CUMULATIVE_PENALTY => [20.0, 30.0, 900.0, 40.0, 30.0, 40.0].map(|v| v * unit),
+            cell::KEY => ["a", "a", "a", "b", "b", "r", "r"],
+            cell::MAP => ["open"; 7],
+            cell::POLICY => [learned, learned, learned, learned, learned, RANDOM, RANDOM],
+            cell::N_TRAIN => [Some(4u32), Some(4), Some(4), Some(4), Some(4), None, None],
+            episodes::N_TEST => [4u32, 4, 2, 4, 4, 4, 4],
+            episodes::EPISODE => [0u32, 1, 0, 0, 1, 0, 1],
+            episodes::CUMULATIVE_PENALTY =>
+                [20.0, 30.0, 900.0, 40.0, 40.0, 30.0, 40.0].map(|v| v * unit),
         )
         .unwrap()
     }
@@ -426,8 +449,12 @@ mod tests {
         // Sample SD of 25 and 40: 15 / sqrt(2).
         let sd = float("sd_test_penalty").unwrap();
         assert!((sd - 15.0 / 2f64.sqrt()).abs() < 1e-12, "{sd}");
-        // Above Random's mean of 35 at N = 4: none of a's (20, 30), b's 40.
-        assert_eq!(text("worse_than_random"), "0, 1, -");
+        // Above Random's mean of 35 at N = 4: none of a's (20, 30), both of b's (40, 40).
+        assert_eq!(text("worse_than_random"), "0, 2, -");
+        // The run means 25 and 40 vary 112.5; the episodes' part is the mean of 50 / 2 and
+        // 0 / 2: a ninth of it.
+        let share = float("episode_share").unwrap();
+        assert!((share - 12.5 / 112.5).abs() < 1e-12, "{share}");
     }
 
     /// Episodes of run `a` (until converged, its best tested) and of baseline cell `g`; `a`'s

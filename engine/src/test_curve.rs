@@ -8,9 +8,10 @@
 //! **CPU.** A cell that runs on one thread (a sweep's cells do when it runs as many at once
 //! as there are cores) counts its thread's own CPU clock: other work on the machine (a build,
 //! another sweep) does not inflate it, where wall time would. A cell on several threads
-//! counts wall time times its threads, an upper bound. After a resume, the training between
-//! the last point and the checkpoint the run resumed from counts by its wall time (the run
-//! keeps that, not its CPU).
+//! counts its threads' clocks summed (a sweep gives each cell a pool of its own), not wall
+//! time times its threads, which counted whatever ran beside it. After a resume, the
+//! training between the last point and the checkpoint the run resumed from counts by its
+//! wall time (the run keeps that, not its CPU).
 //!
 //! Training stops only where a round of `environments` episodes ends, so a point lands on the
 //! first round's end at or after each multiple of K (choose K a multiple of `environments`
@@ -20,7 +21,7 @@
 //! with or without a curve.
 
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use polars::prelude::*;
 
@@ -189,29 +190,28 @@ pub(crate) fn cpu_at_resume(last: Option<(f64, f64)>, wall_seconds: f64) -> f64 
 }
 
 /// The CPU of the code that runs between [`CpuMeter::start`] and [`CpuMeter::seconds`] on
-/// the current rayon pool: its thread's clock on a pool of one thread, else wall time times
-/// the pool's threads.
+/// the current rayon pool: the summed clocks of the pool's threads, which a sweep gives each
+/// cell to itself. On a pool of one thread that is its own clock; on more, their own work,
+/// where wall time times the threads would also count whatever ran beside them.
 pub(crate) struct CpuMeter {
-    threads: usize,
-    thread: Duration,
-    wall: Instant,
+    start: Duration,
 }
 
 impl CpuMeter {
     pub(crate) fn start() -> Self {
         Self {
-            threads: rayon::current_num_threads(),
-            thread: thread_cpu_time(),
-            wall: Instant::now(),
+            start: pool_cpu_time(),
         }
     }
 
     pub(crate) fn seconds(&self) -> f64 {
-        match self.threads {
-            1 => (thread_cpu_time() - self.thread).as_secs_f64(),
-            threads => self.wall.elapsed().as_secs_f64() * threads as f64,
-        }
+        (pool_cpu_time() - self.start).as_secs_f64()
     }
+}
+
+/// The CPU time every thread of the current rayon pool has used so far, summed.
+fn pool_cpu_time() -> Duration {
+    rayon::broadcast(|_| thread_cpu_time()).into_iter().sum()
 }
 
 /// The points of a curve table as [`TestCurve::frame`] wrote them, in its order.
@@ -241,6 +241,36 @@ fn points(frame: &DataFrame) -> Result<Vec<CurvePoint>, StoreError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Spins the calling thread until its own clock has run `busy`.
+    fn spin(busy: Duration) {
+        let start = thread_cpu_time();
+        while thread_cpu_time() - start < busy {
+            std::hint::black_box(0u64);
+        }
+    }
+
+    /// On a pool of two threads the meter counts the work its threads did, not its wall time
+    /// twice: one busy thread beside an idle one is one thread's CPU, two busy ones two.
+    #[test]
+    fn a_meter_on_a_pool_counts_its_threads_work() {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let busy = Duration::from_millis(30);
+        let (one, both) = pool.install(|| {
+            let meter = CpuMeter::start();
+            spin(busy);
+            let one = meter.seconds();
+            let meter = CpuMeter::start();
+            rayon::broadcast(|_| spin(busy));
+            (one, meter.seconds())
+        });
+        let busy = busy.as_secs_f64();
+        assert!(one >= busy && one < 1.5 * busy, "{one}");
+        assert!(both >= 2.0 * busy && both < 3.0 * busy, "{both}");
+    }
 
     fn point(training_episode: u64) -> CurvePoint {
         let row = |episode| EpisodeRow {

@@ -9,7 +9,7 @@ use polars::prelude::*;
 use store::schema::{cell, checkpoints, convergence as run, episodes};
 
 use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
-use super::comparison::samples;
+use super::comparison::{Sample, samples};
 use super::verdicts::ClaimResult;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use plan::scenario::claims::{Claim, ClaimTest, RANDOM};
@@ -38,10 +38,9 @@ pub(crate) fn section(
          make (a one-way split: more test episodes a cell shrink that part alone), and, run \
          by run, how many of those test episodes left more than Random's mean at that map \
          and N (`-` where the sweep has no Random): failed episodes, each of which moves its \
-         run's mean far. Validation episodes have \
-         their own seeds, never a test episode's. The claims are judged on the tested \
-         policy; where judging them on the runs' other policy gives another verdict, the \
-         claim's text adds that verdict and its numbers.",
+         run's mean far. Validation episodes have their own seeds, never a test episode's. \
+         The claims are judged on the tested policy; where judging them on the runs' other \
+         policy gives another verdict, the claim's text adds that verdict and its numbers.",
     );
     report.table("convergence", &convergence_frame(convergence, tests)?)?;
     if let Some(both) = both {
@@ -182,11 +181,10 @@ struct OwnTests {
 /// test episodes at its own N has none.
 fn own_n_test_results(
     table: &DataFrame,
-    tests: &DataFrame,
+    samples: &[Sample],
 ) -> Result<Vec<Option<OwnTests>>, ReportError> {
-    let samples = samples(tests)?;
     let mut random: HashMap<(&str, u32), f64> = HashMap::new();
-    for sample in &samples {
+    for sample in samples {
         if sample.group.policy.policy == RANDOM && sample.group.policy.n_train.is_none() {
             random.insert(
                 (&sample.group.map, sample.group.n_test),
@@ -195,7 +193,7 @@ fn own_n_test_results(
         }
     }
     let mut by_run: HashMap<&str, OwnTests> = HashMap::new();
-    for sample in &samples {
+    for sample in samples {
         if sample.group.policy.n_train == Some(sample.group.n_test) {
             let random = random.get(&(sample.group.map.as_str(), sample.group.n_test));
             for (cell, stratum) in sample.cells.iter().zip(&sample.strata) {
@@ -218,21 +216,22 @@ fn own_n_test_results(
 /// Each learned (map, policy) setting's share of its runs' variance at N_test = N_train that
 /// their test episodes make (`stats::power::EpisodeNoise`): the part more test episodes a
 /// cell would shrink, the rest lying between the runs themselves.
-fn episode_shares(tests: &DataFrame) -> Result<HashMap<(String, PolicyKey), f64>, ReportError> {
-    Ok(samples(tests)?
-        .into_iter()
+fn episode_shares(samples: &[Sample]) -> HashMap<(&str, &PolicyKey), f64> {
+    samples
+        .iter()
         .filter(|sample| sample.group.policy.n_train == Some(sample.group.n_test))
         .filter_map(|sample| {
             let share = sample.episode_noise()?.episode_share;
-            Some(((sample.group.map, sample.group.policy), share))
+            Some(((sample.group.map.as_str(), &sample.group.policy), share))
         })
-        .collect())
+        .collect()
 }
 
 fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, ReportError> {
     let settings = trained_keys(table)?;
-    let own_tests = own_n_test_results(table, tests)?;
-    let shares = episode_shares(tests)?;
+    let samples = samples(tests)?;
+    let own_tests = own_n_test_results(table, &samples)?;
+    let shares = episode_shares(&samples);
     let stops = f64s(table, run::STOP_EPISODE)?;
     let best = f64s(table, run::BEST_EPISODE)?;
     let reasons = strings(table, run::STOP)?;
@@ -274,7 +273,7 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
             sd_test_penalty: (penalties.len() > 1)
                 .then(|| standard_deviation(&penalties))
                 .transpose()?,
-            episode_share: shares.get(&(map.clone(), policy.clone())).copied(),
+            episode_share: shares.get(&(map.as_str(), policy)).copied(),
         });
     }
     Ok(df!(

@@ -573,7 +573,7 @@ fn point_label(point: &Point) -> String {
 }
 
 /// A point's label, with N_train where it differs from N_test.
-fn point_label_trained(point: &Point) -> String {
+pub fn point_label_trained(point: &Point) -> String {
     if point.n_train == point.n_test {
         point_label(point)
     } else {

@@ -19,6 +19,7 @@ mod header;
 mod illustration;
 pub mod judgement;
 pub mod markdown;
+mod missing;
 mod motion;
 mod penalty;
 mod publish;
@@ -36,10 +37,9 @@ use std::path::Path;
 
 use polars::prelude::*;
 
+use store::Store;
 use store::provenance::BuiltFrom;
 use store::schema;
-use store::status::CellState;
-use store::{MissingCell, Store};
 use world::Map;
 
 pub use behaviour_replay::{Replay, ReplayError};
@@ -93,9 +93,9 @@ pub fn write_report(
         checkpoints: loaded.checkpoints.as_ref(),
     };
     header::section(&mut report, &header, &writer.git_commit)?;
-    let missing = missing_cells(store)?;
+    let missing = missing::cells(store)?;
     if !missing.is_empty() {
-        report.paragraph(&missing_paragraph(&missing, manifest.cells.len()));
+        report.paragraph(&missing::paragraph(&missing, manifest.cells.len()));
     }
     let claims = plan::scenario::claims::claims_of_text(&scenario, &scenario_path)?;
     let mut results = Vec::new();
@@ -149,53 +149,6 @@ pub fn write_report(
     }
     let store_bytes = store.write_table_store(&report.folder().join(STORE_FOLDER), &missing)?;
     report.finish(store_bytes)
-}
-
-/// The cells of the sweep that its tables lack, failed or not run, each with why: every
-/// figure and verdict rests on the others, and the reader must know which. A table store
-/// keeps the list its report printed: its cells are complete by construction.
-fn missing_cells(store: &Store) -> Result<Vec<MissingCell>, ReportError> {
-    if let Some(marker) = store.table_store()? {
-        return Ok(marker.missing);
-    }
-    let status = store::status::sweep_status(store.root())?;
-    Ok(status
-        .cells
-        .into_iter()
-        .filter_map(|cell| {
-            let why = match cell.state {
-                CellState::Done { .. } => return None,
-                CellState::Failed { failure, .. } => format!("failed: {}", failure.error),
-                CellState::Running { .. } => "still running".to_owned(),
-                CellState::Missing {
-                    saved_training: Some(_),
-                    ..
-                } => {
-                    "stopped while training, its run saved: the next sweep continues it".to_owned()
-                }
-                CellState::Missing { .. } => "not run".to_owned(),
-                CellState::Damaged { why, .. } => format!("damaged: {why}"),
-            };
-            Some(MissingCell {
-                label: cell.label,
-                key: cell.key,
-                why,
-            })
-        })
-        .collect())
-}
-
-fn missing_paragraph(missing: &[MissingCell], cells: usize) -> String {
-    let lines: Vec<String> = missing
-        .iter()
-        .map(|cell| format!("- {} (`{}`): {}", cell.label, cell.key, cell.why))
-        .collect();
-    format!(
-        "**{} of {cells} cells are missing** from these tables, and every number, figure and \
-         verdict below rests on the others:\n\n{}",
-        missing.len(),
-        lines.join("\n")
-    )
 }
 
 /// The claims of the scenario as the sweep ran it (its copy in the store).

@@ -505,6 +505,7 @@ mod tests {
             ours: ours.to_owned(),
             verdict,
             power: Vec::new(),
+            missing: Vec::new(),
         };
         let (_, convergence, _) = both_policies();
         let mut results = [

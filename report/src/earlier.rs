@@ -93,6 +93,7 @@ mod tests {
             ours: String::new(),
             verdict,
             power: Vec::new(),
+            missing: Vec::new(),
         }
     }
 

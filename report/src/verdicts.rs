@@ -37,6 +37,10 @@ pub struct ClaimResult {
     /// Each point that compares training runs, with the runs that would decide it: what
     /// `harness check --pilot` prices.
     pub power: Vec<PointPower>,
+    /// The points a claim judged point by point has no results at, while it has some at
+    /// others (labelled as the text names them): a sweep in progress, or a pilot of some of
+    /// a scenario's points.
+    pub missing: Vec<String>,
 }
 
 /// A point of a claim whose comparison draws training runs (on one side or both): the
@@ -213,6 +217,7 @@ struct Judged {
     verdict: Verdict,
     ours: String,
     power: Vec<PointPower>,
+    missing: Vec<String>,
 }
 
 impl From<(Verdict, String)> for Judged {
@@ -221,6 +226,7 @@ impl From<(Verdict, String)> for Judged {
             verdict,
             ours,
             power: Vec::new(),
+            missing: Vec::new(),
         }
     }
 }
@@ -377,6 +383,7 @@ pub(crate) fn evaluate(
                 verdict,
                 ours,
                 power,
+                missing,
             } = match claim.budget {
                 Some(budget) => held_to_budget(judged, trained_for(claim, budget, &trained)),
                 None => judged,
@@ -388,6 +395,7 @@ pub(crate) fn evaluate(
                 ours,
                 verdict,
                 power,
+                missing,
             })
         })
         .collect()
@@ -573,7 +581,7 @@ fn point_label(point: &Point) -> String {
 }
 
 /// A point's label, with N_train where it differs from N_test.
-pub fn point_label_trained(point: &Point) -> String {
+fn point_label_trained(point: &Point) -> String {
     if point.n_train == point.n_test {
         point_label(point)
     } else {
@@ -585,10 +593,10 @@ pub fn point_label_trained(point: &Point) -> String {
 type Sides<'a> = (&'a [Sample], &'a [Sample]);
 
 /// Per point: both samples, or the text saying which is missing.
-fn pairs<'a>(
+fn point_samples<'a>(
     (of_a, of_b): Sides<'a>,
     pair: &Pair,
-) -> Result<Vec<(&'a Sample, &'a Sample)>, String> {
+) -> Vec<Result<(&'a Sample, &'a Sample), String>> {
     pair.points
         .iter()
         .map(
@@ -601,32 +609,50 @@ fn pairs<'a>(
         .collect()
 }
 
+/// Both samples at every point, or the text saying what the first point lacking one misses.
+fn pairs<'a>(samples: Sides<'a>, pair: &Pair) -> Result<Vec<(&'a Sample, &'a Sample)>, String> {
+    point_samples(samples, pair).into_iter().collect()
+}
+
 fn missing(policy: &str, point: &Point) -> String {
     format!("no results of {policy} at {}", point_label_trained(point))
 }
 
-/// A claim tested point by point: `test` gives each point's test, numbers and power.
+/// A claim tested point by point: `test` gives each point's test, numbers and power. A claim
+/// that lacks results at some points has no verdict ("no data"), but its text and power give
+/// the points it has, after those it lacks: a report of a sweep in progress, or a pilot of
+/// some of the points, still shows what the finished runs say.
 fn per_point(
     samples: Sides,
     pair: &Pair,
     seed: world::Seed,
     test: impl Fn(&Sample, &Sample, &Point, world::Seed) -> Result<PointJudged, ReportError>,
 ) -> Result<Judged, ReportError> {
-    let found = match pairs(samples, pair) {
-        Ok(found) => found,
-        Err(missing) => return Ok((Verdict::NoData, missing).into()),
+    let (mut held, mut lacking) = (Vec::new(), Vec::new());
+    let found = point_samples(samples, pair);
+    for (i, (point, found)) in pair.points.iter().zip(found).enumerate() {
+        match found {
+            Ok((a, b)) => {
+                let judged = test(a, b, point, seed.child(i as u64))?;
+                held.push((point_label_trained(point), judged));
+            }
+            Err(why) => lacking.push((point_label_trained(point), why)),
+        }
+    }
+    let Some((_, first_lacking)) = lacking.first() else {
+        return Ok(combine(held));
     };
-    let labelled = found
-        .iter()
-        .zip(&pair.points)
-        .enumerate()
-        .map(|(i, ((a, b), point))| {
-            let judged = test(a, b, point, seed.child(i as u64))?;
-            Ok((point_label_trained(point), judged))
-        });
-    labelled
-        .collect::<Result<Vec<_>, ReportError>>()
-        .map(combine)
+    if held.is_empty() {
+        return Ok((Verdict::NoData, first_lacking.clone()).into());
+    }
+    let whys: Vec<&str> = lacking.iter().map(|(_, why)| why.as_str()).collect();
+    let judged = combine(held);
+    Ok(Judged {
+        verdict: Verdict::NoData,
+        ours: format!("{}; the points held: {}", whys.join("; "), judged.ours),
+        power: judged.power,
+        missing: lacking.into_iter().map(|(label, _)| label).collect(),
+    })
 }
 
 /// A claim's verdict from its points, each labelled: "LABEL: numbers; LABEL: ...".
@@ -642,6 +668,7 @@ fn combine(points: Vec<(String, PointJudged)>) -> Judged {
         verdict: Verdict::combine(&tests),
         ours: texts.join("; "),
         power,
+        missing: Vec::new(),
     }
 }
 
@@ -1138,6 +1165,42 @@ mod tests {
             }],
             at_episode: None,
         }
+    }
+
+    /// A sweep in progress: the claim has no verdict while a point lacks results, but the
+    /// points it has keep their numbers and power, and the lacking ones are named.
+    #[test]
+    fn a_claim_lacking_a_point_gives_no_verdict_but_the_numbers_of_the_others() {
+        let samples = [
+            sample("a", Some(4), &[&[1.0, 1.1], &[1.4, 1.3], &[0.9, 1.0]]),
+            sample("b", Some(4), &[&[2.0, 2.2], &[2.4, 2.1], &[1.9, 2.3]]),
+        ];
+        let mut both = pair("a", "b");
+        let whole = lower((&samples, &samples), &both, world::Seed::new(3)).unwrap();
+        assert_eq!(whole.verdict, Verdict::Supported, "{}", whole.ours);
+        assert!(whole.missing.is_empty());
+        both.points.push(Point {
+            map: "open".into(),
+            n_test: 6,
+            n_train: 6,
+        });
+        let part = lower((&samples, &samples), &both, world::Seed::new(3)).unwrap();
+        assert_eq!(part.verdict, Verdict::NoData);
+        assert_eq!(part.missing, ["open N=6"]);
+        assert_eq!(part.power.len(), 1);
+        assert_eq!(part.power[0].point, "open N=4");
+        assert_eq!(
+            part.ours,
+            format!(
+                "no results of a at open N=6; the points held: {}",
+                whole.ours
+            )
+        );
+        both.points.remove(0);
+        let none = lower((&samples, &samples), &both, world::Seed::new(3)).unwrap();
+        assert_eq!(none.verdict, Verdict::NoData);
+        assert_eq!(none.ours, "no results of a at open N=6");
+        assert!(none.missing.is_empty() && none.power.is_empty());
     }
 
     #[test]

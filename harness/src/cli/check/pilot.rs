@@ -10,7 +10,7 @@ use anyhow::Context;
 use plan::scenario::claims::{Claim, ClaimTest};
 use report::judgement::Verdict;
 use report::markdown::{interval, number};
-use report::verdicts::{ClaimResult, Decision, PointPower, point_label_trained};
+use report::verdicts::{ClaimResult, Decision, PointPower};
 use report::{LearnedSetting, StoreTables};
 use store::Store;
 
@@ -43,12 +43,9 @@ pub(crate) fn print(
     println!("pilot {}: {HOW}", pilot.display());
     let mut everything = Extra::new();
     for claim in claims {
-        match results.iter().find(|r| r.result.id == claim.id) {
-            Some(judged) => {
-                let extra = print_claim(&judged.result, &seconds, test_episodes);
-                for point in &judged.left_out {
-                    println!("  {point}: not in the pilot");
-                }
+        match results.iter().find(|r| r.id == claim.id) {
+            Some(result) => {
+                let extra = print_claim(result, &seconds, test_episodes);
                 everything = merge(everything, extra);
             }
             None => println!(
@@ -64,15 +61,9 @@ pub(crate) fn print(
     Ok(())
 }
 
-/// A claim's verdict in the pilot, and the points it was narrowed by (see `narrowed`).
-struct Judged {
-    result: ClaimResult,
-    left_out: Vec<String>,
-}
-
 /// The verdicts of the claims that rest on intervals (behaviour claims are measurements, and
 /// their replays are not needed here), and the pilot's training runs' seconds.
-fn judge(claims: &[Claim], pilot: &Path) -> anyhow::Result<(Vec<Judged>, RunSeconds)> {
+fn judge(claims: &[Claim], pilot: &Path) -> anyhow::Result<(Vec<ClaimResult>, RunSeconds)> {
     let store = Store::new(pilot);
     anyhow::ensure!(
         store.manifest()?.is_some(),
@@ -81,53 +72,35 @@ fn judge(claims: &[Claim], pilot: &Path) -> anyhow::Result<(Vec<Judged>, RunSeco
     crate::cli::report::tables_of_unfinished_sweep(&store)?;
     let tables = StoreTables::load(&store)?;
     let seconds = tables.run_cpu_seconds()?;
-    let judged = (claims.iter())
+    let judged: Vec<Claim> = (claims.iter())
         .filter(|c| !matches!(c.test, ClaimTest::Behaviour { .. }))
-        .map(|claim| {
-            let (claim, left_out) = narrowed(claim, &tables)?;
-            let result = tables.judge(std::slice::from_ref(&claim), &[])?.remove(0);
-            Ok(Judged { result, left_out })
-        })
-        .collect::<anyhow::Result<_>>()?;
-    Ok((judged, seconds))
-}
-
-/// A claim judged point by point, narrowed to the points the pilot holds, so that a pilot of
-/// a scenario's first settings prices those (RQ4's pilot ran N = 2 and 4 of 2, 4, 6 and 10);
-/// the labels of the points it left out. A trend or a matrix reads its points together and
-/// stays whole, as does a claim the pilot holds none or all of.
-fn narrowed(claim: &Claim, tables: &StoreTables) -> anyhow::Result<(Claim, Vec<String>)> {
-    let mut narrowed = claim.clone();
-    let Some(pair) = narrowed.test.pointwise_pair_mut() else {
-        return Ok((narrowed, Vec::new()));
-    };
-    let (mut held, mut left_out) = (Vec::new(), Vec::new());
-    for point in &pair.points {
-        let mut one = claim.clone();
-        if let Some(alone) = one.test.pointwise_pair_mut() {
-            alone.points = vec![point.clone()];
-        }
-        match tables.judge(&[one], &[])?[0].verdict {
-            Verdict::NoData => left_out.push(point_label_trained(point)),
-            _ => held.push(point.clone()),
-        }
-    }
-    if held.is_empty() || left_out.is_empty() {
-        return Ok((claim.clone(), Vec::new()));
-    }
-    pair.points = held;
-    Ok((narrowed, left_out))
+        .cloned()
+        .collect();
+    Ok((tables.judge(&judged, &[])?, seconds))
 }
 
 /// One claim's lines; returns the further runs its undecided points ask for.
 fn print_claim(result: &ClaimResult, seconds: &RunSeconds, test_episodes: Option<u32>) -> Extra {
-    println!(
-        "claim {} ({}): {} in the pilot",
-        result.id,
-        result.kind,
-        result.verdict.name()
-    );
+    match result.missing.len() {
+        0 => println!(
+            "claim {} ({}): {} in the pilot",
+            result.id,
+            result.kind,
+            result.verdict.name()
+        ),
+        lacking => println!(
+            "claim {} ({}): {lacking} of its points not in the pilot, the others below",
+            result.id, result.kind
+        ),
+    }
+    // A pilot of some of the points prices those; the others are named.
+    let not_in_pilot = || {
+        for point in &result.missing {
+            println!("  {point}: not in the pilot");
+        }
+    };
     if result.power.is_empty() {
+        not_in_pilot();
         match result.verdict {
             Verdict::NoData | Verdict::NotTested => println!("  {}", result.ours),
             _ => println!(
@@ -151,6 +124,7 @@ fn print_claim(result: &ClaimResult, seconds: &RunSeconds, test_episodes: Option
         }
         claim = merge(claim, extra);
     }
+    not_in_pilot();
     if !claim.is_empty() {
         println!("  every point: {}", priced(&claim, seconds));
     }

@@ -139,19 +139,6 @@ impl ClaimTest {
         }
     }
 
-    /// The pair of a test judged point by point, each point on its own interval (a trend or a
-    /// matrix reads its points together and has none): what a pilot of some of the points can
-    /// narrow the claim to.
-    pub fn pointwise_pair_mut(&mut self) -> Option<&mut Pair> {
-        match self {
-            ClaimTest::Lower { pair }
-            | ClaimTest::Within { pair, .. }
-            | ClaimTest::NotWorse { pair, .. }
-            | ClaimTest::EveryRunLower { pair } => Some(pair),
-            _ => None,
-        }
-    }
-
     /// The policies (table labels) the claim compares, in the order written.
     pub fn policies(&self) -> Vec<&str> {
         match self {

@@ -12,7 +12,8 @@ use world::World;
 use crate::execution::{CellError, CellOrigin, run_cell};
 use crate::progress::Progress;
 use crate::stop;
-use plan::cell::{CellConfig, SweepCell};
+use plan::cell::SweepCell;
+use plan::cell_title;
 use plan::code_version::code_version;
 use plan::scenario::Scenario;
 use plan::shard::Shard;
@@ -185,7 +186,7 @@ pub fn prepare(
         scenario_hash: blake3::hash(scenario_text.as_bytes()).to_hex().to_string(),
         code_version: code_version(),
         cells: cells.iter().map(|c| c.key.clone()).collect(),
-        labels: cells.iter().map(|c| cell_title(&c.config)).collect(),
+        labels: cells.iter().map(|c| cell_title::title(&c.config)).collect(),
         shard: shard.map(|s| s.to_string()),
         selected: shard.map(|s| s.select(cells).iter().map(|c| c.key.clone()).collect()),
         outputs: scenario.outputs().to_vec(),
@@ -446,19 +447,7 @@ pub fn exit_if_asked() {
 
 /// How a cell is named on screen and in messages.
 pub(crate) fn cell_label(cell: &SweepCell) -> String {
-    format!("{} ({})", cell_title(&cell.config), cell.key)
-}
-
-/// What a cell is, without its key: map, policy, N_train and repetition.
-pub(crate) fn cell_title(c: &CellConfig) -> String {
-    let n_train = c.n_train.map_or(String::new(), |n| format!(" N_train={n}"));
-    format!(
-        "{} {}{} rep {}",
-        c.map.name,
-        c.policy.label(),
-        n_train,
-        c.repetition
-    )
+    format!("{} ({})", cell_title::title(&cell.config), cell.key)
 }
 
 #[cfg(test)]

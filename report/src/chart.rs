@@ -6,6 +6,7 @@ pub(crate) mod bars;
 mod figure;
 pub(crate) mod grid;
 pub(crate) mod heatmap;
+mod joins;
 mod legend;
 pub(crate) mod lines;
 mod marker;

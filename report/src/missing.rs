@@ -1,6 +1,7 @@
 //! The cells of a sweep that its tables lack, and the paragraph that names them: every figure
 //! and verdict rests on the others, and the reader must know which.
 
+use plan::cell_title::setting_and_repetition;
 use store::status::CellState;
 use store::{MissingCell, Store};
 
@@ -99,14 +100,8 @@ fn groups(missing: &[MissingCell]) -> Vec<Group<'_>> {
 /// A cell not run: its setting and repetition.
 fn not_run(cell: &MissingCell) -> Option<(&str, u32)> {
     (cell.why == NOT_RUN)
-        .then(|| setting_and_rep(&cell.label))
+        .then(|| setting_and_repetition(&cell.label))
         .flatten()
-}
-
-/// "open ma-g-ppo@fast-v2-hl300 N_train=2 rep 6" -> ("open ma-g-ppo@fast-v2-hl300 N_train=2", 6).
-fn setting_and_rep(label: &str) -> Option<(&str, u32)> {
-    let (setting, rep) = label.rsplit_once(" rep ")?;
-    Some((setting, rep.parse().ok()?))
 }
 
 /// "6 to 14", "0, 2 and 5 to 7": the repetitions, consecutive ones as ranges.

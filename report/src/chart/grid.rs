@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use world::palette;
 
 use super::{
-    ChartError, FONT, Figure, draw_colour_bar, draw_legend, rgb, series_colour, tick_label,
+    ChartError, FONT, Figure, draw_colour_bar, draw_legend, joins, rgb, series_colour, tick_label,
 };
 
 /// What a cell shows.
@@ -103,11 +103,9 @@ fn draw_panel<DB: DrawingBackend>(
     chart.draw_series(shaded)?;
     for (agent, trail) in panel.trails.iter().enumerate() {
         let colour = series_colour(agent);
+        let paths = joins::paths(trail, |p| chart.backend_coord(p), colour.stroke_width(2));
         chart
-            .draw_series(LineSeries::new(
-                trail.iter().copied(),
-                colour.stroke_width(2),
-            ))?
+            .draw_series(paths)?
             .label(format!("agent {agent}"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
     }

@@ -8,6 +8,7 @@ use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
 
 use super::axis::ValueAxis;
+use super::joins;
 use super::legend::{self, Entry};
 use super::marker::{Behind, marker};
 use super::{ChartError, FONT, Figure, padded_range, series_colour, tick_label};
@@ -173,7 +174,8 @@ impl<S: Series> LineChart<S> {
         for (index, series) in panel.lines.iter().enumerate() {
             let (colour, points) = (series_colour(index), clamped(&series.line().points));
             let thick = colour.stroke_width(2);
-            chart.draw_series(LineSeries::new(points.iter().copied(), thick))?;
+            let paths = joins::paths(&points, |p| chart.backend_coord(p), thick);
+            chart.draw_series(paths)?;
             let marked = marker_indices(points.len(), index, count);
             chart.draw_series(marked.map(|i| marker(points[i], index, colour, 4)))?;
         }
@@ -213,6 +215,34 @@ mod tests {
         assert_eq!(second[0], 120, "half a spacing later");
         assert_eq!(marker_indices(0, 0, 1).count(), 0);
         assert!(marker_indices(3, 0, 1).all(|i| i < 3));
+    }
+
+    /// An agent jittering about the centre (y(t) reversing every step) stays within its
+    /// panel: no pixel of its colour in the caption above or the axis labels below.
+    #[test]
+    fn a_jittering_signal_draws_no_spikes() {
+        let jitter = (0..2000).map(|t| (t as f64, (t % 2) as f64)).collect();
+        let chart = LineChart {
+            x_label: "step".into(),
+            panels: vec![Panel {
+                title: "y(t)".into(),
+                y_label: "y".into(),
+                lines: vec![Line {
+                    label: "agent 0".into(),
+                    points: jitter,
+                    band: None,
+                }],
+            }],
+        };
+        let rendered = crate::chart::render(&chart).unwrap();
+        let image = image::load_from_memory(&rendered.png).unwrap().to_rgb8();
+        let RGBColor(r, g, b) = series_colour(0);
+        let outside = |y: u32| y < 30 || y + 40 > image.height();
+        let strays = image
+            .enumerate_pixels()
+            .filter(|&(_, y, p)| outside(y) && p.0 == [r, g, b])
+            .count();
+        assert_eq!(strays, 0, "pixels of the line outside its panel");
     }
 
     #[test]

@@ -15,7 +15,7 @@ use smartcore::linear::linear_regression::{LinearRegression, LinearRegressionPar
 
 use super::columns::{distinct, named_seed};
 use super::markdown::number;
-use super::motion::Motion;
+use super::motion::{Motion, distance_from_centre};
 use super::{ReportError, ReportWriter};
 
 /// Periods shorter than this many steps are not looked for: a step's jitter, not a rhythm.
@@ -153,9 +153,13 @@ struct Features {
     radius_of_gyration: f64,
     /// Share of steps in which it changed cell.
     moving_share: f64,
+    /// Mean distance from the map's centre (cells): where the agent keeps, which the paper's
+    /// open map with four agents describes ("one agent at the centre", "the other three ...
+    /// around the periphery"). Not a feature of the roles, which say how an agent moves.
+    centre_distance: f64,
 }
 
-fn features(x: &[f64], y: &[f64]) -> Features {
+fn features(x: &[f64], y: &[f64], centre: (f64, f64)) -> Features {
     let n = x.len().max(1) as f64;
     let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
     let spread = x
@@ -169,9 +173,14 @@ fn features(x: &[f64], y: &[f64]) -> Features {
         .zip(y.windows(2))
         .filter(|(a, b)| a[0] != a[1] || b[0] != b[1])
         .count();
+    let from_centre = x
+        .iter()
+        .zip(y)
+        .map(|(&a, &b)| distance_from_centre(a, b, centre));
     Features {
         radius_of_gyration: spread.sqrt(),
         moving_share: moves as f64 / (x.len().max(2) - 1) as f64,
+        centre_distance: from_centre.sum::<f64>() / n,
     }
 }
 
@@ -259,8 +268,9 @@ pub(crate) fn section(report: &mut ReportWriter, motions: &[Motion]) -> Result<(
          a least-squares harmonic fit at the team's period (the median of its agents' \
          periods), whose phase against agent 0 is `phase_to_agent_0` (degrees) and whose \
          share of explained variance is `r_squared` (a phase means little when it is low); \
-         and a role, stationary or touring, by 2-means on the agents' radius of gyration \
-         and share of steps moved, pooled per map."
+         a role, stationary or touring, by 2-means on the agents' radius of gyration \
+         and share of steps moved, pooled per map; and where each agent keeps, its mean \
+         distance from the map's centre (`centre_distance`, cells)."
     ));
     let rhythm = rhythms(motions);
     let rhythm_frame = rhythm_frame(motions, &rhythm)?;
@@ -379,7 +389,7 @@ fn pooled_roles(pool: &[&Motion]) -> Vec<AgentRole> {
         return Vec::new();
     };
     let agents: Vec<(usize, usize, Features)> = (pool.iter().enumerate())
-        .flat_map(|(i, m)| (0..m.agents).map(move |a| (i, a, features(&m.x[a], &m.y[a]))))
+        .flat_map(|(i, m)| (0..m.agents).map(move |a| (i, a, features(&m.x[a], &m.y[a], m.centre))))
         .collect();
     let features: Vec<Features> = agents.iter().map(|a| a.2).collect();
     let roles = roles(&features, named_seed(&first.group.map).value());
@@ -408,6 +418,12 @@ fn role_frame(motions: &[Motion], rows: &[AgentRole]) -> PolarsResult<DataFrame>
             "moving_share".into(),
             rows.iter()
                 .map(|r| r.features.moving_share)
+                .collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "centre_distance".into(),
+            rows.iter()
+                .map(|r| r.features.centre_distance)
                 .collect::<Vec<_>>(),
         ),
         Column::new(
@@ -537,11 +553,12 @@ fn summary(
     };
     let stationary = motion.agents - touring.len();
     let statement = format!(
-        "{}: {}; {}; {stationary} stationary and {} touring agents.",
+        "{}: {}; {}; {stationary} stationary and {} touring agents{}.",
         motion.group.label(),
         describe("y", "y(t)"),
         describe("sin_theta", "sin(theta(t))"),
-        touring.len()
+        touring.len(),
+        placement(roles, index)
     );
     EpisodeBehaviour {
         stationary,
@@ -549,6 +566,44 @@ fn summary(
         periodic,
         statement,
     }
+}
+
+/// Where the roles of `motions[index]` keep: ", on average [..] (stationary) and [..]
+/// (touring) cells from the map's centre", and whether every stationary agent keeps nearer
+/// it than every touring one (the paper's open map with four agents: "one agent at the
+/// centre", the others "around the periphery"); nothing for an episode without agents.
+fn placement(roles: &[AgentRole], index: usize) -> String {
+    let distances = |role: Role| -> Vec<f64> {
+        (roles.iter())
+            .filter(|r| r.motion == index && r.role == role)
+            .map(|r| r.features.centre_distance)
+            .collect()
+    };
+    let (still, moving) = (distances(Role::Stationary), distances(Role::Touring));
+    let listed = |values: &[f64]| values.iter().map(|&v| number(v)).collect::<Vec<_>>();
+    let mut parts = Vec::new();
+    for (values, role) in [(&still, Role::Stationary), (&moving, Role::Touring)] {
+        if !values.is_empty() {
+            parts.push(format!("[{}] ({})", listed(values).join(", "), role.name()));
+        }
+    }
+    if parts.is_empty() {
+        return String::new();
+    }
+    let nearest = match (
+        still.iter().copied().reduce(f64::max),
+        moving.iter().copied().reduce(f64::min),
+    ) {
+        (Some(farthest_still), Some(nearest_moving)) if farthest_still < nearest_moving => {
+            ", every stationary agent nearer it than every touring one"
+        }
+        (Some(_), Some(_)) => ", a touring agent as near it as a stationary one",
+        _ => "",
+    };
+    format!(
+        ", on average {} cells from the map's centre{nearest}",
+        parts.join(" and ")
+    )
 }
 
 #[cfg(test)]
@@ -617,17 +672,59 @@ mod tests {
         let still = Features {
             radius_of_gyration: 0.5,
             moving_share: 0.05,
+            centre_distance: 3.0,
         };
         let moving = Features {
             radius_of_gyration: 12.0,
             moving_share: 0.95,
+            centre_distance: 3.0,
         };
         let roles = roles(&[moving, still, moving, moving], 7);
         use Role::{Stationary, Touring};
         assert_eq!(roles, vec![Touring, Stationary, Touring, Touring]);
         assert_eq!(super::roles(&[still, still], 7), vec![Touring, Touring]);
-        let f = features(&[0.0, 1.0, 1.0, 0.0], &[0.0, 0.0, 0.0, 0.0]);
+        let f = features(&[0.0, 1.0, 1.0, 0.0], &[0.0, 0.0, 0.0, 0.0], (1.0, 0.5));
         assert_eq!(f.radius_of_gyration, 0.5);
         assert!((f.moving_share - 2.0 / 3.0).abs() < 1e-12);
+        assert_eq!(
+            f.centre_distance, 0.5,
+            "cell centres half a cell either side"
+        );
+    }
+
+    #[test]
+    fn where_the_roles_keep_is_said_of_each_episode() {
+        use Role::{Stationary, Touring};
+        let agent = |motion, role, centre_distance| AgentRole {
+            motion,
+            agent: 0,
+            features: Features {
+                radius_of_gyration: 1.0,
+                moving_share: 0.5,
+                centre_distance,
+            },
+            role,
+        };
+        let roles = [
+            agent(0, Stationary, 1.5),
+            agent(0, Touring, 20.0),
+            agent(0, Touring, 18.0),
+            agent(1, Stationary, 19.0),
+            agent(1, Touring, 18.0),
+            agent(2, Touring, 7.0),
+        ];
+        let centred = placement(&roles, 0);
+        assert!(
+            centred.contains("[1.500] (stationary) and [20.00, 18.00] (touring)"),
+            "{centred}"
+        );
+        assert!(centred.ends_with("every stationary agent nearer it than every touring one"));
+        assert!(placement(&roles, 1).ends_with("a touring agent as near it as a stationary one"));
+        let touring = placement(&roles, 2);
+        assert_eq!(
+            touring,
+            ", on average [7.000] (touring) cells from the map's centre"
+        );
+        assert_eq!(placement(&roles, 3), "");
     }
 }

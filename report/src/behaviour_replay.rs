@@ -21,7 +21,7 @@ use world::World;
 use super::behaviour::measure;
 use super::columns::{GroupKey, PolicyKey, strings, u32s};
 use super::judgement::at_point;
-use super::motion::{Motion, sin_theta};
+use super::motion::{Motion, centre, sin_theta};
 use plan::scenario::claims::{Claim, ClaimTest, Point};
 use store::{CellRecord, Store, StoreError};
 
@@ -272,12 +272,9 @@ fn replay_cell(
         },
         n_test,
     };
-    let centre = (
-        world.map().width() as f64 / 2.0,
-        world.map().height() as f64 / 2.0,
-    );
+    let centre = centre(world.map());
     let mut motions: BTreeMap<u32, Motion> = (episodes.iter())
-        .map(|&episode| (episode, empty_motion(group.clone())))
+        .map(|&episode| (episode, empty_motion(group.clone(), centre)))
         .collect();
     let order: Vec<u32> = episodes.iter().copied().collect();
     replayer.play(
@@ -288,7 +285,7 @@ fn replay_cell(
         &order,
         &mut |episode, state| {
             if let Some(motion) = motions.get_mut(&episode) {
-                follow(motion, state, centre);
+                follow(motion, state);
             }
         },
     )?;
@@ -308,7 +305,7 @@ fn replay_cell(
     Ok(rows.collect())
 }
 
-fn empty_motion(group: GroupKey) -> Motion {
+fn empty_motion(group: GroupKey, centre: (f64, f64)) -> Motion {
     let agents = group.n_test as usize;
     Motion {
         group,
@@ -318,12 +315,14 @@ fn empty_motion(group: GroupKey) -> Motion {
         y: vec![Vec::new(); agents],
         sin_theta: vec![Vec::new(); agents],
         penalty: Vec::new(),
+        centre,
     }
 }
 
 /// Adds the episode's state after a step to `motion`, as the trajectories table records it
 /// (`engine::trajectory`): every agent's cell and the team's penalty.
-fn follow(motion: &mut Motion, episode: &world::Episode, centre: (f64, f64)) {
+fn follow(motion: &mut Motion, episode: &world::Episode) {
+    let centre = motion.centre;
     motion.steps.push(episode.time() as u32);
     motion.penalty.push(-episode.reward());
     let agents = motion

@@ -42,6 +42,8 @@ pub(crate) struct Motion {
     pub(crate) y: Vec<Vec<f64>>,
     pub(crate) sin_theta: Vec<Vec<f64>>,
     pub(crate) penalty: Vec<f64>,
+    /// The map's centre, which sin(theta) and the distance from the centre are about.
+    pub(crate) centre: (f64, f64),
 }
 
 impl Motion {
@@ -131,7 +133,7 @@ fn motions(
         let Some(map) = maps.get(&group.map) else {
             continue;
         };
-        let centre = (map.width() as f64 / 2.0, map.height() as f64 / 2.0);
+        let centre = centre(map);
         let count = rows
             .iter()
             .map(|&r| agents[r] as usize + 1)
@@ -145,6 +147,7 @@ fn motions(
             y: vec![Vec::new(); count],
             sin_theta: vec![Vec::new(); count],
             penalty: Vec::new(),
+            centre,
         };
         for &r in &rows {
             let agent = agents[r] as usize;
@@ -161,11 +164,21 @@ fn motions(
     Ok(motions)
 }
 
+/// The centre of `map`, in cell coordinates (a cell's centre is half a cell past its corner).
+pub(crate) fn centre(map: &Map) -> (f64, f64) {
+    (map.width() as f64 / 2.0, map.height() as f64 / 2.0)
+}
+
 /// The sine of the angle of cell (x, y)'s centre about `centre`; 0 at the centre itself.
 pub(crate) fn sin_theta(x: f64, y: f64, centre: (f64, f64)) -> f64 {
     let (dx, dy) = (x + 0.5 - centre.0, y + 0.5 - centre.1);
     let radius = dx.hypot(dy);
     if radius == 0.0 { 0.0 } else { dy / radius }
+}
+
+/// How far cell (x, y)'s centre is from `centre`, in cells.
+pub(crate) fn distance_from_centre(x: f64, y: f64, centre: (f64, f64)) -> f64 {
+    (x + 0.5 - centre.0).hypot(y + 0.5 - centre.1)
 }
 
 fn frame(motions: &[Motion]) -> PolarsResult<DataFrame> {

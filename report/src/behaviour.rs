@@ -442,6 +442,9 @@ pub(crate) struct EpisodeBehaviour {
     /// within `PERIOD_TOLERANCE` of the team's, and their phase differences at the team's
     /// period steady over the episode (`phase_wander` at most `PHASE_WANDER` degrees).
     pub(crate) periodic: bool,
+    /// Every stationary agent kept nearer the map's centre than every touring one;
+    /// `None` without both roles.
+    pub(crate) centred: Option<bool>,
     /// The report's sentence about it.
     statement: String,
 }
@@ -564,22 +567,37 @@ fn summary(
         stationary,
         touring: touring.len(),
         periodic,
+        centred: centred(roles, index),
         statement,
     }
 }
 
-/// Where the roles of `motions[index]` keep: ", on average [..] (stationary) and [..]
-/// (touring) cells from the map's centre", and whether every stationary agent keeps nearer
-/// it than every touring one (the paper's open map with four agents: "one agent at the
-/// centre", the others "around the periphery"); nothing for an episode without agents.
-fn placement(roles: &[AgentRole], index: usize) -> String {
-    let distances = |role: Role| -> Vec<f64> {
+/// The mean distances from the map's centre of `motions[index]`'s stationary and touring
+/// agents.
+fn distances(roles: &[AgentRole], index: usize) -> [Vec<f64>; 2] {
+    [Role::Stationary, Role::Touring].map(|role| {
         (roles.iter())
             .filter(|r| r.motion == index && r.role == role)
             .map(|r| r.features.centre_distance)
             .collect()
-    };
-    let (still, moving) = (distances(Role::Stationary), distances(Role::Touring));
+    })
+}
+
+/// Whether every stationary agent of `motions[index]` keeps nearer the map's centre than
+/// every touring one (the paper's open map with four agents: "one agent at the centre", the
+/// others "around the periphery"); `None` without both roles.
+fn centred(roles: &[AgentRole], index: usize) -> Option<bool> {
+    let [still, moving] = distances(roles, index);
+    let farthest_still = still.into_iter().reduce(f64::max)?;
+    let nearest_moving = moving.into_iter().reduce(f64::min)?;
+    Some(farthest_still < nearest_moving)
+}
+
+/// Where the roles of `motions[index]` keep: ", on average [..] (stationary) and [..]
+/// (touring) cells from the map's centre", and whether they are [`centred`]; nothing for an
+/// episode without agents.
+fn placement(roles: &[AgentRole], index: usize) -> String {
+    let [still, moving] = distances(roles, index);
     let listed = |values: &[f64]| values.iter().map(|&v| number(v)).collect::<Vec<_>>();
     let mut parts = Vec::new();
     for (values, role) in [(&still, Role::Stationary), (&moving, Role::Touring)] {
@@ -590,15 +608,10 @@ fn placement(roles: &[AgentRole], index: usize) -> String {
     if parts.is_empty() {
         return String::new();
     }
-    let nearest = match (
-        still.iter().copied().reduce(f64::max),
-        moving.iter().copied().reduce(f64::min),
-    ) {
-        (Some(farthest_still), Some(nearest_moving)) if farthest_still < nearest_moving => {
-            ", every stationary agent nearer it than every touring one"
-        }
-        (Some(_), Some(_)) => ", a touring agent as near it as a stationary one",
-        _ => "",
+    let nearest = match centred(roles, index) {
+        Some(true) => ", every stationary agent nearer it than every touring one",
+        Some(false) => ", a touring agent as near it as a stationary one",
+        None => "",
     };
     format!(
         ", on average {} cells from the map's centre{nearest}",
@@ -726,5 +739,7 @@ mod tests {
             ", on average [7.000] (touring) cells from the map's centre"
         );
         assert_eq!(placement(&roles, 3), "");
+        let judged = (0..4).map(|i| super::centred(&roles, i)).collect::<Vec<_>>();
+        assert_eq!(judged, [Some(true), Some(false), None, None]);
     }
 }

@@ -14,8 +14,9 @@ use plan::scenario::claims::{Behaviour, Claim, ClaimTest, Point};
 /// The verdict rule, as the report states it.
 pub(crate) const RULE: &str = "An episode shows the structure when every feature the claim names \
      matches it: the number of stationary and of touring agents (2-means roles, pooled with the \
-     map's recorded episodes) and whether the touring agents keep a common period with steady \
-     phase differences. A run (a training run; for a baseline, a repetition) shows the \
+     map's recorded episodes), whether the touring agents keep a common period with steady \
+     phase differences, and whether every stationary agent keeps nearer the map's centre than \
+     every touring one (each agent's mean distance from it over the episode). A run (a training run; for a baseline, a repetition) shows the \
      structure when more than half of its test episodes show it, and lacks it when more than \
      half do not (at exactly half, neither). A claim is **supported** when at least two thirds \
      of the runs show the structure, **contradicted** when at least two thirds lack it, and \
@@ -30,6 +31,7 @@ fn holds(measure: &EpisodeMeasure, expected: Behaviour) -> bool {
             .touring
             .is_none_or(|m| m == measure.touring as usize)
         && expected.periodic.is_none_or(|p| p == measure.periodic)
+        && expected.centred.is_none_or(|c| Some(c) == measure.centred)
 }
 
 /// One run's test episodes at a claim's point: how many, and how many show the structure.
@@ -137,6 +139,12 @@ fn expectation(expected: Behaviour) -> String {
     if let Some(p) = expected.periodic {
         parts.push(if p { "periodic" } else { "not periodic" }.to_owned());
     }
+    if let Some(c) = expected.centred {
+        let nearer = if c { "nearer" } else { "not nearer" };
+        parts.push(format!(
+            "the stationary {nearer} the centre than the touring"
+        ));
+    }
     parts.join(", ")
 }
 
@@ -231,6 +239,7 @@ fn episodes_frame(judged: &[Judged]) -> PolarsResult<DataFrame> {
         "stationary" => column(|m| m.stationary),
         "touring" => column(|m| m.touring),
         "periodic" => rows.iter().map(|(_, m)| m.periodic).collect::<Vec<_>>(),
+        "centred" => rows.iter().map(|(_, m)| m.centred).collect::<Vec<_>>(),
         "holds" => rows.iter().map(|(j, m)| holds(m, j.expected)).collect::<Vec<_>>(),
     )
 }
@@ -277,9 +286,9 @@ mod tests {
             (Some(true), None, Some(false))
         );
         let expected = Behaviour {
-            stationary: None,
             touring: Some(2),
             periodic: Some(true),
+            ..Behaviour::default()
         };
         let text = describe(&runs_holding(&[8, 9, 2]), expected);
         assert!(
@@ -298,7 +307,7 @@ mod tests {
             n_test: 4,
             n_train: 4,
         };
-        let measure = |cell: &str, repetition, stationary, periodic| EpisodeMeasure {
+        let measure = |cell: &str, repetition, stationary, periodic, centred| EpisodeMeasure {
             group: GroupKey {
                 map: "open".into(),
                 policy: PolicyKey {
@@ -313,25 +322,41 @@ mod tests {
             stationary,
             touring: 4 - stationary,
             periodic,
+            centred,
             pool: String::new(),
         };
         let measures = [
-            measure("b", 1, 1, true),
-            measure("a", 0, 1, false),
-            measure("b", 1, 0, true),
-            measure("a", 0, 1, true),
+            measure("b", 1, 1, true, Some(true)),
+            measure("a", 0, 1, false, Some(true)),
+            measure("b", 1, 0, true, None),
+            measure("a", 0, 1, true, Some(false)),
         ];
         let expected = Behaviour {
             stationary: Some(1),
-            touring: None,
             periodic: Some(true),
+            ..Behaviour::default()
         };
-        let found = runs(&measures, "ma-g-ppo@fast", &point, expected);
-        let summary: Vec<(&str, usize, usize)> = (found.iter())
-            .map(|r| (r.cell_key.as_str(), r.episodes, r.holding))
-            .collect();
-        assert_eq!(summary, [("a", 2, 1), ("b", 2, 1)]);
+        let summary = |expected| -> Vec<(String, usize, usize)> {
+            (runs(&measures, "ma-g-ppo@fast", &point, expected).iter())
+                .map(|r| (r.cell_key.clone(), r.episodes, r.holding))
+                .collect()
+        };
+        let counted = |a, b| vec![("a".to_owned(), 2, a), ("b".to_owned(), 2, b)];
+        assert_eq!(summary(expected), counted(1, 1));
         assert!(runs(&measures, "ma-ppo@fast", &point, expected).is_empty());
         assert_eq!(expectation(expected), "1 stationary, periodic");
+        let centred = Behaviour {
+            centred: Some(true),
+            ..expected
+        };
+        assert_eq!(
+            summary(centred),
+            counted(0, 1),
+            "a: not centred; b: no stationary"
+        );
+        assert_eq!(
+            expectation(centred),
+            "1 stationary, periodic, the stationary nearer the centre than the touring"
+        );
     }
 }

@@ -57,6 +57,9 @@ pub struct EpisodeMeasure {
     pub(crate) stationary: u32,
     pub(crate) touring: u32,
     pub(crate) periodic: bool,
+    /// Every stationary robot nearer the map's centre than every touring one; `None` without
+    /// both roles, or read from a table measured before the measure existed.
+    pub(crate) centred: Option<bool>,
     /// Which recorded episodes the roles were pooled with ([`Pool::identity`]): a row whose
     /// pool is no longer the store's is measured again where the store can replay it.
     pub(crate) pool: String,
@@ -78,8 +81,10 @@ pub(crate) fn measures(
         return Ok(Vec::new());
     }
     let index = EpisodeIndex::of(episodes).map_err(BehaviourError::Episodes)?;
-    let mut table = read_table(store)?;
-    let (mut measured, mut replayed) = (Vec::new(), false);
+    let (mut table, whole) = read_table(store)?;
+    // A table measured before a measure existed is measured again where the cells are at
+    // hand, and written whole (the measure null where they are not).
+    let (mut measured, mut replayed) = (Vec::new(), !whole);
     for (policy, point) in &points {
         let needed = index.at(policy, point);
         let pool = Pool::new(motions, policy, point);
@@ -87,7 +92,7 @@ pub(crate) fn measures(
             .filter(|m| at_point(&m.group, policy, point))
             .collect();
         let covered = !needed.is_empty() && covers(&held, &needed);
-        let fresh = held.iter().all(|m| m.pool == pool.identity);
+        let fresh = whole && held.iter().all(|m| m.pool == pool.identity);
         let replayable = cells_at_hand(store, &needed);
         if replayable && !(covered && fresh) {
             let rows = replay(replayer, store, &pool, (&needed, point.n_test))?;
@@ -202,16 +207,17 @@ impl<'a> Pool<'a> {
         }
     }
 
-    /// `replayed`'s stationary and touring agents and whether it is periodic.
-    fn measure(&self, replayed: &Motion) -> (u32, u32, bool) {
+    /// `replayed`'s stationary and touring agents, whether it is periodic and whether it is
+    /// centred.
+    fn measure(&self, replayed: &Motion) -> (u32, u32, bool, Option<bool>) {
         let mut members: Vec<&Motion> = self.members.clone();
         match members.get_mut(self.slot) {
             Some(member) => *member = replayed,
             None => members.push(replayed),
         }
         // The slot is inside `members` by construction.
-        measure(&members, self.slot).map_or((0, 0, false), |b| {
-            (b.stationary as u32, b.touring as u32, b.periodic)
+        measure(&members, self.slot).map_or((0, 0, false, None), |b| {
+            (b.stationary as u32, b.touring as u32, b.periodic, b.centred)
         })
     }
 }
@@ -290,7 +296,7 @@ fn replay_cell(
         },
     )?;
     let rows = motions.into_iter().map(|(episode, motion)| {
-        let (stationary, touring, periodic) = pool.measure(&motion);
+        let (stationary, touring, periodic, centred) = pool.measure(&motion);
         EpisodeMeasure {
             group: group.clone(),
             cell_key: record.key.clone(),
@@ -299,6 +305,7 @@ fn replay_cell(
             stationary,
             touring,
             periodic,
+            centred,
             pool: pool.identity.clone(),
         }
     });
@@ -338,18 +345,23 @@ fn follow(motion: &mut Motion, episode: &world::Episode) {
     }
 }
 
-/// The store's table as rows; none when it is not there or, in a sweep's store, does not
-/// match its hash in `tables.json` (its episodes are then measured again from the cells).
-fn read_table(store: &Store) -> Result<Vec<EpisodeMeasure>, BehaviourError> {
+/// The store's table as rows, and whether it has every column (not one measured before a
+/// column was added); none when it is not there or, in a sweep's store, does not match its
+/// hash in `tables.json` (its episodes are then measured again from the cells).
+fn read_table(store: &Store) -> Result<(Vec<EpisodeMeasure>, bool), BehaviourError> {
     let path = store.root().join(format!("{TABLE}.parquet"));
     if !path.exists() {
-        return Ok(Vec::new());
+        return Ok((Vec::new(), true));
     }
     let frame = match store.table(TABLE) {
-        Err(StoreError::Corrupt { .. }) if !store.is_table_store() => return Ok(Vec::new()),
+        Err(StoreError::Corrupt { .. }) if !store.is_table_store() => {
+            return Ok((Vec::new(), true));
+        }
         read => read?,
     };
-    rows(&frame).map_err(|source| BehaviourError::Table { path, source })
+    let whole = frame.column(behaviour_episodes::CENTRED).is_ok();
+    let rows = rows(&frame).map_err(|source| BehaviourError::Table { path, source })?;
+    Ok((rows, whole))
 }
 
 fn rows(frame: &DataFrame) -> PolarsResult<Vec<EpisodeMeasure>> {
@@ -360,6 +372,10 @@ fn rows(frame: &DataFrame) -> PolarsResult<Vec<EpisodeMeasure>> {
     let stationary = u32s(frame, behaviour_episodes::STATIONARY)?;
     let touring = u32s(frame, behaviour_episodes::TOURING)?;
     let periodic = bools(frame, behaviour_episodes::PERIODIC)?;
+    let centred: Vec<Option<bool>> = match frame.column(behaviour_episodes::CENTRED) {
+        Ok(column) => column.bool()?.iter().collect(),
+        Err(_) => vec![None; frame.height()],
+    };
     let pools = strings(frame, behaviour_episodes::POOL)?;
     Ok((0..frame.height())
         .map(|i| EpisodeMeasure {
@@ -370,6 +386,7 @@ fn rows(frame: &DataFrame) -> PolarsResult<Vec<EpisodeMeasure>> {
             stationary: stationary[i],
             touring: touring[i],
             periodic: periodic[i],
+            centred: centred[i],
             pool: pools[i].clone(),
         })
         .collect())
@@ -397,6 +414,7 @@ fn frame(rows: &[EpisodeMeasure]) -> PolarsResult<DataFrame> {
         behaviour_episodes::STATIONARY => column(|m| m.stationary),
         behaviour_episodes::TOURING => column(|m| m.touring),
         behaviour_episodes::PERIODIC => rows.iter().map(|m| m.periodic).collect::<Vec<_>>(),
+        behaviour_episodes::CENTRED => rows.iter().map(|m| m.centred).collect::<Vec<_>>(),
         behaviour_episodes::POOL => text(|m| m.pool.as_str()),
     )
 }
@@ -421,13 +439,14 @@ mod tests {
             stationary: 1,
             touring: 2,
             periodic: episode.is_multiple_of(2),
+            centred: [None, Some(true), Some(false)][episode as usize % 3],
             pool: "abc".into(),
         }
     }
 
     #[test]
     fn the_table_reads_back_what_it_wrote() {
-        let rows_written = vec![row("a", 0, None), row("b", 3, Some(2))];
+        let rows_written = vec![row("a", 0, None), row("b", 4, Some(2)), row("c", 5, None)];
         let bytes = store::tables::parquet_bytes(&frame(&rows_written).unwrap()).unwrap();
         let read = rows(&store::tables::read_parquet(bytes).unwrap()).unwrap();
         assert_eq!(read, rows_written);

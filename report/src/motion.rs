@@ -332,8 +332,7 @@ mod tests {
                 },
                 expected: Behaviour {
                     stationary: Some(1),
-                    touring: None,
-                    periodic: None,
+                    ..Behaviour::default()
                 },
             },
         };

@@ -30,14 +30,17 @@ pub(crate) fn real_folder(folder: &Path) -> Result<bool, StoreError> {
 }
 
 /// Refuses `frame`, read from `path` as table `name`, when it lacks a column the schema gives
-/// that table: a reader would otherwise fail on the column's name alone, naming no file.
+/// that table (one added later excepted: the table was written before it existed): a reader
+/// would otherwise fail on the column's name alone, naming no file.
 pub(crate) fn with_columns(
     frame: DataFrame,
     path: &Path,
     name: &str,
 ) -> Result<DataFrame, StoreError> {
     let expected = schema::columns_of(name).unwrap_or_default();
-    match expected.iter().find(|c| frame.column(c).is_err()) {
+    let later = schema::added_later(name);
+    let lacking = |c: &&&str| frame.column(c).is_err() && !later.contains(c);
+    match expected.iter().find(lacking) {
         None => Ok(frame),
         Some(column) => Err(StoreError::corrupt(
             path,

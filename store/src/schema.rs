@@ -438,6 +438,10 @@ pub mod behaviour_episodes {
     pub const TOURING: &str = "touring";
     /// Whether the team's motion is periodic.
     pub const PERIODIC: &str = "periodic";
+    /// Whether every stationary robot kept nearer the map's centre than every touring one
+    /// (on average over the episode); null without both roles, or in a table measured before
+    /// the column existed.
+    pub const CENTRED: &str = "centred";
     /// Which recorded episodes the roles were pooled with.
     pub const POOL: &str = "pool";
 
@@ -453,8 +457,24 @@ pub mod behaviour_episodes {
             STATIONARY,
             TOURING,
             PERIODIC,
+            CENTRED,
             POOL,
         ]
+    }
+
+    /// Columns that a table measured before they existed lacks (its reader reads them as
+    /// null and writes them whole).
+    pub(crate) fn added_later() -> Vec<&'static str> {
+        vec![CENTRED]
+    }
+}
+
+/// The columns of table `name` that a store written before they existed lacks: a reader takes
+/// the table without them.
+pub fn added_later(name: &str) -> Vec<&'static str> {
+    match name {
+        behaviour_episodes::TABLE => behaviour_episodes::added_later(),
+        _ => Vec::new(),
     }
 }
 

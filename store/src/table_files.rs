@@ -188,4 +188,33 @@ mod tests {
         );
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    /// A behaviour table measured before `centred` existed is read without it; one that
+    /// lacks another of its columns is refused.
+    #[test]
+    fn a_table_may_lack_only_the_columns_added_later() {
+        use crate::schema::behaviour_episodes::{CENTRED, TABLE, columns};
+        use polars::prelude::Column;
+        let dir = std::env::temp_dir().join(format!("store-later-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let store = Store::new(&dir);
+        let without = |dropped: &[&str]| {
+            let kept = columns().into_iter().filter(|c| !dropped.contains(c));
+            let kept: Vec<Column> = kept.map(|c| Column::new(c.into(), [1u32])).collect();
+            DataFrame::new(1, kept).unwrap()
+        };
+        store.write_table(TABLE, &without(&[CENTRED])).unwrap();
+        assert!(store.table(TABLE).unwrap().column(CENTRED).is_err());
+        store
+            .write_table(TABLE, &without(&[CENTRED, "pool"]))
+            .unwrap();
+        assert!(
+            store
+                .table(TABLE)
+                .unwrap_err()
+                .to_string()
+                .contains("has no column \"pool\"")
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -473,7 +473,11 @@ mod tests {
             ("  - id: x\n    lowr: {}\n", "unknown field `lowr`"),
             (
                 "  - id: x\n    behaviour: {policy: random, map: a, n_test: 2}\n",
-                "claims[0].behaviour: give at least one of stationary, touring, periodic",
+                "claims[0].behaviour: give at least one of stationary, touring, periodic, centred",
+            ),
+            (
+                "  - id: x\n    behaviour: {policy: random, map: a, n_test: 2, touring: 0, centred: true}\n",
+                "claims[0].behaviour: centred: true needs a stationary and a touring agent",
             ),
             (
                 "  - id: x\n    behaviour: {policy: random, map: a, n_test: 2, stationary: 1, touring: 2}\n",

@@ -445,15 +445,14 @@ impl Checker<'_> {
             stationary: spec.stationary,
             touring: spec.touring,
             periodic: spec.periodic,
+            centred: spec.centred,
         };
         let counted = expected.stationary.unwrap_or(0) + expected.touring.unwrap_or(0);
-        let problem = if expected
-            == (Behaviour {
-                stationary: None,
-                touring: None,
-                periodic: None,
-            }) {
-            Some("give at least one of stationary, touring, periodic".to_owned())
+        let without_a_role = expected.stationary == Some(0) || expected.touring == Some(0);
+        let problem = if expected == Behaviour::default() {
+            Some("give at least one of stationary, touring, periodic, centred".to_owned())
+        } else if expected.centred == Some(true) && without_a_role {
+            Some("centred: true needs a stationary and a touring agent".to_owned())
         } else if counted > spec.n_test.value as usize {
             Some(format!(
                 "{counted} agents counted, but N_test is {}",

@@ -115,11 +115,14 @@ impl Scale {
 }
 
 /// What a behaviour claim expects; `None` leaves a feature untested.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Behaviour {
     pub stationary: Option<usize>,
     pub touring: Option<usize>,
     pub periodic: Option<bool>,
+    /// Every stationary agent keeps nearer the map's centre than every touring one (the
+    /// paper's "one agent at the centre ... the other three ... around the periphery").
+    pub centred: Option<bool>,
 }
 
 impl ClaimTest {

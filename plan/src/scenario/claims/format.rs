@@ -188,6 +188,8 @@ pub(crate) struct BehaviourSpec {
     pub(crate) touring: Option<usize>,
     #[serde(default)]
     pub(crate) periodic: Option<bool>,
+    #[serde(default)]
+    pub(crate) centred: Option<bool>,
 }
 
 /// A scenario file read for its claims alone (the store's copy, whose maps may not resolve).

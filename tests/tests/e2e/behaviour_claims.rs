@@ -43,6 +43,8 @@ claims:
     behaviour: {policy: gcs, map: rooms, n_test: 3, stationary: 0}
   - id: learned-all-touring
     behaviour: {policy: ma-g-ppo@fast, map: rooms, n_test: 3, n_train: 2, touring: 3}
+  - id: gcs-still-at-the-centre
+    behaviour: {policy: gcs, map: rooms, n_test: 3, stationary: 1, centred: true}
 ";
 
 fn read_parquet(path: &Path) -> DataFrame {
@@ -111,6 +113,16 @@ fn behaviour_claims_measure_every_episode_of_every_run() {
     assert!(numbers(&table, "n_test").iter().all(|&n| n == 3));
     let (stationary, touring) = (numbers(&table, "stationary"), numbers(&table, "touring"));
     assert!((0..table.height()).all(|i| stationary[i] + touring[i] == 3));
+    // Centred is measured exactly where an episode has both roles.
+    let centred: Vec<Option<bool>> = table
+        .column("centred")
+        .unwrap()
+        .bool()
+        .unwrap()
+        .iter()
+        .collect();
+    let both_roles = |i: usize| stationary[i] > 0 && touring[i] > 0;
+    assert!((0..table.height()).all(|i| centred[i].is_some() == both_roles(i)));
 
     // The first episode of the first run, played again, is the recorded one: the same roles
     // as the report's roles table gives it.
@@ -138,17 +150,24 @@ fn behaviour_claims_measure_every_episode_of_every_run() {
     let statistical = read_parquet(&report.join("tables/claims.parquet"));
     assert_eq!(texts(&statistical, "claim"), ["gcs-beats-random"]);
     let behaviour = read_parquet(&report.join("tables/behaviour_claims.parquet"));
-    let ids = ["gcs-in-rhythm", "gcs-none-still", "learned-all-touring"];
+    let ids = [
+        "gcs-in-rhythm",
+        "gcs-none-still",
+        "learned-all-touring",
+        "gcs-still-at-the-centre",
+    ];
     assert_eq!(texts(&behaviour, "claim"), ids);
     for ours in texts(&behaviour, "ours") {
         assert!(ours.contains(" of 2 runs show it"), "{ours}");
     }
+    let centred = &texts(&behaviour, "ours")[3];
+    assert!(centred.starts_with("1 stationary, the stationary nearer the centre than the touring"));
     let verdicts = texts(&behaviour, "verdict");
     for verdict in &verdicts {
         assert!(["supported", "contradicted", "inconclusive"].contains(&verdict.as_str()));
     }
     let runs = read_parquet(&report.join("tables/behaviour_runs.parquet"));
-    assert_eq!(runs.height(), 3 * 2, "two runs per claim");
+    assert_eq!(runs.height(), ids.len() * 2, "two runs per claim");
     assert!(
         numbers(&runs, "episodes")
             .iter()

@@ -739,7 +739,9 @@ mod tests {
             ", on average [7.000] (touring) cells from the map's centre"
         );
         assert_eq!(placement(&roles, 3), "");
-        let judged = (0..4).map(|i| super::centred(&roles, i)).collect::<Vec<_>>();
+        let judged = (0..4)
+            .map(|i| super::centred(&roles, i))
+            .collect::<Vec<_>>();
         assert_eq!(judged, [Some(true), Some(false), None, None]);
     }
 }

@@ -555,25 +555,26 @@ fn summary(
         )
     };
     let stationary = motion.agents - touring.len();
+    let distances = distances(roles, index);
     let statement = format!(
         "{}: {}; {}; {stationary} stationary and {} touring agents{}.",
         motion.group.label(),
         describe("y", "y(t)"),
         describe("sin_theta", "sin(theta(t))"),
         touring.len(),
-        placement(roles, index)
+        placement(&distances)
     );
     EpisodeBehaviour {
         stationary,
         touring: touring.len(),
         periodic,
-        centred: centred(roles, index),
+        centred: centred(&distances),
         statement,
     }
 }
 
-/// The mean distances from the map's centre of `motions[index]`'s stationary and touring
-/// agents.
+/// The mean distances from the map's centre of `motions[index]`'s stationary agents and of
+/// its touring ones.
 fn distances(roles: &[AgentRole], index: usize) -> [Vec<f64>; 2] {
     [Role::Stationary, Role::Touring].map(|role| {
         (roles.iter())
@@ -583,24 +584,22 @@ fn distances(roles: &[AgentRole], index: usize) -> [Vec<f64>; 2] {
     })
 }
 
-/// Whether every stationary agent of `motions[index]` keeps nearer the map's centre than
-/// every touring one (the paper's open map with four agents: "one agent at the centre", the
+/// Whether every stationary agent keeps nearer the map's centre than every touring one, by
+/// their [`distances`] (the paper's open map with four agents: "one agent at the centre", the
 /// others "around the periphery"); `None` without both roles.
-fn centred(roles: &[AgentRole], index: usize) -> Option<bool> {
-    let [still, moving] = distances(roles, index);
-    let farthest_still = still.into_iter().reduce(f64::max)?;
-    let nearest_moving = moving.into_iter().reduce(f64::min)?;
+fn centred([still, moving]: &[Vec<f64>; 2]) -> Option<bool> {
+    let farthest_still = still.iter().copied().reduce(f64::max)?;
+    let nearest_moving = moving.iter().copied().reduce(f64::min)?;
     Some(farthest_still < nearest_moving)
 }
 
-/// Where the roles of `motions[index]` keep: ", on average [..] (stationary) and [..]
+/// Where the roles keep, by their [`distances`]: ", on average [..] (stationary) and [..]
 /// (touring) cells from the map's centre", and whether they are [`centred`]; nothing for an
 /// episode without agents.
-fn placement(roles: &[AgentRole], index: usize) -> String {
-    let [still, moving] = distances(roles, index);
+fn placement(distances: &[Vec<f64>; 2]) -> String {
     let listed = |values: &[f64]| values.iter().map(|&v| number(v)).collect::<Vec<_>>();
     let mut parts = Vec::new();
-    for (values, role) in [(&still, Role::Stationary), (&moving, Role::Touring)] {
+    for (values, role) in distances.iter().zip([Role::Stationary, Role::Touring]) {
         if !values.is_empty() {
             parts.push(format!("[{}] ({})", listed(values).join(", "), role.name()));
         }
@@ -608,7 +607,7 @@ fn placement(roles: &[AgentRole], index: usize) -> String {
     if parts.is_empty() {
         return String::new();
     }
-    let nearest = match centred(roles, index) {
+    let nearest = match centred(distances) {
         Some(true) => ", every stationary agent nearer it than every touring one",
         Some(false) => ", a touring agent as near it as a stationary one",
         None => "",
@@ -726,21 +725,22 @@ mod tests {
             agent(1, Touring, 18.0),
             agent(2, Touring, 7.0),
         ];
-        let centred = placement(&roles, 0);
+        let placement = |index| placement(&distances(&roles, index));
+        let centred = placement(0);
         assert!(
             centred.contains("[1.500] (stationary) and [20.00, 18.00] (touring)"),
             "{centred}"
         );
         assert!(centred.ends_with("every stationary agent nearer it than every touring one"));
-        assert!(placement(&roles, 1).ends_with("a touring agent as near it as a stationary one"));
-        let touring = placement(&roles, 2);
+        assert!(placement(1).ends_with("a touring agent as near it as a stationary one"));
+        let touring = placement(2);
         assert_eq!(
             touring,
             ", on average [7.000] (touring) cells from the map's centre"
         );
-        assert_eq!(placement(&roles, 3), "");
+        assert_eq!(placement(3), "");
         let judged = (0..4)
-            .map(|i| super::centred(&roles, i))
+            .map(|i| super::centred(&distances(&roles, i)))
             .collect::<Vec<_>>();
         assert_eq!(judged, [Some(true), Some(false), None, None]);
     }

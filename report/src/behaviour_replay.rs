@@ -84,7 +84,7 @@ pub(crate) fn measures(
     let (mut table, whole) = read_table(store)?;
     // A table measured before a measure existed is measured again where the cells are at
     // hand, and written whole (the measure null where they are not).
-    let (mut measured, mut replayed) = (Vec::new(), !whole);
+    let (mut measured, mut rewrite) = (Vec::new(), !whole);
     for (policy, point) in &points {
         let needed = index.at(policy, point);
         let pool = Pool::new(motions, policy, point);
@@ -98,13 +98,13 @@ pub(crate) fn measures(
             let rows = replay(replayer, store, &pool, (&needed, point.n_test))?;
             table.retain(|m| !at_point(&m.group, policy, point));
             table.extend(rows);
-            replayed = true;
+            rewrite = true;
         } else if !covered {
             continue;
         }
         measured.push((policy, point));
     }
-    if replayed {
+    if rewrite {
         store.write_table(TABLE, &frame(&table).map_err(StoreError::from)?)?;
     }
     table.retain(|m| {
@@ -359,7 +359,8 @@ fn read_table(store: &Store) -> Result<(Vec<EpisodeMeasure>, bool), BehaviourErr
         }
         read => read?,
     };
-    let whole = frame.column(behaviour_episodes::CENTRED).is_ok();
+    let columns = store::schema::columns_of(TABLE).unwrap_or_default();
+    let whole = columns.iter().all(|c| frame.column(c).is_ok());
     let rows = rows(&frame).map_err(|source| BehaviourError::Table { path, source })?;
     Ok((rows, whole))
 }

@@ -169,16 +169,22 @@ pub(crate) fn centre(map: &Map) -> (f64, f64) {
     (map.width() as f64 / 2.0, map.height() as f64 / 2.0)
 }
 
+/// Cell (x, y)'s centre (half a cell past its corner) less `centre`.
+fn from_centre(x: f64, y: f64, centre: (f64, f64)) -> (f64, f64) {
+    (x + 0.5 - centre.0, y + 0.5 - centre.1)
+}
+
 /// The sine of the angle of cell (x, y)'s centre about `centre`; 0 at the centre itself.
 pub(crate) fn sin_theta(x: f64, y: f64, centre: (f64, f64)) -> f64 {
-    let (dx, dy) = (x + 0.5 - centre.0, y + 0.5 - centre.1);
+    let (dx, dy) = from_centre(x, y, centre);
     let radius = dx.hypot(dy);
     if radius == 0.0 { 0.0 } else { dy / radius }
 }
 
 /// How far cell (x, y)'s centre is from `centre`, in cells.
 pub(crate) fn distance_from_centre(x: f64, y: f64, centre: (f64, f64)) -> f64 {
-    (x + 0.5 - centre.0).hypot(y + 0.5 - centre.1)
+    let (dx, dy) = from_centre(x, y, centre);
+    dx.hypot(dy)
 }
 
 fn frame(motions: &[Motion]) -> PolarsResult<DataFrame> {

@@ -60,6 +60,7 @@ pub fn compute_for(
         events: true,
         // The fingerprint is of the cells' results, which the provenance is not part of.
         built_from: Default::default(),
+        compute: true,
     };
     let report = run_sweep(&scenario, text, &store, &options)?;
     if !report.failed.is_empty() {

@@ -38,6 +38,11 @@ pub struct SweepOptions {
     pub events: bool,
     /// The code of the binary that runs the sweep, for each cell's record.
     pub built_from: BuiltFrom,
+    /// Whether the cells that neither the store, the cache nor the tables hold are computed.
+    /// Without, the sweep assembles a store of what is finished elsewhere (after a lost
+    /// machine, or beside sweeps still running on others), whose tables and report name the
+    /// cells left.
+    pub compute: bool,
 }
 
 /// What a sweep did.
@@ -61,6 +66,8 @@ pub struct SweepReport {
     pub damaged: Vec<(String, String)>,
     /// Cells in the tables.
     pub tabled: usize,
+    /// Cells not computed because the sweep was asked to compute none.
+    pub left: usize,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -116,6 +123,10 @@ pub fn run_sweep(
     };
     let from_tables = take_from_tables(store, &options.tables, &mut todo)?;
     in_work_order(&mut todo);
+    let left = match options.compute {
+        true => 0,
+        false => std::mem::take(&mut todo).len(),
+    };
     let CellsRun { failed, elsewhere } = run_cells(scenario, store, options, &todo)?;
     if let Some(position) = failed.iter().position(|(_, e)| out_of_storage(e)) {
         let (key, error) = failed.into_iter().nth(position).expect("found above");
@@ -128,7 +139,7 @@ pub fn run_sweep(
     let tabled = crate::aggregate::build_tables(store, &selected_keys, scenario.outputs())?;
     Ok(SweepReport {
         selected: selected.len(),
-        already_finished: selected.len() - todo.len() - from_cache - from_tables,
+        already_finished: selected.len() - todo.len() - left - from_cache - from_tables,
         from_cache,
         from_tables,
         computed: todo.len() - failed.len() - elsewhere,
@@ -136,6 +147,7 @@ pub fn run_sweep(
         failed,
         damaged,
         tabled: tabled.len(),
+        left,
     })
 }
 

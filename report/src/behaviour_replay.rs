@@ -207,19 +207,31 @@ impl<'a> Pool<'a> {
         }
     }
 
-    /// `replayed`'s stationary and touring agents, whether it is periodic and whether it is
-    /// centred.
-    fn measure(&self, replayed: &Motion) -> (u32, u32, bool, Option<bool>) {
+    /// `replayed`'s roles, measured among the pool's other members.
+    fn measure(&self, replayed: &Motion) -> Roles {
         let mut members: Vec<&Motion> = self.members.clone();
         match members.get_mut(self.slot) {
             Some(member) => *member = replayed,
             None => members.push(replayed),
         }
         // The slot is inside `members` by construction.
-        measure(&members, self.slot).map_or((0, 0, false, None), |b| {
-            (b.stationary as u32, b.touring as u32, b.periodic, b.centred)
+        measure(&members, self.slot).map_or(Roles::default(), |b| Roles {
+            stationary: b.stationary as u32,
+            touring: b.touring as u32,
+            periodic: b.periodic,
+            centred: b.centred,
         })
     }
+}
+
+/// A replayed episode's stationary and touring agents, whether they keep a rhythm and whether
+/// the stationary ones keep nearer the centre; none of each where its motion gives no roles.
+#[derive(Default)]
+struct Roles {
+    stationary: u32,
+    touring: u32,
+    periodic: bool,
+    centred: Option<bool>,
 }
 
 /// Plays the test episodes `needed` (by cell) with `n_test` agents again and measures them,
@@ -296,7 +308,12 @@ fn replay_cell(
         },
     )?;
     let rows = motions.into_iter().map(|(episode, motion)| {
-        let (stationary, touring, periodic, centred) = pool.measure(&motion);
+        let Roles {
+            stationary,
+            touring,
+            periodic,
+            centred,
+        } = pool.measure(&motion);
         EpisodeMeasure {
             group: group.clone(),
             cell_key: record.key.clone(),

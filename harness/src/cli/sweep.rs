@@ -33,6 +33,11 @@ pub(crate) struct SweepArgs {
     /// given more than once.
     #[arg(long)]
     tables: Vec<PathBuf>,
+    /// Compute no cell: take what the store, the cache and the tables hold and write the
+    /// tables and report of those, naming the cells left (to report a sweep whose cells are
+    /// computed elsewhere, or were until a machine was lost).
+    #[arg(long)]
+    no_compute: bool,
     /// Do not write the report at the end (a shard never does: its store is partial).
     #[arg(long)]
     no_report: bool,
@@ -81,6 +86,7 @@ pub(crate) fn run(args: SweepArgs) -> anyhow::Result<()> {
             .collect::<Result<_, _>>()?,
         events: !args.no_events,
         built_from: crate::provenance::built_from(),
+        compute: !args.no_compute,
     };
     warn_of_cells_left_behind(&scenario, &out)?;
     let report = run_sweep(&scenario, &text, &Store::new(&out), &options)?;
@@ -103,6 +109,12 @@ pub(crate) fn run(args: SweepArgs) -> anyhow::Result<()> {
         report.tabled,
         out.display()
     );
+    if report.left > 0 {
+        println!(
+            "{} cells left uncomputed (--no-compute): the tables and report name them",
+            report.left
+        );
+    }
     for (key, why) in &report.damaged {
         println!("cell {key} was damaged ({why}): computed again");
     }

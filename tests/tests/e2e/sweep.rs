@@ -1140,7 +1140,8 @@ fn the_smoke_sweep_exports_to_marl_eval() {
 /// A long sweep's machine is lost, and with it every cell since the last commit of its
 /// report's tables: the sweep goes on from those tables (`--tables`), taking the cells they
 /// hold (rows and records, no checkpoints) and computing the rest, to the same tables as one
-/// uninterrupted run; the audit trains the taken runs again to replay their episodes.
+/// uninterrupted run; the audit trains the taken runs again to replay their episodes. Asked to
+/// compute nothing, it assembles the tables' cells and reports on them alone.
 #[test]
 fn a_sweep_goes_on_from_its_committed_tables_to_the_same_results() {
     let dir = scratch("from-tables");
@@ -1161,6 +1162,28 @@ fn a_sweep_goes_on_from_its_committed_tables_to_the_same_results() {
     ]));
     let tables = reports.join("tiny/store");
     let tables_arg = ["--tables", tables.to_str().unwrap()];
+
+    // Computing nothing, a sweep assembles what the tables hold; its report names the rest.
+    let (assembled, assembled_reports) = (dir.join("assembled"), dir.join("assembled-reports"));
+    let printed = succeed(harness(&[
+        "sweep",
+        &crate::common::repo_file(TINY),
+        "--out",
+        assembled.to_str().unwrap(),
+        "--report-to",
+        assembled_reports.to_str().unwrap(),
+        "--no-compute",
+        tables_arg[0],
+        tables_arg[1],
+    ]));
+    assert!(
+        printed.contains("4 from tables (no checkpoints), 0 computed")
+            && printed.contains("4 cells left uncomputed (--no-compute)"),
+        "{printed}"
+    );
+    assert_eq!(finished_cells(&assembled), 4);
+    let report = std::fs::read_to_string(assembled_reports.join("tiny/README.md")).unwrap();
+    assert!(report.contains("**4 of 8 cells are missing**"), "{report}");
 
     let again = dir.join("again");
     let printed = sweep(TINY, &again, &tables_arg);

@@ -434,10 +434,12 @@ fn role_frame(motions: &[Motion], rows: &[AgentRole]) -> PolarsResult<DataFrame>
     DataFrame::new(rows.len(), columns)
 }
 
-/// What one episode shows (a recorded one, or one a behaviour claim replays).
-pub(crate) struct EpisodeBehaviour {
-    pub(crate) stationary: usize,
-    pub(crate) touring: usize,
+/// The roles one episode shows: what a behaviour claim tests, and a row of the store's table
+/// of measured episodes holds. None of each where an episode's motion gives no roles.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct EpisodeRoles {
+    pub(crate) stationary: u32,
+    pub(crate) touring: u32,
     /// The touring agents share a rhythm in y(t) or in sin(theta(t)): each one's own period
     /// within `PERIOD_TOLERANCE` of the team's, and their phase differences at the team's
     /// period steady over the episode (`phase_wander` at most `PHASE_WANDER` degrees).
@@ -445,6 +447,11 @@ pub(crate) struct EpisodeBehaviour {
     /// Every stationary agent kept nearer the map's centre than every touring one;
     /// `None` without both roles.
     pub(crate) centred: Option<bool>,
+}
+
+/// What one episode shows (a recorded one, or one a behaviour claim replays).
+struct EpisodeBehaviour {
+    roles: EpisodeRoles,
     /// The report's sentence about it.
     statement: String,
 }
@@ -491,12 +498,12 @@ fn phase_wander(signals: &[Vec<f64>], agents: &[usize], period: f64) -> Option<f
     Some(wander)
 }
 
-/// The behaviour of `pool[index]`, its roles pooled with the rest of `pool` (motions of one
-/// map, as the report pools a map's recorded episodes); `None` when `index` is outside it.
-pub(crate) fn measure(pool: &[&Motion], index: usize) -> Option<EpisodeBehaviour> {
+/// The roles of `pool[index]`, pooled with the rest of `pool` (motions of one map, as the
+/// report pools a map's recorded episodes); `None` when `index` is outside it.
+pub(crate) fn measure(pool: &[&Motion], index: usize) -> Option<EpisodeRoles> {
     let motion = pool.get(index)?;
     let rhythm = motion_rhythms(index, motion);
-    Some(summary(motion, index, &rhythm, &pooled_roles(pool)))
+    Some(summary(motion, index, &rhythm, &pooled_roles(pool)).roles)
 }
 
 /// The behaviour of `motion`, whose rows in `rhythm` and `roles` are those of `index`.
@@ -565,10 +572,12 @@ fn summary(
         placement(&distances)
     );
     EpisodeBehaviour {
-        stationary,
-        touring: touring.len(),
-        periodic,
-        centred: centred(&distances),
+        roles: EpisodeRoles {
+            stationary: stationary as u32,
+            touring: touring.len() as u32,
+            periodic,
+            centred: centred(&distances),
+        },
         statement,
     }
 }

@@ -24,14 +24,13 @@ pub(crate) const RULE: &str = "An episode shows the structure when every feature
 
 /// Whether one measured episode shows what a claim expects.
 fn holds(measure: &EpisodeMeasure, expected: Behaviour) -> bool {
+    let roles = &measure.roles;
     expected
         .stationary
-        .is_none_or(|k| k == measure.stationary as usize)
-        && expected
-            .touring
-            .is_none_or(|m| m == measure.touring as usize)
-        && expected.periodic.is_none_or(|p| p == measure.periodic)
-        && expected.centred.is_none_or(|c| Some(c) == measure.centred)
+        .is_none_or(|k| k == roles.stationary as usize)
+        && expected.touring.is_none_or(|m| m == roles.touring as usize)
+        && expected.periodic.is_none_or(|p| p == roles.periodic)
+        && expected.centred.is_none_or(|c| Some(c) == roles.centred)
 }
 
 /// One run's test episodes at a claim's point: how many, and how many show the structure.
@@ -236,10 +235,10 @@ fn episodes_frame(judged: &[Judged]) -> PolarsResult<DataFrame> {
         "cell_key" => rows.iter().map(|(_, m)| m.cell_key.as_str()).collect::<Vec<_>>(),
         "repetition" => column(|m| m.repetition),
         "episode" => column(|m| m.episode),
-        "stationary" => column(|m| m.stationary),
-        "touring" => column(|m| m.touring),
-        "periodic" => rows.iter().map(|(_, m)| m.periodic).collect::<Vec<_>>(),
-        "centred" => rows.iter().map(|(_, m)| m.centred).collect::<Vec<_>>(),
+        "stationary" => column(|m| m.roles.stationary),
+        "touring" => column(|m| m.roles.touring),
+        "periodic" => rows.iter().map(|(_, m)| m.roles.periodic).collect::<Vec<_>>(),
+        "centred" => rows.iter().map(|(_, m)| m.roles.centred).collect::<Vec<_>>(),
         "holds" => rows.iter().map(|(j, m)| holds(m, j.expected)).collect::<Vec<_>>(),
     )
 }
@@ -301,6 +300,7 @@ mod tests {
 
     #[test]
     fn episodes_count_by_run_and_every_named_feature() {
+        use super::super::behaviour::EpisodeRoles;
         use super::super::columns::{GroupKey, PolicyKey};
         let point = Point {
             map: "open".into(),
@@ -319,10 +319,12 @@ mod tests {
             cell_key: cell.into(),
             repetition,
             episode: 0,
-            stationary,
-            touring: 4 - stationary,
-            periodic,
-            centred,
+            roles: EpisodeRoles {
+                stationary,
+                touring: 4 - stationary,
+                periodic,
+                centred,
+            },
             pool: String::new(),
         };
         let measures = [

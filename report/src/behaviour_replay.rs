@@ -18,7 +18,7 @@ use polars::prelude::*;
 use rayon::prelude::*;
 use world::World;
 
-use super::behaviour::measure;
+use super::behaviour::{EpisodeRoles, measure};
 use super::columns::{GroupKey, PolicyKey, strings, u32s};
 use super::judgement::at_point;
 use super::motion::{Motion, centre, sin_theta};
@@ -54,12 +54,9 @@ pub struct EpisodeMeasure {
     pub(crate) cell_key: String,
     pub(crate) repetition: u32,
     pub(crate) episode: u32,
-    pub(crate) stationary: u32,
-    pub(crate) touring: u32,
-    pub(crate) periodic: bool,
-    /// Every stationary robot nearer the map's centre than every touring one; `None` without
-    /// both roles, or read from a table measured before the measure existed.
-    pub(crate) centred: Option<bool>,
+    /// Its `centred` is `None` also when read from a table measured before the measure
+    /// existed.
+    pub(crate) roles: EpisodeRoles,
     /// Which recorded episodes the roles were pooled with ([`Pool::identity`]): a row whose
     /// pool is no longer the store's is measured again where the store can replay it.
     pub(crate) pool: String,
@@ -208,30 +205,15 @@ impl<'a> Pool<'a> {
     }
 
     /// `replayed`'s roles, measured among the pool's other members.
-    fn measure(&self, replayed: &Motion) -> Roles {
+    fn measure(&self, replayed: &Motion) -> EpisodeRoles {
         let mut members: Vec<&Motion> = self.members.clone();
         match members.get_mut(self.slot) {
             Some(member) => *member = replayed,
             None => members.push(replayed),
         }
         // The slot is inside `members` by construction.
-        measure(&members, self.slot).map_or(Roles::default(), |b| Roles {
-            stationary: b.stationary as u32,
-            touring: b.touring as u32,
-            periodic: b.periodic,
-            centred: b.centred,
-        })
+        measure(&members, self.slot).unwrap_or_default()
     }
-}
-
-/// A replayed episode's stationary and touring agents, whether they keep a rhythm and whether
-/// the stationary ones keep nearer the centre; none of each where its motion gives no roles.
-#[derive(Default)]
-struct Roles {
-    stationary: u32,
-    touring: u32,
-    periodic: bool,
-    centred: Option<bool>,
 }
 
 /// Plays the test episodes `needed` (by cell) with `n_test` agents again and measures them,
@@ -307,24 +289,13 @@ fn replay_cell(
             }
         },
     )?;
-    let rows = motions.into_iter().map(|(episode, motion)| {
-        let Roles {
-            stationary,
-            touring,
-            periodic,
-            centred,
-        } = pool.measure(&motion);
-        EpisodeMeasure {
-            group: group.clone(),
-            cell_key: record.key.clone(),
-            repetition: config.repetition,
-            episode,
-            stationary,
-            touring,
-            periodic,
-            centred,
-            pool: pool.identity.clone(),
-        }
+    let rows = motions.into_iter().map(|(episode, motion)| EpisodeMeasure {
+        group: group.clone(),
+        cell_key: record.key.clone(),
+        repetition: config.repetition,
+        episode,
+        roles: pool.measure(&motion),
+        pool: pool.identity.clone(),
     });
     Ok(rows.collect())
 }
@@ -401,10 +372,12 @@ fn rows(frame: &DataFrame) -> PolarsResult<Vec<EpisodeMeasure>> {
             cell_key: cells[i].clone(),
             repetition: repetitions[i],
             episode: episodes[i],
-            stationary: stationary[i],
-            touring: touring[i],
-            periodic: periodic[i],
-            centred: centred[i],
+            roles: EpisodeRoles {
+                stationary: stationary[i],
+                touring: touring[i],
+                periodic: periodic[i],
+                centred: centred[i],
+            },
             pool: pools[i].clone(),
         })
         .collect())
@@ -429,10 +402,10 @@ fn frame(rows: &[EpisodeMeasure]) -> PolarsResult<DataFrame> {
         cell::KEY => text(|m| m.cell_key.as_str()),
         cells::REPETITION => column(|m| m.repetition),
         episodes::EPISODE => column(|m| m.episode),
-        behaviour_episodes::STATIONARY => column(|m| m.stationary),
-        behaviour_episodes::TOURING => column(|m| m.touring),
-        behaviour_episodes::PERIODIC => rows.iter().map(|m| m.periodic).collect::<Vec<_>>(),
-        behaviour_episodes::CENTRED => rows.iter().map(|m| m.centred).collect::<Vec<_>>(),
+        behaviour_episodes::STATIONARY => column(|m| m.roles.stationary),
+        behaviour_episodes::TOURING => column(|m| m.roles.touring),
+        behaviour_episodes::PERIODIC => rows.iter().map(|m| m.roles.periodic).collect::<Vec<_>>(),
+        behaviour_episodes::CENTRED => rows.iter().map(|m| m.roles.centred).collect::<Vec<_>>(),
         behaviour_episodes::POOL => text(|m| m.pool.as_str()),
     )
 }
@@ -454,10 +427,12 @@ mod tests {
             cell_key: cell.into(),
             repetition: 1,
             episode,
-            stationary: 1,
-            touring: 2,
-            periodic: episode.is_multiple_of(2),
-            centred: [None, Some(true), Some(false)][episode as usize % 3],
+            roles: EpisodeRoles {
+                stationary: 1,
+                touring: 2,
+                periodic: episode.is_multiple_of(2),
+                centred: [None, Some(true), Some(false)][episode as usize % 3],
+            },
             pool: "abc".into(),
         }
     }

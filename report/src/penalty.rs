@@ -46,7 +46,7 @@ pub(crate) fn section(
         report.figure(
             &file_stem(&["penalty", &rows.map]),
             &bars,
-            &bars_caption(&rows.map, bars.axis().log),
+            &bars_caption(&rows.map, bars.axis().log, bars.has_unbounded_interval()),
         )?;
         report.table(&file_stem(&["penalty", &rows.map]), &frame)?;
         report.paragraph(&format!(
@@ -152,14 +152,19 @@ impl MapRows {
     }
 }
 
-fn bars_caption(map: &str, log: bool) -> String {
+fn bars_caption(map: &str, log: bool, unbounded: bool) -> String {
     let scale = match log {
         true => "; the value axis is on a log scale, as the values span more than two decades",
         false => "",
     };
+    let whiskerless = match unbounded {
+        true => " (a bar without one: a single run, which gives no interval)",
+        false => "",
+    };
     format!(
-        "Mean cumulative penalty (10^6) on `{map}` by N_test, with 95 % intervals; a point per \
-         training run (a baseline's: per repetition) at its mean, each policy its own marker{scale}"
+        "Mean cumulative penalty (10^6) on `{map}` by N_test, with 95 % intervals{whiskerless}; a \
+         point per training run (a baseline's: per repetition) at its mean, each policy its own \
+         marker{scale}"
     )
 }
 
@@ -411,8 +416,10 @@ mod tests {
 
     #[test]
     fn the_caption_says_when_the_axis_is_logarithmic() {
-        assert!(bars_caption("four_room", true).contains("log scale"));
-        assert!(!bars_caption("open", false).contains("log"));
-        assert!(bars_caption("open", false).contains("a point per training run"));
+        assert!(bars_caption("four_room", true, false).contains("log scale"));
+        assert!(!bars_caption("open", false, false).contains("log"));
+        assert!(bars_caption("open", false, false).contains("a point per training run"));
+        assert!(bars_caption("open", false, true).contains("a single run"));
+        assert!(!bars_caption("open", false, false).contains("a single run"));
     }
 }

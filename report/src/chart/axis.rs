@@ -80,8 +80,8 @@ impl ValueAxis {
         if self.log { self.range.start } else { 0.0 }
     }
 
-    /// `value` as drawn: on a log axis, cut at the floor; an unbounded value (one run's
-    /// interval) at the axis' edge.
+    /// `value` as drawn: on a log axis, cut at the floor; an unbounded value at the axis'
+    /// edge.
     pub(crate) fn clamp(&self, value: f64) -> f64 {
         match (self.log, value.is_finite()) {
             (false, true) => value,

@@ -20,6 +20,14 @@ pub(crate) struct Interval {
     pub(crate) high: f64,
 }
 
+impl Interval {
+    /// The whisker's ends, or none where the interval is unbounded (a point of a single
+    /// training run): a line to the axis' edges would read as the widest interval of all.
+    fn whisker(&self) -> Option<(f64, f64)> {
+        (self.low.is_finite() && self.high.is_finite()).then_some((self.low, self.high))
+    }
+}
+
 pub(crate) struct BarSeries {
     pub(crate) label: String,
     /// One per group; `None` leaves a gap.
@@ -76,6 +84,12 @@ impl GroupedBars {
         ValueAxis::fit(&shown, &reach, true)
     }
 
+    /// Whether some bar has no whisker, its interval unbounded: the caption says why.
+    pub(crate) fn has_unbounded_interval(&self) -> bool {
+        let mut values = self.series.iter().flat_map(|s| s.values.iter().flatten());
+        values.any(|v| v.whisker().is_none())
+    }
+
     fn draw_on<DB: DrawingBackend, Y>(
         &self,
         root: &DrawingArea<DB, Shift>,
@@ -121,8 +135,9 @@ impl GroupedBars {
                 let (base, top) = (axis.base(), axis.clamp(v.value));
                 Rectangle::new([(x - half, base), (x + half, top)], colour.filled())
             }))?;
-            chart.draw_series(bars.map(|(x, v)| {
-                let (low, high) = (axis.clamp(v.low), axis.clamp(v.high));
+            let whiskers = bars.filter_map(|(x, v)| v.whisker().map(|ends| (x, ends)));
+            chart.draw_series(whiskers.map(|(x, (low, high))| {
+                let (low, high) = (axis.clamp(low), axis.clamp(high));
                 PathElement::new(vec![(x, low), (x, high)], BLACK.stroke_width(2))
             }))?;
             let points = series.runs.iter().enumerate().flat_map(|(group, runs)| {
@@ -210,5 +225,25 @@ mod tests {
             one_low_run.axis().log,
             "a single run far below its bar counts too"
         );
+    }
+
+    #[test]
+    fn a_single_runs_unbounded_interval_draws_no_whisker() {
+        let bounded = Interval {
+            value: 7.5,
+            low: 6.0,
+            high: 9.0,
+        };
+        assert_eq!(bounded.whisker(), Some((6.0, 9.0)));
+        let one_run = Interval {
+            low: f64::NEG_INFINITY,
+            high: f64::INFINITY,
+            ..bounded
+        };
+        assert_eq!(one_run.whisker(), None);
+        let mut figure = bars(&[50.0, 5.0], vec![]);
+        assert!(!figure.has_unbounded_interval());
+        figure.series[0].values[1] = Some(one_run);
+        assert!(figure.has_unbounded_interval());
     }
 }

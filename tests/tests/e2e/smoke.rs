@@ -36,12 +36,18 @@ pub fn finished_cells(store: &Path) -> usize {
         .unwrap_or(0)
 }
 
-/// Cells of the store in `out` that are leased and not finished.
+/// Cells of the store in `out` that are leased and not finished. A lease counts once its file
+/// names its holder: the file is created empty, then written, and a sweep stopped between the
+/// two leaves a lease that status cannot attribute.
 pub fn cells_in_flight(out: &Path) -> usize {
+    let names_its_holder = |lease: &Path| {
+        std::fs::read(lease)
+            .is_ok_and(|bytes| serde_json::from_slice::<store::LeaseHolder>(&bytes).is_ok())
+    };
     std::fs::read_dir(out.join("cells")).map_or(0, |entries| {
         entries
             .flatten()
-            .filter(|e| e.path().join("running.json").exists())
+            .filter(|e| names_its_holder(&e.path().join("running.json")))
             .filter(|e| !e.path().join("cell.json").exists())
             .count()
     })

@@ -40,14 +40,15 @@ pub fn finished_cells(store: &Path) -> usize {
 /// names its holder: the file is created empty, then written, and a sweep stopped between the
 /// two leaves a lease that status cannot attribute.
 pub fn cells_in_flight(out: &Path) -> usize {
-    let names_its_holder = |lease: &Path| {
-        std::fs::read(lease)
-            .is_ok_and(|bytes| serde_json::from_slice::<store::LeaseHolder>(&bytes).is_ok())
-    };
+    let store = store::Store::new(out);
     std::fs::read_dir(out.join("cells")).map_or(0, |entries| {
         entries
             .flatten()
-            .filter(|e| names_its_holder(&e.path().join("running.json")))
+            .filter(|e| {
+                store
+                    .lease_holder(&e.file_name().to_string_lossy())
+                    .is_some()
+            })
             .filter(|e| !e.path().join("cell.json").exists())
             .count()
     })

@@ -10,7 +10,7 @@ use store::schema::{cell, cells, convergence as run, episodes, training};
 use super::columns::{
     PolicyKey, distinct, f64s, group_rows, named_seed, optional_u32s, strings, trained_keys,
 };
-use super::training::episodes_per_run;
+use super::training::{Setting, episodes_per_run};
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use plan::cell::CellConfig;
 use stats::{least_squares_slope, summarize};
@@ -171,13 +171,13 @@ fn episodes_per_policy(training: &DataFrame) -> PolarsResult<String> {
     if distinct(all.iter().copied()).len() == 1 {
         return Ok(thousands(all[0] as u64));
     }
-    let labels: Vec<String> = distinct(per_run.iter().map(|(p, _)| p.clone()));
+    let labels: Vec<String> = distinct(per_run.iter().map(|((_, p), _)| p.policy.clone()));
     let parts: Vec<String> = labels
         .iter()
         .map(|label| {
             let of: Vec<usize> = per_run
                 .iter()
-                .filter(|(p, _)| p == label)
+                .filter(|((_, p), _)| &p.policy == label)
                 .map(|(_, n)| *n)
                 .collect();
             format!("{} ({label})", range(&of))
@@ -395,9 +395,6 @@ fn trend(slopes: &[f64], low: f64, high: f64) -> &'static str {
         _ => "flat",
     }
 }
-
-/// A learned setting: the map, and the policy with its N_train.
-type Setting = (String, PolicyKey);
 
 /// The training table's runs, grouped by learned setting in order.
 fn runs_by_setting(training: &DataFrame) -> PolarsResult<Vec<(Setting, Vec<Run>)>> {

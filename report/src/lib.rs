@@ -8,6 +8,7 @@
 mod behaviour;
 mod behaviour_claims;
 mod behaviour_replay;
+mod budget;
 mod chart;
 mod columns;
 mod comparison;

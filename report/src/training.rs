@@ -172,29 +172,27 @@ fn spread(curve: &Curve, label: String) -> Spread {
     }
 }
 
-/// Each training run's learned policy and its episodes (rows of the training table), runs in
-/// order of first appearance: what the header and a claim's budget read.
-pub(crate) fn episodes_per_run(training: &DataFrame) -> PolarsResult<Vec<(String, usize)>> {
-    let (keys, policies) = (
-        strings(training, cell::KEY)?,
-        strings(training, cell::POLICY)?,
-    );
+/// Each training run's map and learned policy (with its N_train) and its episodes (rows of the
+/// training table), runs in order of first appearance: what the header and the budget rule
+/// read.
+pub(crate) fn episodes_per_run(training: &DataFrame) -> PolarsResult<Vec<(Setting, usize)>> {
+    let (keys, trained) = (strings(training, cell::KEY)?, trained_keys(training)?);
     Ok(group_rows(&keys)
         .into_iter()
-        .map(|(_, rows)| (policies[rows[0]].clone(), rows.len()))
+        .map(|(_, rows)| (trained[rows[0]].clone(), rows.len()))
         .collect())
 }
 
 /// The training table's penalties (10^6) by (map, policy) and, within, by run (cell), each
 /// run sorted by episode.
-fn runs_of(training: &DataFrame) -> Result<Vec<(Trained, RunsByCell)>, ReportError> {
+fn runs_of(training: &DataFrame) -> Result<Vec<(Setting, RunsByCell)>, ReportError> {
     let cells = strings(training, cell::KEY)?;
     let episodes: Vec<u64> = f64s(training, training::EPISODE)?
         .into_iter()
         .map(|e| e as u64)
         .collect();
     let penalties = f64s(training, training::PENALTY)?;
-    let keys: Vec<Trained> = trained_keys(training)?;
+    let keys: Vec<Setting> = trained_keys(training)?;
     Ok(group_rows(&keys)
         .into_iter()
         .map(|(key, rows)| {
@@ -208,8 +206,8 @@ fn runs_of(training: &DataFrame) -> Result<Vec<(Trained, RunsByCell)>, ReportErr
         .collect())
 }
 
-/// A map and the policy trained on it.
-type Trained = (String, PolicyKey);
+/// A learned setting: the map, and the policy trained on it with its N_train.
+pub(crate) type Setting = (String, PolicyKey);
 
 /// Per run (cell), its penalty by episode.
 type RunsByCell = BTreeMap<String, BTreeMap<u64, f64>>;

@@ -6,13 +6,14 @@
 //! and a baseline's test episodes (`stats::resampling`); samples of the same runs
 //! under two conditions are drawn as pairs (`comparison::blocks`).
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use store::schema::{cell, training};
 
 use polars::prelude::*;
 
 use super::behaviour_claims;
 use super::behaviour_replay::EpisodeMeasure;
+use super::budget::{trained_for, trained_runs};
 use super::columns::{GroupKey, PolicyKey, f64s, named_seed, optional_u32s, strings};
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, difference_and_improvement, samples};
 use super::disturbance::{DisturbedSamples, ratio};
@@ -20,7 +21,6 @@ use super::judgement::{PointTest, Verdict, find};
 use super::markdown::{interval, number};
 use super::test_curve::{samples_at, trained_curves};
 use super::time_to_quality;
-use super::training::episodes_per_run;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use plan::scenario::claims::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
 use stats::power::{EpisodeNoise, runs_to_decide, runs_with_episodes};
@@ -413,106 +413,6 @@ fn claim_pair(test: &ClaimTest) -> Option<&Pair> {
     }
 }
 
-/// How a learned policy's runs trained: the fewest episodes any of them logged, and for runs
-/// trained until converged, how many the stopping rule ended and how many their cap did.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-struct Trained {
-    episodes: u64,
-    until_converged: Option<Stops>,
-}
-
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-struct Stops {
-    converged: usize,
-    capped: usize,
-}
-
-/// Each learned policy's `Trained`, from the training table and the convergence table's runs.
-fn trained_runs(
-    training: &DataFrame,
-    convergence: Option<&DataFrame>,
-) -> Result<HashMap<String, Trained>, ReportError> {
-    let mut trained: HashMap<String, Trained> = HashMap::new();
-    for (policy, episodes) in episodes_per_run(training)? {
-        let entry = trained.entry(policy).or_insert(Trained {
-            episodes: episodes as u64,
-            until_converged: None,
-        });
-        entry.episodes = entry.episodes.min(episodes as u64);
-    }
-    if let Some(table) = convergence {
-        use store::schema::convergence as run;
-        let stops = strings(table, run::STOP)?;
-        for (policy, stop) in strings(table, cell::POLICY)?.into_iter().zip(stops) {
-            let runs = trained.entry(policy).or_default();
-            let counts = runs.until_converged.get_or_insert_with(Stops::default);
-            match stop == run::CONVERGED {
-                true => counts.converged += 1,
-                false => counts.capped += 1,
-            }
-        }
-    }
-    Ok(trained)
-}
-
-/// Whether the learned policies of a claim meet the training the statement assumes: every
-/// result of the paper comes from policies trained its 30,000 episodes, so a claim about them
-/// holds runs to that budget, or to convergence (the stopping rule says when a run has
-/// learned what it will). A run its cap ended before it converged, short of the budget, has
-/// neither: its policy is short, and the claim names how many runs were capped. `Ok` says how
-/// each policy met it, `Err` which fell short; with no training table nothing can tell.
-fn trained_for(
-    claim: &Claim,
-    budget: u64,
-    trained: &Option<HashMap<String, Trained>>,
-) -> Result<String, String> {
-    let Some(trained) = trained else {
-        return Err(format!(
-            "the statement assumes {budget} training episodes or convergence; the store keeps \
-             no training table to tell how long the runs trained"
-        ));
-    };
-    let mut met = Vec::new();
-    let mut short = Vec::new();
-    for policy in claim_policies(&claim.test) {
-        match trained.get(policy) {
-            None => {}
-            Some(Trained {
-                until_converged: Some(stops),
-                episodes,
-            }) if stops.capped == 0 || *episodes >= budget => met.push(format!(
-                "{policy} trained until converged: {} of {} runs converged, {} capped",
-                stops.converged,
-                stops.converged + stops.capped,
-                stops.capped
-            )),
-            Some(Trained {
-                until_converged: Some(stops),
-                episodes,
-            }) => short.push(format!(
-                "{policy} trained until converged, but {} of {} runs reached their cap before \
-                 converging (the shortest trained {episodes})",
-                stops.capped,
-                stops.converged + stops.capped
-            )),
-            Some(Trained { episodes, .. }) if *episodes >= budget => {
-                met.push(format!("{policy} trained {episodes} episodes"))
-            }
-            Some(Trained { episodes, .. }) => {
-                short.push(format!("{policy} trained {episodes}, not until converged"))
-            }
-        }
-    }
-    match short.is_empty() {
-        true => Ok(met.join("; ")),
-        false => Err(format!(
-            "not tested at this budget: the statement assumes {budget} training episodes or \
-             convergence; {}",
-            short.join("; ")
-        )),
-    }
-}
-
 /// A claim's judgement under the budget rule: as judged, saying how its runs met the budget,
 /// or "not tested" with what the shorter runs showed beside the reason, so that a reader
 /// still sees them. The points' power stays for `harness check --pilot`, which prices them
@@ -533,24 +433,6 @@ fn held_to_budget(judged: Judged, met: Result<String, String>) -> Judged {
             ),
             ..judged
         },
-    }
-}
-
-/// The policies a claim names.
-fn claim_policies(test: &ClaimTest) -> Vec<&str> {
-    match (claim_pair(test), test) {
-        (Some(pair), _) => vec![&pair.a, &pair.b],
-        (None, ClaimTest::DiagonalBest { policy, .. } | ClaimTest::Behaviour { policy, .. }) => {
-            vec![policy]
-        }
-        (
-            None,
-            ClaimTest::CurveBelow { a, b, .. }
-            | ClaimTest::AdaptsBetter { a, b, .. }
-            | ClaimTest::Faster { a, b, .. },
-        ) => vec![a, b],
-        // The pairs are claim_pair's; a statement not tested names no policy.
-        (None, _) => Vec::new(),
     }
 }
 
@@ -1353,65 +1235,19 @@ mod tests {
         );
     }
 
+    /// A claim whose runs fell short is "not tested", showing what its runs gave beside the
+    /// reason; one whose runs met the budget is judged as it stands, saying how they met it.
     #[test]
-    fn a_claim_is_tested_on_runs_that_trained_the_budget_or_converged() {
-        let claim = Claim {
-            id: "after-30k".into(),
-            paper: String::new(),
-            test: ClaimTest::Lower {
-                pair: pair("gcs", "ma-g-ppo@fast"),
-            },
-            budget: Some(30_000),
-        };
-        let runs = |episodes, until_converged| {
-            Some(HashMap::from([(
-                "ma-g-ppo@fast".to_owned(),
-                Trained {
-                    episodes,
-                    until_converged,
-                },
-            )]))
-        };
-        let short = trained_for(&claim, 30_000, &runs(800, None)).unwrap_err();
-        assert!(
-            short.contains("ma-g-ppo@fast trained 800, not until converged"),
-            "{short}"
-        );
-        let long = trained_for(&claim, 30_000, &runs(30_000, None)).unwrap();
-        assert_eq!(long, "ma-g-ppo@fast trained 30000 episodes");
-        let every_run = Stops {
-            converged: 5,
-            capped: 0,
-        };
-        let converged = trained_for(&claim, 30_000, &runs(900, Some(every_run))).unwrap();
-        assert!(converged.contains("until converged: 5 of 5 runs converged, 0 capped"));
-        let one_capped = Stops {
-            converged: 4,
-            capped: 1,
-        };
-        let capped = trained_for(&claim, 30_000, &runs(900, Some(one_capped))).unwrap_err();
-        assert!(
-            capped.contains("1 of 5 runs reached their cap before converging"),
-            "a capped run short of the budget is neither: {capped}"
-        );
-        let capped_at_budget = trained_for(&claim, 30_000, &runs(30_000, Some(one_capped)));
-        assert!(
-            capped_at_budget
-                .unwrap()
-                .contains("4 of 5 runs converged, 1 capped")
-        );
-        assert!(
-            trained_for(&claim, 30_000, &None).is_err(),
-            "no table: cannot tell"
-        );
+    fn a_claim_held_to_the_budget_keeps_what_its_runs_showed() {
         let judged = || Judged::from((Verdict::Supported, "a below b".to_owned()));
-        let held = held_to_budget(judged(), Err(short));
+        let held = held_to_budget(judged(), Err("not tested at this budget".to_owned()));
         assert_eq!(held.verdict, Verdict::NotTested);
         assert!(
             held.ours.ends_with("these runs: supported (a below b)"),
             "{}",
             held.ours
         );
+        let long = "ma-g-ppo@fast trained 30000 episodes".to_owned();
         let met = held_to_budget(judged(), Ok(long));
         assert_eq!(
             met.verdict,

@@ -15,7 +15,7 @@ use polars::prelude::*;
 use super::ReportError;
 use super::columns::{PolicyKey, distinct, f64s, strings, trained_keys};
 use super::training::{Setting, episodes_per_run};
-use plan::scenario::claims::{Claim, ClaimTest, Point};
+use plan::scenario::claims::{Claim, ClaimTest};
 
 /// How the runs of one setting (a map and a learned policy with its N_train) trained: the fewest episodes any of them logged, and for runs
 /// trained until converged, how many the stopping rule ended and how many their cap did.
@@ -170,51 +170,21 @@ fn where_capped(runs: &[(&Setting, Runs)]) -> String {
 }
 
 /// The settings a claim's verdict rests on, each once, policies in the order the claim names
-/// them: every policy it names at every point's map and N_train. A baseline's have no runs.
+/// them (`ClaimTest::trained_at`). A baseline's have no runs.
 fn claim_settings(test: &ClaimTest) -> Vec<Setting> {
-    let at = |policies: [&str; 2], points: &[Point]| -> Vec<(String, String, u32)> {
-        (policies.iter())
-            .flat_map(|policy| {
-                (points.iter()).map(|p| (policy.to_string(), p.map.clone(), p.n_train))
-            })
-            .collect()
-    };
-    let named = match test {
-        ClaimTest::Lower { pair }
-        | ClaimTest::Within { pair, .. }
-        | ClaimTest::NotWorse { pair, .. }
-        | ClaimTest::GapGrows { pair, .. }
-        | ClaimTest::EveryRunLower { pair } => at([&pair.a, &pair.b], &pair.points),
-        ClaimTest::AdaptsBetter { a, b, points, .. } | ClaimTest::Faster { a, b, points, .. } => {
-            at([a, b], points)
-        }
-        ClaimTest::DiagonalBest { policy, map, n } => (n.iter())
-            .map(|&n| (policy.clone(), map.clone(), n))
-            .collect(),
-        ClaimTest::CurveBelow {
-            a, b, map, n_train, ..
-        } => vec![
-            (a.clone(), map.clone(), *n_train),
-            (b.clone(), map.clone(), *n_train),
-        ],
-        ClaimTest::Behaviour { policy, point, .. } => {
-            vec![(policy.clone(), point.map.clone(), point.n_train)]
-        }
-        ClaimTest::NotTested { .. } => Vec::new(),
-    };
-    distinct(named.into_iter().map(|(policy, map, n_train)| {
+    distinct(test.trained_at().into_iter().map(|(policy, map, n_train)| {
         let key = PolicyKey {
-            policy,
+            policy: policy.to_owned(),
             n_train: Some(n_train),
         };
-        (map, key)
+        (map.to_owned(), key)
     }))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use plan::scenario::claims::Pair;
+    use plan::scenario::claims::{Pair, Point};
 
     fn lower(a: &str, b: &str, n: &[u32]) -> Claim {
         let points = (n.iter())

@@ -162,6 +162,38 @@ impl ClaimTest {
             ClaimTest::NotTested { .. } => Vec::new(),
         }
     }
+
+    /// Where the claim's verdict rests on each policy's training: (policy, map, N_train) for
+    /// every policy it compares at every point (a diagonal: at each N), policies in the order
+    /// written. A `faster` claim's reference only sets the level, and is left out.
+    pub fn trained_at(&self) -> Vec<(&str, &str, u32)> {
+        match self {
+            ClaimTest::Lower { pair }
+            | ClaimTest::Within { pair, .. }
+            | ClaimTest::NotWorse { pair, .. }
+            | ClaimTest::GapGrows { pair, .. }
+            | ClaimTest::EveryRunLower { pair } => policies_at([&pair.a, &pair.b], &pair.points),
+            ClaimTest::AdaptsBetter { a, b, points, .. }
+            | ClaimTest::Faster { a, b, points, .. } => policies_at([a, b], points),
+            ClaimTest::DiagonalBest { policy, map, n } => {
+                n.iter().map(|&n| (&**policy, &**map, n)).collect()
+            }
+            ClaimTest::CurveBelow {
+                a, b, map, n_train, ..
+            } => vec![(a, map, *n_train), (b, map, *n_train)],
+            ClaimTest::Behaviour { policy, point, .. } => {
+                vec![(policy, &point.map, point.n_train)]
+            }
+            ClaimTest::NotTested { .. } => Vec::new(),
+        }
+    }
+}
+
+/// Each of two policies at each point: (policy, map, N_train).
+fn policies_at<'a>(policies: [&'a str; 2], points: &'a [Point]) -> Vec<(&'a str, &'a str, u32)> {
+    (policies.iter())
+        .flat_map(|&policy| points.iter().map(move |p| (policy, &*p.map, p.n_train)))
+        .collect()
 }
 
 /// Two policies at a list of points, in the order written.
@@ -184,4 +216,36 @@ pub struct Point {
     pub n_test: u32,
     /// N_train of a learned policy at this point: the claim's `n_train`, else N_test.
     pub n_train: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A diagonal rests on its policy at every N, a curve on both policies at one N_train.
+    #[test]
+    fn a_claim_is_trained_at_each_policy_and_point_it_compares() {
+        let diagonal = ClaimTest::DiagonalBest {
+            policy: "g".into(),
+            map: "open".into(),
+            n: vec![2, 4, 10],
+        };
+        let at = diagonal.trained_at();
+        assert_eq!(at, [("g", "open", 2), ("g", "open", 4), ("g", "open", 10)]);
+        let curve = ClaimTest::CurveBelow {
+            a: "g".into(),
+            b: "p".into(),
+            map: "four_room".into(),
+            n_train: 2,
+            episodes: (0, 400),
+        };
+        assert_eq!(
+            curve.trained_at(),
+            [("g", "four_room", 2), ("p", "four_room", 2)]
+        );
+        let not_tested = ClaimTest::NotTested {
+            reason: "no store".into(),
+        };
+        assert!(not_tested.trained_at().is_empty());
+    }
 }

@@ -238,6 +238,7 @@ impl Batch {
             entropy,
             values,
             attention_entropy: 0.01,
+            head_mean_attention_entropy: 0.0,
         };
         model.backward(ws, &self.observations, &self.graph, &output_grads);
         black_box(model.params().grads());

@@ -461,18 +461,45 @@ fn tensors_to_bytes(
     layout: &PyTorchLayout,
     sets: &[(&str, &[f32])],
 ) -> Vec<u8> {
-    let mut named: Vec<(String, Vec<usize>, Vec<u8>)> = Vec::new();
-    for (prefix, flat) in sets {
-        for spec in params.specs() {
-            let bytes = layout
-                .to_stored(spec, spec.slot.of(flat))
-                .iter()
-                .flat_map(|v| v.to_le_bytes())
-                .collect();
-            named.push((format!("{prefix}{}", spec.name), spec.shape.clone(), bytes));
-        }
-    }
-    let views = named.iter().map(|(name, shape, bytes)| {
+    let named: Vec<NamedTensor> = sets
+        .iter()
+        .flat_map(|(prefix, flat)| stored_tensors(params, layout, prefix, flat))
+        .collect();
+    serialize_f32(&named)
+}
+
+/// A tensor by name, its shape and values in stored order.
+pub type NamedTensor = (String, Vec<usize>, Vec<f32>);
+
+/// Every tensor of `model` named `prefix + name`, its values taken from `flat` (weights or
+/// gradients, in our flat order) and put in PyTorch's layout, as a checkpoint stores them.
+pub fn pytorch_tensors(model: &ActorCritic<f32>, prefix: &str, flat: &[f32]) -> Vec<NamedTensor> {
+    stored_tensors(model.params(), &PyTorchLayout::of(model), prefix, flat)
+}
+
+fn stored_tensors(
+    params: &ParamStore<f32>,
+    layout: &PyTorchLayout,
+    prefix: &str,
+    flat: &[f32],
+) -> Vec<NamedTensor> {
+    params
+        .specs()
+        .iter()
+        .map(|spec| {
+            let values = layout.to_stored(spec, spec.slot.of(flat));
+            (format!("{prefix}{}", spec.name), spec.shape.clone(), values)
+        })
+        .collect()
+}
+
+/// A safetensors file of f32 tensors, in the given order.
+pub fn serialize_f32(tensors: &[NamedTensor]) -> Vec<u8> {
+    let bytes: Vec<Vec<u8>> = tensors
+        .iter()
+        .map(|(_, _, values)| values.iter().flat_map(|v| v.to_le_bytes()).collect())
+        .collect();
+    let views = tensors.iter().zip(&bytes).map(|((name, shape, _), bytes)| {
         let view = TensorView::new(Dtype::F32, shape.clone(), bytes).expect("sizes match shapes");
         (name.clone(), view)
     });

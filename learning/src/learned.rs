@@ -175,7 +175,7 @@ mod tests {
         let rows = vec![".".repeat(30); 30].join("\n");
         let map = Map::parse_text("open", &rows, Path::new("open.txt")).unwrap();
         let world = World::new(map, WorldParams::paper());
-        let config = TrainingConfig::profile(Profile::Paper)
+        let config = TrainingConfig::profile(Profile::PaperV1)
             .with_overrides(&["network=compact"])
             .unwrap();
         let side = Observer::new(&world, config.observation_config()).side();

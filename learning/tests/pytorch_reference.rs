@@ -42,7 +42,7 @@ fn fixed_observation() -> Vec<f32> {
 /// depend visibly on every part: untrained, the policy is nearly uniform and the attention
 /// nearly even, and a swapped tensor would change the outputs by less than rounding.
 fn state(architecture: &str) -> TrainingState {
-    let config = TrainingConfig::profile(Profile::Paper)
+    let config = TrainingConfig::profile(Profile::PaperV1)
         .with_overrides(&[format!("architecture={architecture}")])
         .unwrap();
     let model_config = config.model_config(SIDE).unwrap();

@@ -50,6 +50,7 @@ pub struct AttentionWorkspace<T> {
     log_weights: ReusableBuffer<T>,
     weights: ReusableBuffer<T>,
     entropy: T,
+    head_mean_entropy: T,
     d_projected: ReusableBuffer<T>,
     d_log_weights: ReusableBuffer<T>,
     d_receiver_scores: ReusableBuffer<T>,
@@ -65,11 +66,27 @@ impl<T: Real> AttentionWorkspace<T> {
         self.weights.matrix(self.heads, self.edges)
     }
 
-    /// Mean over agents (all batch rows) and heads of `-sum_j alpha log alpha`, which the
-    /// training loss rewards. Agents without neighbours count as 0.
+    /// Mean over agents (all batch rows) and heads of `-sum_j alpha log alpha`. Agents
+    /// without neighbours count as 0.
     pub fn attention_entropy(&self) -> T {
         self.entropy
     }
+
+    /// Mean over agents of the entropy of the heads' averaged weights, `-sum_j abar log abar`
+    /// with `abar_ij = mean_m alpha_ij^m`: the released code's `att_entropy`, taken of the
+    /// head-averaged attention (`ave_heads`) row by row. Agents without neighbours count as 0.
+    pub fn head_mean_attention_entropy(&self) -> T {
+        self.head_mean_entropy
+    }
+}
+
+/// The loss's gradients with respect to the two attention entropies.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EntropyGradients<T> {
+    /// With respect to [`AttentionWorkspace::attention_entropy`].
+    pub each_head: T,
+    /// With respect to [`AttentionWorkspace::head_mean_attention_entropy`].
+    pub head_mean: T,
 }
 
 impl GraphAttention {
@@ -210,11 +227,33 @@ impl GraphAttention {
             .zip(log_weights.iter())
             .for_each(|(w, l)| *w = l.exp_portable());
         ws.entropy = entropy_sum / T::from_count((ws.batch * heads).max(1));
+        ws.head_mean_entropy = self.head_mean_entropy(ws, graph);
+    }
+
+    /// `mean_i -sum_j abar_ij log abar_ij` over the weights of the forward pass.
+    fn head_mean_entropy<T: Real>(&self, ws: &AttentionWorkspace<T>, graph: &AgentGraph) -> T {
+        let weights = ws.weights.slice(self.heads * ws.edges);
+        let mut sum = T::zero();
+        for i in 0..ws.batch {
+            for e in graph.edge_range(i) {
+                let mean = self.head_mean(weights, ws.edges, e);
+                if mean > T::zero() {
+                    sum -= mean * mean.ln_portable();
+                }
+            }
+        }
+        sum / T::from_count(ws.batch.max(1))
+    }
+
+    /// `abar` of edge `e`, summed head by head in order.
+    fn head_mean<T: Real>(&self, weights: &[T], edges: usize, e: usize) -> T {
+        let sum = (0..self.heads).fold(T::zero(), |s, head| s + weights[head * edges + e]);
+        sum / T::from_count(self.heads)
     }
 
     /// Accumulates parameter gradients and writes `dh [batch, in]`, for the loss gradient
     /// `d_out` with respect to the messages and `entropy_grad` with respect to the attention
-    /// entropy. `h` and `graph` must be those of the forward pass.
+    /// entropies. `h` and `graph` must be those of the forward pass.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn backward<T: Real>(
         &self,
@@ -224,13 +263,14 @@ impl GraphAttention {
         h: ArrayView2<T>,
         graph: &AgentGraph,
         d_out: ArrayView2<T>,
-        entropy_grad: T,
+        entropy_grad: EntropyGradients<T>,
         dh: ArrayViewMut2<T>,
     ) {
         let (batch, width) = (ws.batch, self.heads * self.out_features);
         ws.d_projected.slice_mut(batch * width).fill(T::zero());
         self.backward_messages(ws, graph, d_out);
-        self.backward_scores(ws, graph, entropy_grad);
+        self.backward_head_mean_entropy(ws, graph, entropy_grad.head_mean);
+        self.backward_scores(ws, graph, entropy_grad.each_head);
         self.backward_score_projections(params, grads, ws);
         let d_projected = ws.d_projected.matrix(batch, width);
         matmul_add(d_projected.t(), h, self.weight_mut(grads));
@@ -267,6 +307,37 @@ impl GraphAttention {
                         .iter_mut()
                         .zip(d_message)
                         .for_each(|(d, &g)| *d += scale * g);
+                }
+            }
+        }
+    }
+
+    /// Adds the head-mean entropy's part to the gradient with respect to the log-weights:
+    /// `dH_i / d alpha^m_ij = -(log abar_ij + 1) / heads`, times `alpha` for its logarithm.
+    fn backward_head_mean_entropy<T: Real>(
+        &self,
+        ws: &mut AttentionWorkspace<T>,
+        graph: &AgentGraph,
+        entropy_grad: T,
+    ) {
+        if entropy_grad == T::zero() {
+            return;
+        }
+        let edges = ws.edges;
+        let per_agent = entropy_grad / T::from_count(ws.batch.max(1));
+        let head_share = T::one() / T::from_count(self.heads);
+        let weights = ws.weights.slice(self.heads * edges);
+        let d_log_weights = ws.d_log_weights.slice_mut(self.heads * edges);
+        for i in 0..ws.batch {
+            for e in graph.edge_range(i) {
+                let mean = self.head_mean(weights, edges, e);
+                if mean <= T::zero() {
+                    continue;
+                }
+                let d_weight = -per_agent * head_share * (mean.ln_portable() + T::one());
+                for head in 0..self.heads {
+                    let k = head * edges + e;
+                    d_log_weights[k] += d_weight * weights[k];
                 }
             }
         }
@@ -444,11 +515,16 @@ mod tests {
         let batch = graph.agents();
         let h = values_away_from_zero(batch * IN, &mut rng);
         let upstream = values_away_from_zero(batch * OUT, &mut rng);
-        let entropy_grad = 0.8;
+        let entropy_grad = EntropyGradients {
+            each_head: 0.8,
+            head_mean: -0.6,
+        };
         let loss = |p: &[f64], h: &[f64]| {
             let mut ws = AttentionWorkspace::default();
             let out = forward(&layer, p, &mut ws, h, &graph);
-            dot64(&out, &upstream) + entropy_grad * ws.attention_entropy()
+            dot64(&out, &upstream)
+                + entropy_grad.each_head * ws.attention_entropy()
+                + entropy_grad.head_mean * ws.head_mean_attention_entropy()
         };
         let params = store.values().to_vec();
         let mut ws = AttentionWorkspace::default();

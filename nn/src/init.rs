@@ -13,6 +13,9 @@ pub(crate) enum Init {
     PyTorchDefault,
     /// `torch.nn.init.orthogonal_(weight, gain)` and a zero bias, the usual choice in PPO code.
     Orthogonal { gain: f64 },
+    /// N(0, std^2) element by element and a zero bias: `xavier_normal_` with its standard
+    /// deviation computed by the caller from both fans.
+    Normal { std: f64 },
 }
 
 impl Init {
@@ -26,6 +29,11 @@ impl Init {
         match self {
             Init::PyTorchDefault => fill_uniform(weight, fan_in_bound(fan_in), rng),
             Init::Orthogonal { gain } => fill_orthogonal(weight, fan_in, gain, rng),
+            Init::Normal { std } => {
+                for w in weight {
+                    *w = T::from_f64(std * standard_normal(rng));
+                }
+            }
         }
     }
 
@@ -39,7 +47,7 @@ impl Init {
     ) {
         match self {
             Init::PyTorchDefault => fill_uniform(bias, fan_in_bound(fan_in), rng),
-            Init::Orthogonal { .. } => bias.fill(T::zero()),
+            Init::Orthogonal { .. } | Init::Normal { .. } => bias.fill(T::zero()),
         }
     }
 }

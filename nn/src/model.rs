@@ -23,7 +23,7 @@
 use ndarray::{ArrayView2, Zip, s};
 use rand::Rng;
 
-use super::attention::{AttentionWorkspace, GraphAttention};
+use super::attention::{AttentionWorkspace, EntropyGradients, GraphAttention};
 use super::buffer::ReusableBuffer;
 use super::categorical::CategoricalBatch;
 use super::cnn::{CnnEncoder, CnnWorkspace, PAPER_CONVOLUTIONS};
@@ -56,8 +56,11 @@ pub enum Architecture {
 /// How the model's weights are drawn.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum InitScheme {
-    /// PyTorch's layer defaults everywhere (what the released code used).
+    /// PyTorch's layer defaults everywhere, the graph attention included.
     PyTorchDefault,
+    /// The released code: PyTorch's layer defaults, and the graph attention's `W` and score
+    /// vectors Xavier-normal with ReLU's gain, as `GATConv.reset_parameters` draws them.
+    Released,
     /// Orthogonal weights and zero biases, with the usual PPO gains (hidden sqrt 2, policy
     /// output 0.01, value output 1 in [`InitScheme::orthogonal_ppo`]).
     Orthogonal {
@@ -88,9 +91,22 @@ impl InitScheme {
         self.with_gain(|_, _, value| value)
     }
 
+    /// The graph attention's, whose `W` is `[heads * out, in]`: under `Released`, std =
+    /// sqrt 2 x sqrt(2 / (in + heads * out)), which is also what `xavier_normal_` gives the
+    /// released `attn_l` and `attn_r` of shape `[1, heads, out]` when in = out.
+    fn attention(self, in_features: usize, heads: usize) -> Init {
+        match self {
+            InitScheme::Released => Init::Normal {
+                std: std::f64::consts::SQRT_2
+                    * (2.0 / (in_features + heads * in_features) as f64).sqrt(),
+            },
+            other => other.hidden(),
+        }
+    }
+
     fn with_gain(self, pick: impl Fn(f64, f64, f64) -> f64) -> Init {
         match self {
-            InitScheme::PyTorchDefault => Init::PyTorchDefault,
+            InitScheme::PyTorchDefault | InitScheme::Released => Init::PyTorchDefault,
             InitScheme::Orthogonal {
                 hidden_gain,
                 policy_gain,
@@ -204,8 +220,11 @@ pub struct OutputGradients<'a, T> {
     pub entropy: &'a [T],
     /// With respect to each sample's value.
     pub values: &'a [T],
-    /// With respect to the mean attention entropy (ignored by MA-PPO).
+    /// With respect to the mean attention entropy of each head (ignored by MA-PPO).
     pub attention_entropy: T,
+    /// With respect to the mean entropy of the heads' averaged attention (the released
+    /// code's; ignored by MA-PPO).
+    pub head_mean_attention_entropy: T,
 }
 
 impl<T: Real> ActorCritic<T> {
@@ -224,7 +243,7 @@ impl<T: Real> ActorCritic<T> {
                 features,
                 features,
                 heads,
-                hidden_init,
+                config.init.attention(features, heads),
                 rng,
             )?),
         };
@@ -429,7 +448,10 @@ impl<T: Real> ActorCritic<T> {
                     features,
                     graph,
                     d_input.slice(s![.., f..]),
-                    output_grads.attention_entropy,
+                    EntropyGradients {
+                        each_head: output_grads.attention_entropy,
+                        head_mean: output_grads.head_mean_attention_entropy,
+                    },
                     d_features.view_mut(),
                 );
                 Zip::from(&mut d_features)
@@ -484,6 +506,7 @@ mod tests {
         entropy: Vec<f64>,
         values: Vec<f64>,
         attention_entropy: f64,
+        head_mean_attention_entropy: f64,
     }
 
     impl Projection {
@@ -493,6 +516,7 @@ mod tests {
                 entropy: values_away_from_zero(batch, rng),
                 values: values_away_from_zero(batch, rng),
                 attention_entropy: 0.7,
+                head_mean_attention_entropy: -0.4,
             }
         }
 
@@ -502,6 +526,7 @@ mod tests {
                 + dot(ws.policy().entropy(), &self.entropy)
                 + dot(ws.values(), &self.values)
                 + self.attention_entropy * ws.attention().attention_entropy()
+                + self.head_mean_attention_entropy * ws.attention().head_mean_attention_entropy()
         }
 
         fn gradients(&self, actions: usize) -> OutputGradients<'_, f64> {
@@ -511,6 +536,7 @@ mod tests {
                 entropy: &self.entropy,
                 values: &self.values,
                 attention_entropy: self.attention_entropy,
+                head_mean_attention_entropy: self.head_mean_attention_entropy,
             }
         }
     }
@@ -652,6 +678,7 @@ mod tests {
             entropy,
             values,
             attention_entropy: 0.01,
+            head_mean_attention_entropy: 0.01,
         };
         model.backward(ws, observations, graph, &output_grads);
         let mut result: Vec<f32> = ws.policy().log_probs().iter().copied().collect();

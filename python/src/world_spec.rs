@@ -75,6 +75,7 @@ impl World {
             channels,
             mark_others_on_mini,
             mini_map_block,
+            ..ObservationConfig::default()
         };
         Ok(Self {
             world: threads::build_world(py, map, params)?,

@@ -24,7 +24,9 @@ pub use episode::{Action, Episode, StartError, World};
 pub use input::{InputError, InputProblem, read_bounded, read_bounded_text};
 pub use links::Links;
 pub use map::{Cell, Map, MapError, MapErrorKind};
-pub use observation::{Channels, ImageGeometry, ObservationConfig, Observer};
+pub use observation::{
+    Channels, ImageGeometry, ObservationCodes, ObservationConfig, ObservationScale, Observer,
+};
 pub use params::{ParamError, WorldParams};
 pub use penalty::PenaltyGrid;
 pub use policy::{AttentionEdges, Policy};

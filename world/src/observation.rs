@@ -1,5 +1,6 @@
 //! What the learned policies see: per agent a local map and a mini-map, coded as the paper
-//! (obstacle 150, agent 200, free cell = its penalty) and divided by Rmax.
+//! (obstacle 150, agent 200, free cell = its penalty) and divided by Rmax, or as the released
+//! code (agents 100 in the local map, raw codes: [`ObservationCodes`], [`ObservationScale`]).
 //!
 //! Images are square, side S = max(L, mini-map sides), row 0 at the bottom (the map's y
 //! direction). A channel smaller than S fills the rest of its image with the obstacle code, so
@@ -15,10 +16,48 @@ use crate::episode::{Episode, World};
 use crate::map::{Cell, Map};
 use crate::penalty::OBSTACLE_CODE;
 
-/// The code of an agent: every agent in a local window, the observing agent on its mini-map.
+/// The code of an agent: every agent in a local window (the paper's text), the observing
+/// agent on its mini-map (the paper and the released code).
 pub const AGENT_CODE: f32 = 200.0;
-/// The code of the other agents on the mini-map, when they are marked (the released code).
+/// The code of the other agents on the mini-map, when they are marked (a released variant),
+/// and of every agent in a local window in the released code.
 pub(crate) const OTHER_AGENT_CODE: f32 = 100.0;
+
+/// How the agents in a local window are coded.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum ObservationCodes {
+    /// 200, as the paper's text says.
+    #[default]
+    PaperText,
+    /// 100, the agent itself included, as the released `env.py` marks `current_map_state`.
+    Released,
+}
+
+impl ObservationCodes {
+    fn local_agent(self) -> f32 {
+        match self {
+            ObservationCodes::PaperText => AGENT_CODE,
+            ObservationCodes::Released => OTHER_AGENT_CODE,
+        }
+    }
+}
+
+/// What the codes are divided by before the network sees them.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum ObservationScale {
+    /// By Rmax: penalties in [-1, 0], obstacles 0.375.
+    #[default]
+    Rmax,
+    /// Not at all: the released code feeds the raw codes (its learning rate of 2e-6 was set
+    /// for them).
+    Raw,
+}
 
 /// Which images a policy gets (the paper's RQ2 compares the three). Named in training
 /// configurations, hence serde.
@@ -55,6 +94,8 @@ pub struct ObservationConfig {
     pub mark_others_on_mini: bool,
     /// The side b of the mini-map's blocks; `None` fits the map to the local view's side.
     pub mini_map_block: Option<usize>,
+    pub codes: ObservationCodes,
+    pub scale: ObservationScale,
 }
 
 impl Default for ObservationConfig {
@@ -63,6 +104,8 @@ impl Default for ObservationConfig {
             channels: Channels::Both,
             mark_others_on_mini: false,
             mini_map_block: None,
+            codes: ObservationCodes::PaperText,
+            scale: ObservationScale::Rmax,
         }
     }
 }
@@ -121,7 +164,10 @@ impl Observer {
         let fov = world.params().fov();
         let geometry = ImageGeometry::new(map, fov, config.mini_map_block);
         let side = geometry.side;
-        let scale = 1.0 / world.params().rmax();
+        let scale = match config.scale {
+            ObservationScale::Rmax => 1.0 / world.params().rmax(),
+            ObservationScale::Raw => 1.0,
+        };
         let mini = vec![OBSTACLE_CODE * scale; side * side];
         let (column_low, column_high) = (vec![0.0; map.width()], vec![0.0; map.width()]);
         Self {
@@ -201,7 +247,8 @@ impl Observer {
             let dx = other.x as i64 - at.x as i64 + half as i64;
             let dy = other.y as i64 - at.y as i64 + half as i64;
             if (0..fov as i64).contains(&dx) && (0..fov as i64).contains(&dy) {
-                out[dy as usize * side + dx as usize] = AGENT_CODE * self.scale;
+                out[dy as usize * side + dx as usize] =
+                    self.config.codes.local_agent() * self.scale;
             }
         }
     }
@@ -314,6 +361,7 @@ mod tests {
             channels: Channels::Mini,
             mark_others_on_mini: false,
             mini_map_block: Some(3),
+            ..ObservationConfig::default()
         };
         let mut observer = Observer::new(&world, config);
         assert_eq!(observer.side(), 2);
@@ -333,5 +381,35 @@ mod tests {
         // the map: an obstacle.
         assert_eq!(observer.side(), 3);
         assert_eq!(out[..2], [AGENT_CODE / 10.0, OBSTACLE_CODE / 10.0]);
+    }
+
+    /// The released code's local map: every agent in the window 100, the observing one
+    /// included; raw codes, so a penalty reads as itself.
+    #[test]
+    fn released_codes_mark_every_agent_100_in_the_local_map_and_raw_codes_are_unscaled() {
+        let world = World::new(open(5, 1), crate::WorldParams::new(3, 1.0, 10.0).unwrap());
+        let mut episode = Episode::new(world.clone(), 2).unwrap();
+        episode
+            .reset_at(&[Cell::new(0, 0), Cell::new(1, 0)])
+            .unwrap();
+        let released = ObservationConfig {
+            channels: Channels::Local,
+            codes: ObservationCodes::Released,
+            scale: ObservationScale::Raw,
+            ..ObservationConfig::default()
+        };
+        let local = |config| {
+            let mut observer = Observer::new(&world, config);
+            let mut out = vec![0.0; 2 * observer.per_agent()];
+            observer.write(&episode, &mut out);
+            out[..observer.per_agent()].to_vec()
+        };
+        // Agent 0's window, the middle row: beyond the map, itself, agent 1, a seen cell.
+        assert_eq!(local(released)[3..6], [OBSTACLE_CODE, 100.0, 100.0]);
+        let paper = ObservationConfig {
+            channels: Channels::Local,
+            ..ObservationConfig::default()
+        };
+        assert_eq!(local(paper)[3..6], [15.0, 20.0, 20.0]);
     }
 }

@@ -7,7 +7,9 @@
 
 use crate::episode::Action;
 use crate::map::{Cell, Map};
-use crate::observation::{AGENT_CODE, OTHER_AGENT_CODE, ObservationConfig};
+use crate::observation::{
+    AGENT_CODE, OTHER_AGENT_CODE, ObservationCodes, ObservationConfig, ObservationScale,
+};
 use crate::params::WorldParams;
 use crate::penalty::OBSTACLE_CODE;
 use crate::visibility::segment_clear;
@@ -81,13 +83,21 @@ impl ReferenceEpisode {
 
     /// The observations of all agents, by the definition in `observation`.
     pub fn observe(&self, config: ObservationConfig, side: usize) -> Vec<f32> {
-        let scale = 1.0 / self.params.rmax();
+        let scale = match config.scale {
+            ObservationScale::Rmax => 1.0 / self.params.rmax(),
+            ObservationScale::Raw => 1.0,
+        };
+        let agent_code = match config.codes {
+            ObservationCodes::PaperText => AGENT_CODE,
+            ObservationCodes::Released => OTHER_AGENT_CODE,
+        };
         let channels = config.channels.count();
         let mut out = vec![OBSTACLE_CODE * scale; self.positions.len() * channels * side * side];
         for (agent, obs) in out.chunks_exact_mut(channels * side * side).enumerate() {
             let mut images = obs.chunks_exact_mut(side * side);
             if config.channels != crate::observation::Channels::Mini {
-                self.local_map(agent, side, scale, images.next().expect("local image"));
+                let image = images.next().expect("local image");
+                self.local_map(agent, side, scale * agent_code, scale, image);
             }
             if config.channels != crate::observation::Channels::Local {
                 let image = images.next().expect("mini image");
@@ -105,7 +115,8 @@ impl ReferenceEpisode {
         }
     }
 
-    fn local_map(&self, agent: usize, side: usize, scale: f32, out: &mut [f32]) {
+    /// `agent_value` is an agent's code, scaled.
+    fn local_map(&self, agent: usize, side: usize, agent_value: f32, scale: f32, out: &mut [f32]) {
         let (fov, half) = (self.params.fov(), self.params.half_fov() as i64);
         let at = self.positions[agent];
         for r in 0..fov {
@@ -115,12 +126,11 @@ impl ReferenceEpisode {
                     .positions
                     .iter()
                     .any(|p| p.x as i64 == x && p.y as i64 == y);
-                let code = if agent_here {
-                    AGENT_CODE
+                out[r * side + c] = if agent_here {
+                    agent_value
                 } else {
-                    self.code(x, y)
+                    self.code(x, y) * scale
                 };
-                out[r * side + c] = code * scale;
             }
         }
     }

@@ -28,8 +28,9 @@ pub(crate) struct TrainArgs {
     architecture: Option<String>,
     #[arg(long, value_parser = ["both", "local", "mini"])]
     channels: Option<String>,
-    /// The preset the configuration starts from: fast (the default), fast-v1, fast-v2 or paper; on
-    /// resume, the saved one.
+    /// The preset the configuration starts from: fast (the default, fast-v3), paper (paper-v2,
+    /// the released training) or a profile's own name (paper-v1, fast-v1, fast-v2); on resume,
+    /// the saved one.
     #[arg(long, value_parser = |name: &str| Profile::named(name))]
     profile: Option<Profile>,
     /// Train until this many episodes are done (the learning rate anneals over them).
@@ -73,6 +74,11 @@ pub(crate) struct TrainArgs {
     /// an event per episode: `tensorboard --logdir OUT`).
     #[arg(long)]
     no_events: bool,
+    /// Train no run: write into --out the trace of a fresh run's first update (its rollout,
+    /// weights before and after, the first minibatch's loss terms and gradients), for another
+    /// implementation to recompute (`tests/pytorch/released_update.py OUT`).
+    #[arg(long, conflicts_with_all = ["resume", "until", "test_episodes"])]
+    trace_update: bool,
 }
 
 impl TrainArgs {
@@ -115,6 +121,9 @@ fn parse_agents(text: &str) -> anyhow::Result<AgentCount> {
 
 pub(crate) fn run(args: TrainArgs) -> anyhow::Result<()> {
     let world = args.world.load()?;
+    if args.trace_update {
+        return trace_update(&args, world);
+    }
     let mut run = open(&args, &world)?;
     if !args.no_events {
         run.write_events(&args.out)?;
@@ -133,6 +142,24 @@ pub(crate) fn run(args: TrainArgs) -> anyhow::Result<()> {
     if args.test_episodes > 0 {
         test(&args, &world, run.into_parts().0)?;
     }
+    Ok(())
+}
+
+/// Writes the trace of a fresh run's first update into `--out`, each file atomically and
+/// `trace.json` last, so that a folder with `trace.json` is whole.
+fn trace_update(args: &TrainArgs, world: std::sync::Arc<world::World>) -> anyhow::Result<()> {
+    let profile = args.profile.unwrap_or(Profile::FAST);
+    let config = TrainingConfig::profile(profile).with_overrides(&args.overrides()?)?;
+    let mut trainer = learning::ppo::Trainer::new(world.clone(), config, args.seed.unwrap_or(0))?;
+    let trace = trainer.trace_update()?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    for (name, bytes) in learning::update_trace::files(&trace, &world) {
+        let path = args.out.join(name);
+        store::atomic_file::write_atomic(&path, &bytes)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    println!("the trace of one update in {}", args.out.display());
     Ok(())
 }
 

@@ -152,7 +152,7 @@ mod tests {
                     network.to_owned(),
                     "heads=2".to_owned(),
                 ];
-                let config = TrainingConfig::profile(Profile::Paper)
+                let config = TrainingConfig::profile(Profile::PaperV1)
                     .with_overrides(&overrides)
                     .unwrap()
                     .model_config(side)
@@ -171,7 +171,7 @@ mod tests {
 
     #[test]
     fn a_huge_network_is_counted_without_overflow() {
-        let mut config = TrainingConfig::profile(Profile::Paper)
+        let mut config = TrainingConfig::profile(Profile::PaperV1)
             .model_config(25)
             .unwrap();
         config.hidden = vec![usize::MAX / 2, 3];

@@ -50,7 +50,7 @@ fn median_micros(runs: usize, mut load: impl FnMut()) -> f64 {
 #[test]
 #[ignore = "a timing, not a check"]
 fn time_a_paper_profile_load() {
-    let files = checkpoint::save(&state(TrainingConfig::profile(Profile::Paper), 25));
+    let files = checkpoint::save(&state(TrainingConfig::profile(Profile::PaperV1), 25));
     let metadata = checkpoint::read_metadata(&files.metadata).unwrap();
     let model = median_micros(200, || {
         checkpoint::load_model(&metadata, &files.weights).unwrap();
@@ -207,7 +207,7 @@ fn set_config(text: &str, field: &str, value: serde_json::Value) -> String {
 /// give such images.)
 #[test]
 fn an_image_side_the_network_does_not_have_is_refused_before_allocation() {
-    let mut files = checkpoint::save(&state(TrainingConfig::profile(Profile::Paper), 25));
+    let mut files = checkpoint::save(&state(TrainingConfig::profile(Profile::PaperV1), 25));
     files.metadata = set_config(&files.metadata, "mini_map_block", 1.into());
     files.metadata = set_metadata(&files.metadata, "image_side", 1000.into());
     assert_eq!(

@@ -6,7 +6,7 @@
 //! and unknown keys are rejected by name.
 
 use serde::{Deserialize, Serialize};
-use world::{Channels, ObservationConfig};
+use world::{Channels, ObservationCodes, ObservationConfig, ObservationScale};
 
 use crate::ppo::value_norm::ValueNormalisation;
 use nn::{
@@ -24,33 +24,55 @@ use nn::{PAPER_HEADS, PAPER_HIDDEN};
 /// is written `"fast"`, the name it had when the first keys were made.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Profile {
-    /// The released code's hyper-parameters exactly.
+    /// The released code's hyper-parameters, but its attention and observations as the
+    /// paper's text and our first reading had them: an attention-entropy bonus of each head
+    /// (not the released penalty on the heads' mean), no self-loops, agents 200 in the local
+    /// view and codes divided by Rmax, PyTorch's default init for the attention.
+    PaperV1,
+    /// The released training in every row of `docs/released-training.md`.
     #[default]
-    Paper,
+    PaperV2,
     /// The first of ours: GAE, advantage normalisation, minibatches, annealed larger learning
     /// rate, gradient clipping, 8 episodes in parallel before each update.
     FastV1,
     /// `FastV1` with one episode per update instead of 8: the profile study's winner on time
     /// to quality (`reports/profile`), every other value unchanged.
     FastV2,
+    /// `FastV2` with the released attention and agent codes: the attention-entropy penalty on
+    /// the heads' mean, self-loops, agents 100 in the local view. Its named training changes
+    /// (GAE, normalised advantages, per-cell rewards, codes divided by Rmax, orthogonal init,
+    /// learning rate, clipping) stay.
+    FastV3,
 }
 
 impl Profile {
     /// What the name `fast` means: our current default.
-    pub const FAST: Profile = Profile::FastV2;
+    pub const FAST: Profile = Profile::FastV3;
+    /// What the name `paper` means: the released training.
+    pub const PAPER: Profile = Profile::PaperV2;
 
     /// Every profile.
-    const ALL: [Profile; 3] = [Profile::Paper, Profile::FastV1, Profile::FastV2];
+    pub const ALL: [Profile; 5] = [
+        Profile::PaperV1,
+        Profile::PaperV2,
+        Profile::FastV1,
+        Profile::FastV2,
+        Profile::FastV3,
+    ];
 
-    /// The names a user gives, with what each means: every profile's own name, and `fast`.
-    const NAMES: [(&'static str, Profile); 4] = [
-        ("paper", Profile::Paper),
+    /// The names a user gives, with what each means: every profile's own name, `paper` and
+    /// `fast`.
+    const NAMES: [(&'static str, Profile); 7] = [
+        ("paper", Profile::PAPER),
+        ("paper-v1", Profile::PaperV1),
+        ("paper-v2", Profile::PaperV2),
         ("fast", Profile::FAST),
         ("fast-v1", Profile::FastV1),
         ("fast-v2", Profile::FastV2),
+        ("fast-v3", Profile::FastV3),
     ];
 
-    /// The profile a user's name means (`paper`, `fast`, `fast-v1`, `fast-v2`).
+    /// The profile a user's name means (`paper`, `fast`, or a profile's own name).
     pub fn named(name: &str) -> Result<Profile, UnknownProfile> {
         Self::NAMES
             .iter()
@@ -59,13 +81,14 @@ impl Profile {
             .ok_or_else(|| UnknownProfile(name.to_owned()))
     }
 
-    /// The profile as keys, labels and checkpoints write it: its own name, except the one
-    /// legacy form, `fast` for `FastV1` (its name when the first keys were made; writing
-    /// `fast-v1` would re-key every cell trained with it). Serialisation goes through here
-    /// and [`Profile::from_written`] alone.
+    /// The profile as keys, labels and checkpoints write it: its own name, except the two
+    /// legacy forms, `fast` for `FastV1` and `paper` for `PaperV1` (their names when their
+    /// first keys were made; writing `fast-v1` would re-key every cell trained with it).
+    /// Serialisation goes through here and [`Profile::from_written`] alone.
     pub fn written(self) -> &'static str {
         match self {
             Profile::FastV1 => "fast",
+            Profile::PaperV1 => "paper",
             other => other.name(),
         }
     }
@@ -78,9 +101,11 @@ impl Profile {
     /// The profile's own name (`fast-v1`, not `fast`, which moves).
     pub fn name(self) -> &'static str {
         match self {
-            Profile::Paper => "paper",
+            Profile::PaperV1 => "paper-v1",
+            Profile::PaperV2 => "paper-v2",
             Profile::FastV1 => "fast-v1",
             Profile::FastV2 => "fast-v2",
+            Profile::FastV3 => "fast-v3",
         }
     }
 }
@@ -200,8 +225,11 @@ impl Network {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum InitName {
-    /// PyTorch's layer defaults (the released code).
+    /// PyTorch's layer defaults everywhere, the attention included.
     Pytorch,
+    /// The released code: PyTorch's layer defaults, and the attention's `W`, `attn_l` and
+    /// `attn_r` Xavier-normal with ReLU's gain (`GATConv.reset_parameters`).
+    Released,
     /// Orthogonal, gains sqrt 2 / 0.01 / 1 (the usual PPO choice).
     Orthogonal,
 }
@@ -227,6 +255,32 @@ pub enum RewardScale {
     /// Divided by (free cells x Rmax): the mean penalty per cell in [-1, 0], so values and
     /// their loss have the same scale on every map.
     PerCell,
+}
+
+/// Which way the attention-entropy term pushes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AttentionEntropyTerm {
+    /// Subtracted from the loss, `- c_a H`: a bonus that pushes attention toward uniform (our
+    /// first reading, and what a record without the field means).
+    #[default]
+    Bonus,
+    /// Added to the loss, `+ c_a H`: a penalty that sharpens attention (the released
+    /// `ppo_agent.py`, line 332: `+ 0.01 * att_entropy.mean()`).
+    Penalty,
+}
+
+/// Of which weights the attention entropy is taken.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AttentionEntropyOf {
+    /// Each head's weights, the entropies averaged over heads and agents (our first reading,
+    /// and what a record without the field means).
+    #[default]
+    EachHead,
+    /// The heads' averaged weights, one entropy per agent (the released `evaluate`:
+    /// `Categorical(attention_mat.view(-1, n)).entropy()` of `ave_heads`).
+    HeadMean,
 }
 
 /// Agents per training episode: fixed (`min == max`) or drawn uniformly from `min..=max`
@@ -316,6 +370,21 @@ pub struct TrainingParams {
     /// at the cap). `null` (the default, left out of the file): no decay.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub learning_rate_half_life: Option<f64>,
+    /// The sign of the attention-entropy term (`bonus`, left out of the file, or the released
+    /// `penalty`).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub attention_entropy_term: AttentionEntropyTerm,
+    /// Which attention entropy the term takes (`each_head`, left out of the file, or the
+    /// released `head_mean`).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub attention_entropy_of: AttentionEntropyOf,
+    /// How agents are coded in the local view (`paper_text` 200, left out of the file, or the
+    /// released 100).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub observation_codes: ObservationCodes,
+    /// What the codes are divided by (`rmax`, left out of the file, or the released `raw`).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub observation_scale: ObservationScale,
 }
 
 // Defaults are left out of the JSON, so that a field added later keeps every cell's key.
@@ -325,6 +394,10 @@ fn is_zero(value: &f64) -> bool {
 
 fn is_false(value: &bool) -> bool {
     !*value
+}
+
+fn is_default<T: Default + PartialEq>(value: &T) -> bool {
+    *value == T::default()
 }
 
 /// A configuration that cannot be trained, naming the field.
@@ -373,9 +446,11 @@ impl TrainingConfig {
     /// A named profile's values, which are valid by construction (a test checks each).
     pub fn profile(profile: Profile) -> Self {
         let params = match profile {
-            Profile::Paper => TrainingParams::paper(),
+            Profile::PaperV1 => TrainingParams::paper_v1(),
+            Profile::PaperV2 => TrainingParams::paper_v2(),
             Profile::FastV1 => TrainingParams::fast_v1(),
             Profile::FastV2 => TrainingParams::fast_v2(),
+            Profile::FastV3 => TrainingParams::fast_v3(),
         };
         TrainingConfig(params)
     }
@@ -389,9 +464,9 @@ impl TrainingConfig {
 impl TrainingParams {
     /// The released hyper-parameters: Adam 2e-6, one update per 1000-step episode on one
     /// minibatch of 1000 x N samples, 4 epochs, normalised Monte-Carlo returns.
-    fn paper() -> Self {
+    fn paper_v1() -> Self {
         TrainingParams {
-            profile: Profile::Paper,
+            profile: Profile::PaperV1,
             architecture: ArchitectureName::MaGPpo,
             heads: PAPER_HEADS,
             neighbours: NeighbourRule::AllOthers,
@@ -425,6 +500,33 @@ impl TrainingParams {
             value_normalisation: None,
             grad_clip_per_network: false,
             learning_rate_half_life: None,
+            attention_entropy_term: AttentionEntropyTerm::Bonus,
+            attention_entropy_of: AttentionEntropyOf::EachHead,
+            observation_codes: ObservationCodes::PaperText,
+            observation_scale: ObservationScale::Rmax,
+        }
+    }
+
+    /// The released training: `paper-v1` with the released attention (self-loops, its
+    /// initialisation, the entropy penalty on the heads' mean) and observations (agents 100 in
+    /// the local view, raw codes).
+    fn paper_v2() -> Self {
+        TrainingParams {
+            profile: Profile::PaperV2,
+            init: InitName::Released,
+            observation_scale: ObservationScale::Raw,
+            ..Self::released_attention_and_codes(Self::paper_v1())
+        }
+    }
+
+    /// The released attention and agent codes on top of `base`.
+    fn released_attention_and_codes(base: Self) -> Self {
+        TrainingParams {
+            neighbours: NeighbourRule::AllAgents,
+            attention_entropy_term: AttentionEntropyTerm::Penalty,
+            attention_entropy_of: AttentionEntropyOf::HeadMean,
+            observation_codes: ObservationCodes::Released,
+            ..base
         }
     }
 
@@ -442,7 +544,7 @@ impl TrainingParams {
             normalise_returns: false,
             normalise_advantages: true,
             max_grad_norm: Some(0.5),
-            ..Self::paper()
+            ..Self::paper_v1()
         }
     }
 
@@ -457,12 +559,22 @@ impl TrainingParams {
         }
     }
 
+    /// `fast-v2` with the released attention and agent codes.
+    fn fast_v3() -> Self {
+        TrainingParams {
+            profile: Profile::FastV3,
+            ..Self::released_attention_and_codes(Self::fast_v2())
+        }
+    }
+
     /// The observation settings this configuration trains with.
     pub(crate) fn observation_config(&self) -> ObservationConfig {
         ObservationConfig {
             channels: self.channels,
             mark_others_on_mini: self.mark_others_on_mini,
             mini_map_block: self.mini_map_block,
+            codes: self.observation_codes,
+            scale: self.observation_scale,
         }
     }
 
@@ -631,6 +743,7 @@ impl TrainingParams {
         };
         let init = match self.init {
             InitName::Pytorch => InitScheme::PyTorchDefault,
+            InitName::Released => InitScheme::Released,
             InitName::Orthogonal => InitScheme::orthogonal_ppo(),
         };
         check_convolutions(&convolutions, image_side, &self.network)?;
@@ -681,7 +794,7 @@ mod tests {
 
     #[test]
     fn overrides_change_named_fields_and_reject_unknown_ones() {
-        let paper = TrainingConfig::profile(Profile::Paper);
+        let paper = TrainingConfig::profile(Profile::PAPER);
         let changed = paper
             .with_overrides(&[
                 "learning_rate=0.001",
@@ -704,7 +817,7 @@ mod tests {
 
     #[test]
     fn the_papers_network_needs_the_papers_images() {
-        let paper = TrainingConfig::profile(Profile::Paper);
+        let paper = TrainingConfig::profile(Profile::PAPER);
         assert_eq!(paper.model_config(25).unwrap().convolutions.len(), 3);
         let error = paper.model_config(8).unwrap_err().to_string();
         assert!(
@@ -724,10 +837,28 @@ mod tests {
         let fast_v2 = fast_v1
             .replace(r#""profile":"fast""#, r#""profile":"fast-v2""#)
             .replace(r#""environments":8"#, r#""environments":1"#);
+        let released = r#","neighbours":"all_agents","#;
+        let released_tail = r#","attention_entropy_term":"penalty","attention_entropy_of":"head_mean","observation_codes":"released""#;
+        let with_released = |base: &str, profile: &str| {
+            let body = base
+                .replacen(r#","neighbours":"all_others","#, released, 1)
+                .replacen(r#""profile":"fast-v2""#, profile, 1)
+                .replacen(r#""profile":"paper""#, profile, 1);
+            format!("{}{released_tail}}}", body.strip_suffix('}').unwrap())
+        };
+        let fast_v3 = with_released(&fast_v2, r#""profile":"fast-v3""#);
+        let paper_v2 = with_released(paper, r#""profile":"paper-v2""#)
+            .replace(r#""init":"pytorch""#, r#""init":"released""#)
+            .replace(
+                r#""observation_codes":"released""#,
+                r#""observation_codes":"released","observation_scale":"raw""#,
+            );
         let profiles = [
-            (Profile::Paper, paper),
+            (Profile::PaperV1, paper),
+            (Profile::PaperV2, &paper_v2),
             (Profile::FastV1, fast_v1),
             (Profile::FastV2, &fast_v2),
+            (Profile::FastV3, &fast_v3),
         ];
         for (profile, pinned) in profiles {
             let config = TrainingConfig::profile(profile);
@@ -744,14 +875,19 @@ mod tests {
         assert_eq!(Profile::named("fast-v1"), Ok(Profile::FastV1));
         assert_eq!(Profile::named("fast-v2"), Ok(Profile::FastV2));
         assert_eq!(Profile::named("fast"), Ok(Profile::FAST));
-        assert_eq!(Profile::named("paper"), Ok(Profile::Paper));
+        assert_eq!(Profile::named("paper"), Ok(Profile::PAPER));
+        assert_eq!(Profile::named("paper"), Ok(Profile::PaperV2));
+        assert_eq!(Profile::named("fast"), Ok(Profile::FastV3));
         let unknown = Profile::named("Fast").unwrap_err().to_string();
         assert_eq!(
             unknown,
-            "unknown profile `Fast` (known: paper, fast, fast-v1, fast-v2)"
+            "unknown profile `Fast` (known: paper, paper-v1, paper-v2, fast, fast-v1, fast-v2, fast-v3)"
         );
         for (name, profile) in Profile::NAMES {
-            assert!(name == "fast" || profile.name() == name, "{name}");
+            assert!(
+                name == "fast" || name == "paper" || profile.name() == name,
+                "{name}"
+            );
         }
         assert_eq!(
             serde_json::to_string(&Profile::FastV1).unwrap(),
@@ -763,16 +899,17 @@ mod tests {
         }
     }
 
-    /// The one legacy mapping: every profile is stored by its own name but `FastV1`, stored
-    /// as `fast` (keys made before `fast` moved to `FastV2` keep their cells); a stored
-    /// `fast` reads back as `FastV1`, never as today's `fast`, and a stored `fast-v1`, which
-    /// no key writes, is refused.
+    /// The two legacy mappings: every profile is stored by its own name but `FastV1`, stored
+    /// as `fast`, and `PaperV1`, stored as `paper` (keys made before the names moved keep
+    /// their cells); a stored `fast` or `paper` reads back as the old profile, never as
+    /// today's, and a stored `fast-v1` or `paper-v1`, which no key writes, is refused.
     #[test]
-    fn fast_v1_alone_is_stored_by_its_old_name_and_read_back_as_itself() {
+    fn fast_v1_and_paper_v1_alone_are_stored_by_their_old_names_and_read_back_as_themselves() {
         for profile in Profile::ALL {
             let stored = serde_json::to_string(&profile).unwrap();
             let expected = match profile {
                 Profile::FastV1 => r#""fast""#.to_owned(),
+                Profile::PaperV1 => r#""paper""#.to_owned(),
                 other => format!("{:?}", other.name()),
             };
             assert_eq!(stored, expected);
@@ -782,19 +919,26 @@ mod tests {
             serde_json::from_str::<Profile>(r#""fast""#).unwrap(),
             Profile::FastV1
         );
-        assert_ne!(Profile::FAST, Profile::FastV1);
-        let error = serde_json::from_str::<Profile>(r#""fast-v1""#).unwrap_err();
-        assert!(
-            error
-                .to_string()
-                .contains("stored forms: paper, fast, fast-v2"),
-            "{error}"
+        assert_eq!(
+            serde_json::from_str::<Profile>(r#""paper""#).unwrap(),
+            Profile::PaperV1
         );
+        assert_ne!(Profile::FAST, Profile::FastV1);
+        assert_ne!(Profile::PAPER, Profile::PaperV1);
+        for never_written in [r#""fast-v1""#, r#""paper-v1""#] {
+            let error = serde_json::from_str::<Profile>(never_written).unwrap_err();
+            assert!(
+                error
+                    .to_string()
+                    .contains("stored forms: paper, paper-v2, fast, fast-v2, fast-v3"),
+                "{error}"
+            );
+        }
     }
 
     #[test]
     fn the_profile_options_are_off_by_default_left_out_of_the_json_and_checked() {
-        for profile in [Profile::Paper, Profile::FastV1, Profile::FastV2] {
+        for profile in Profile::ALL {
             let text = serde_json::to_string(&TrainingConfig::profile(profile)).unwrap();
             assert!(!text.contains("value_normalisation"), "{text}");
             assert!(!text.contains("grad_clip_per_network"), "{text}");
@@ -826,7 +970,7 @@ mod tests {
             let error = base.with_overrides(&[given]).unwrap_err().to_string();
             assert!(error.contains(named), "{given}: {error}");
         }
-        let paper = TrainingConfig::profile(Profile::Paper);
+        let paper = TrainingConfig::profile(Profile::PAPER);
         let error = paper
             .with_overrides(&["value_normalisation={\"beta\":0.9}"])
             .unwrap_err()
@@ -843,7 +987,7 @@ mod tests {
 
     #[test]
     fn a_checked_configuration_is_written_as_its_parameters_and_checked_when_read() {
-        for profile in [Profile::Paper, Profile::FastV1, Profile::FastV2] {
+        for profile in Profile::ALL {
             let config = TrainingConfig::profile(profile);
             let written = serde_json::to_string(&config).unwrap();
             assert_eq!(written, serde_json::to_string(&config.params()).unwrap());

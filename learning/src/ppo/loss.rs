@@ -1,9 +1,11 @@
 //! The PPO loss of one minibatch, as the released code and the paper write it:
 //!
 //! `L = mean_i [ -min(rho_i A_i, clip(rho_i, 1 - eps, 1 + eps) A_i)
-//!              + c_v (V_i - R_i)^2 - c_e H_i ] - c_a H_attention`
+//!              + c_v (V_i - R_i)^2 - c_e H_i ] + w_a H_attention`
 //!
-//! (`c_v (V - R)^2` averaged is the code's `0.5 * MSE` with `c_v = 0.5`.) Instead of building a
+//! (`c_v (V - R)^2` averaged is the code's `0.5 * MSE` with `c_v = 0.5`.) The released code's
+//! `w_a` is `+0.01` on the entropy of the heads' averaged attention, a penalty that sharpens it;
+//! `w_a = -c_a` on each head's entropy is the bonus of our first reading. Instead of building a
 //! graph, the loss writes its gradients with respect to the model outputs, which
 //! [`nn::ActorCritic::backward`] takes.
 
@@ -11,13 +13,17 @@ use ndarray::ArrayView2;
 
 use nn::{ModelWorkspace, OutputGradients, Real};
 
+use crate::ppo::config::AttentionEntropyOf;
+
 /// The loss's weights.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct LossCoefficients {
     pub(crate) clip: f64,
     pub(crate) value: f64,
     pub(crate) entropy: f64,
+    /// `w_a`, with its sign: positive penalises attention entropy, negative rewards it.
     pub(crate) attention_entropy: f64,
+    pub(crate) attention_entropy_of: AttentionEntropyOf,
 }
 
 /// Where each sample's advantage comes from.
@@ -47,6 +53,7 @@ pub struct LossTerms {
     /// `mean (V - R)^2`.
     pub value: f64,
     pub entropy: f64,
+    /// The attention entropy the loss takes (of each head, or of the heads' mean).
     pub attention_entropy: f64,
     /// The whole loss.
     pub total: f64,
@@ -92,6 +99,7 @@ pub(crate) struct LossGradients<T> {
     entropy: Vec<T>,
     values: Vec<T>,
     attention_entropy: T,
+    head_mean_attention_entropy: T,
     actions: usize,
 }
 
@@ -105,6 +113,7 @@ impl<T: Real> LossGradients<T> {
             entropy: &self.entropy,
             values: &self.values,
             attention_entropy: self.attention_entropy,
+            head_mean_attention_entropy: self.head_mean_attention_entropy,
         }
     }
 }
@@ -153,11 +162,19 @@ pub(crate) fn ppo_loss<T: Real>(
         terms.clip_fraction += f64::from(u8::from((ratio - 1.0).abs() > c.clip));
     }
     terms.scale(scale);
-    terms.attention_entropy = ws.attention().attention_entropy().as_f64();
-    grads.attention_entropy = T::from_f64(-c.attention_entropy);
-    terms.total = terms.policy + c.value * terms.value
-        - c.entropy * terms.entropy
-        - c.attention_entropy * terms.attention_entropy;
+    let weight = T::from_f64(c.attention_entropy);
+    (grads.attention_entropy, grads.head_mean_attention_entropy) = match c.attention_entropy_of {
+        AttentionEntropyOf::EachHead => (weight, T::zero()),
+        AttentionEntropyOf::HeadMean => (T::zero(), weight),
+    };
+    let attention = ws.attention();
+    terms.attention_entropy = match c.attention_entropy_of {
+        AttentionEntropyOf::EachHead => attention.attention_entropy(),
+        AttentionEntropyOf::HeadMean => attention.head_mean_attention_entropy(),
+    }
+    .as_f64();
+    terms.total = terms.policy + c.value * terms.value - c.entropy * terms.entropy
+        + c.attention_entropy * terms.attention_entropy;
     terms
 }
 
@@ -193,7 +210,8 @@ mod tests {
     }
 
     /// The loss's gradient through the clipped surrogate, the value error and both entropies
-    /// matches finite differences, with old log-probabilities chosen so that some samples sit
+    /// (the attention's of each head and of the heads' mean, penalised and rewarded) matches
+    /// finite differences, with old log-probabilities chosen so that some samples sit
     /// inside the clip range and some outside on either side.
     #[test]
     fn gradients_match_finite_differences() {
@@ -222,27 +240,32 @@ mod tests {
             returns: &returns,
             advantages: Advantages::Fixed(&advantages),
         };
-        let coefficients = LossCoefficients {
-            clip: 0.2,
-            value: 0.5,
-            entropy: 0.3,
-            attention_entropy: 0.7,
-        };
-        let mut grads = LossGradients::default();
-        let terms = ppo_loss(&ws, &samples, &coefficients, &mut grads);
-        assert!(terms.clip_fraction > 0.5 && terms.clip_fraction < 1.0);
-        model.params_mut().zero_grads();
-        model.backward(&mut ws, &observations, &graph, &grads.outputs());
-        let params = model.params().values().to_vec();
-        let analytic = model.params().grads().to_vec();
-        let mut probe = model.clone();
-        let loss = |p: &[f64]| {
-            probe.params_mut().values_mut().copy_from_slice(p);
-            let mut ws = ModelWorkspace::default();
-            probe.forward(&mut ws, &observations, &graph);
-            ppo_loss(&ws, &samples, &coefficients, &mut LossGradients::default()).total
-        };
-        assert_gradients_match(&params, &analytic, loss);
+        let kinds = [AttentionEntropyOf::EachHead, AttentionEntropyOf::HeadMean];
+        for (attention_entropy_of, sign) in kinds.into_iter().zip([1.0, -1.0]) {
+            model.forward(&mut ws, &observations, &graph);
+            let coefficients = LossCoefficients {
+                clip: 0.2,
+                value: 0.5,
+                entropy: 0.3,
+                attention_entropy: 0.7 * sign,
+                attention_entropy_of,
+            };
+            let mut grads = LossGradients::default();
+            let terms = ppo_loss(&ws, &samples, &coefficients, &mut grads);
+            assert!(terms.clip_fraction > 0.5 && terms.clip_fraction < 1.0);
+            model.params_mut().zero_grads();
+            model.backward(&mut ws, &observations, &graph, &grads.outputs());
+            let params = model.params().values().to_vec();
+            let analytic = model.params().grads().to_vec();
+            let mut probe = model.clone();
+            let loss = |p: &[f64]| {
+                probe.params_mut().values_mut().copy_from_slice(p);
+                let mut ws = ModelWorkspace::default();
+                probe.forward(&mut ws, &observations, &graph);
+                ppo_loss(&ws, &samples, &coefficients, &mut LossGradients::default()).total
+            };
+            assert_gradients_match(&params, &analytic, loss);
+        }
     }
 
     #[test]
@@ -265,6 +288,7 @@ mod tests {
             value: 0.5,
             entropy: 0.01,
             attention_entropy: 0.01,
+            attention_entropy_of: AttentionEntropyOf::HeadMean,
         };
         let with = |advantages| {
             let samples = Samples {

@@ -20,6 +20,7 @@ pub use config::{
     AgentCount, ArchitectureName, ConfigError, NeighbourRule, Network, Profile, TrainingConfig,
     TrainingParams,
 };
-pub use trainer::{EpisodeRecord, TrainError, Trainer, TrainingState, adam_config};
+pub use loss::LossTerms;
+pub use trainer::{EpisodeRecord, TrainError, Trainer, TrainingState, UpdateTrace, adam_config};
 pub use update::UpdateStats;
 pub use value_norm::{ValueNorm, ValueNormalisation};

@@ -38,6 +38,9 @@ pub(crate) struct EnvironmentRollout {
     pub(crate) rewards: Vec<f32>,
     /// The paper's metric: the sum of |reward| over steps 1..=T.
     pub(crate) penalty: f64,
+    /// When recorded (an update's trace): the map of every observation, `[step][y][x]`,
+    /// obstacles 150 and free cells their penalty.
+    pub(crate) penalty_maps: Option<Vec<f32>>,
 }
 
 impl EnvironmentRollout {
@@ -79,6 +82,7 @@ impl EnvironmentRollout {
             log_probs: vec![0.0; steps * agents],
             rewards: vec![0.0; steps],
             penalty: 0.0,
+            penalty_maps: None,
             episode,
             observer,
             streams,
@@ -97,13 +101,37 @@ impl EnvironmentRollout {
         self.observer.per_agent()
     }
 
+    /// The side of every image.
+    pub(crate) fn side(&self) -> usize {
+        self.observer.side()
+    }
+
     /// All agents' observations at step `t`.
     fn observation(&self, t: usize) -> &[f32] {
         let len = self.agents * self.per_agent();
         &self.observations[t * len..(t + 1) * len]
     }
 
-    fn positions_at(&self, t: usize) -> &[world::Cell] {
+    /// Starts recording the map of every observation, the one already made included.
+    pub(crate) fn record_penalty_maps(&mut self) {
+        self.penalty_maps = Some(Vec::new());
+        self.record_penalty_map();
+    }
+
+    fn record_penalty_map(&mut self) {
+        let Some(maps) = self.penalty_maps.as_mut() else {
+            return;
+        };
+        let map = self.episode.world().map();
+        for y in 0..map.height() {
+            for x in 0..map.width() {
+                let cell = world::Cell::new(x as u16, y as u16);
+                maps.push(self.episode.penalty().at(cell));
+            }
+        }
+    }
+
+    pub(crate) fn positions_at(&self, t: usize) -> &[world::Cell] {
         &self.positions[t * self.agents..(t + 1) * self.agents]
     }
 
@@ -133,6 +161,7 @@ impl EnvironmentRollout {
         let out = &mut self.observations[t * len..(t + 1) * len];
         self.observer.write(&self.episode, out);
         self.positions.extend_from_slice(self.episode.positions());
+        self.record_penalty_map();
     }
 
     /// Draws step `t`'s actions from rows `first..` of the batch's policy.

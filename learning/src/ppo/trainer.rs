@@ -13,7 +13,7 @@ use world::{Seed, StartError, World};
 
 use crate::ppo::config::{ConfigError, TrainingConfig};
 use crate::ppo::rollout::{EnvironmentRollout, RolloutWorkspace};
-use crate::ppo::update::{UpdateStats, UpdateWorkspace};
+use crate::ppo::update::{FirstStep, UpdateStats, UpdateWorkspace};
 use crate::ppo::value_norm::ValueNorm;
 use nn::{ActorCritic, Adam, AdamConfig, NnError};
 
@@ -152,15 +152,59 @@ impl Trainer {
         let until = until.min(self.state.config.episodes);
         let mut records = Vec::new();
         while self.state.episodes_done < until {
-            let round = self.round()?;
+            let (round, _) = self.round(false)?;
             round.iter().for_each(&mut *on_record);
             records.extend(round);
         }
         Ok(records)
     }
 
-    /// One round: up to `environments` episodes, then one update.
-    fn round(&mut self) -> Result<Vec<EpisodeRecord>, TrainError> {
+    /// The next round, which must be of one environment, recorded whole: its rollout (with
+    /// the map of every observation), the weights before and after its update, and the loss
+    /// terms, gradients and targets of the update's first minibatch; so that another
+    /// implementation of the same update can recompute it (`crate::update_trace`).
+    pub fn trace_update(&mut self) -> Result<UpdateTrace, TrainError> {
+        let config = &self.state.config;
+        let refusal = if config.environments != 1 {
+            Some("a traced update is one environment's round; set environments=1")
+        } else if config.loss_probability > 0.0 {
+            Some("a traced update loses no robot; set loss_probability=0")
+        } else {
+            None
+        };
+        if let Some(reason) = refusal {
+            let field = if config.environments != 1 {
+                "environments"
+            } else {
+                "loss_probability"
+            };
+            let reason = reason.to_owned();
+            return Err(ConfigError::Invalid { field, reason }.into());
+        }
+        let before = self.state.model.params().values().to_vec();
+        self.update.first_step = Some(FirstStep::default());
+        let (_, mut environments) = self.round(true)?;
+        let first = self
+            .update
+            .first_step
+            .take()
+            .expect("the update recorded its first step");
+        let rollout = environments.pop().expect("one environment");
+        Ok(UpdateTrace {
+            rollout,
+            before,
+            first,
+            model: self.state.model.clone(),
+            config: self.state.config.clone(),
+        })
+    }
+
+    /// One round: up to `environments` episodes, then one update; `record` records every
+    /// observation's map. Returns the records and the environments' rollouts.
+    fn round(
+        &mut self,
+        record: bool,
+    ) -> Result<(Vec<EpisodeRecord>, Vec<EnvironmentRollout>), TrainError> {
         let started = Instant::now();
         let state = &mut self.state;
         let config = &state.config;
@@ -174,6 +218,11 @@ impl Trainer {
                 map: self.world.map().name().to_owned(),
                 source,
             })?;
+        if record {
+            environments
+                .iter_mut()
+                .for_each(EnvironmentRollout::record_penalty_maps);
+        }
         let neighbours = config.neighbours.to_nn();
         self.rollout
             .run(&state.model, neighbours, &mut environments);
@@ -196,7 +245,7 @@ impl Trainer {
         state.episodes_done += count;
         state.wall_seconds += rollout_seconds + update_seconds;
         let steps = (count as usize * config.steps_per_episode) as f64;
-        Ok(environments
+        let records = environments
             .iter()
             .zip(first..)
             .map(|(env, episode)| EpisodeRecord {
@@ -209,8 +258,21 @@ impl Trainer {
                 update_seconds,
                 wall_seconds: state.wall_seconds,
             })
-            .collect())
+            .collect();
+        Ok((records, environments))
     }
+}
+
+/// One traced update ([`Trainer::trace_update`]); `crate::update_trace` writes it out.
+#[derive(Debug)]
+pub struct UpdateTrace {
+    pub(crate) rollout: EnvironmentRollout,
+    /// The weights before the update, flat in our order.
+    pub(crate) before: Vec<f32>,
+    pub(crate) first: FirstStep,
+    /// The model after the update.
+    pub(crate) model: ActorCritic<f32>,
+    pub(crate) config: TrainingConfig,
 }
 
 pub fn adam_config(config: &TrainingConfig) -> AdamConfig {

@@ -9,7 +9,7 @@ use rand::RngExt;
 use world::Seed;
 
 use crate::ppo::advantage::{discounted_returns, gae, normalise};
-use crate::ppo::config::{AdvantageEstimator, TrainingConfig};
+use crate::ppo::config::{AdvantageEstimator, AttentionEntropyTerm, TrainingConfig};
 use crate::ppo::loss::{Advantages, LossCoefficients, LossGradients, LossTerms, Samples, ppo_loss};
 use crate::ppo::rollout::EnvironmentRollout;
 use crate::ppo::value_norm::ValueNorm;
@@ -55,6 +55,17 @@ pub(crate) struct UpdateWorkspace {
     advantages: Vec<f32>,
     grads: LossGradients<f32>,
     model: ModelWorkspace<f32>,
+    /// When set, the next update records its first minibatch here (an update's trace).
+    pub(crate) first_step: Option<FirstStep>,
+}
+
+/// The loss terms and the gradients of an update's first minibatch (epoch 0), and the
+/// learning targets of every sample.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct FirstStep {
+    pub(crate) terms: LossTerms,
+    pub(crate) gradients: Vec<f32>,
+    pub(crate) returns: Vec<f32>,
 }
 
 impl UpdateWorkspace {
@@ -84,7 +95,11 @@ impl UpdateWorkspace {
             clip: config.clip,
             value: config.value_coefficient,
             entropy: config.entropy_coefficient,
-            attention_entropy: config.attention_entropy_coefficient,
+            attention_entropy: match config.attention_entropy_term {
+                AttentionEntropyTerm::Bonus => -config.attention_entropy_coefficient,
+                AttentionEntropyTerm::Penalty => config.attention_entropy_coefficient,
+            },
+            attention_entropy_of: config.attention_entropy_of,
         };
         let minibatches = config.minibatches.min(self.groups.len());
         let mut stats = UpdateStats {
@@ -103,6 +118,11 @@ impl UpdateWorkspace {
                     self.gather(config, neighbours, environments, range);
                 }
                 let (terms, norm) = self.step(model, adam, config, &coefficients);
+                if let Some(first) = self.first_step.as_mut().filter(|_| epoch == 0 && m == 0) {
+                    first.terms = terms;
+                    first.gradients = model.params().grads().to_vec();
+                    first.returns = self.targets.returns.clone();
+                }
                 stats.loss.add(&terms);
                 stats.grad_norm += norm;
             }

@@ -122,7 +122,7 @@ impl Learned {
         };
         // As the key writes the profile (fast-v1 is `@fast`): a cell's files hold its label,
         // so a label may never change once cells were computed.
-        if self.profile != Profile::Paper {
+        if self.profile != Profile::PaperV1 {
             label = format!("{label}@{}", self.profile.written());
         }
         label

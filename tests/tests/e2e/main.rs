@@ -17,6 +17,7 @@ mod fingerprint;
 mod hostile_inputs;
 mod learning;
 mod python;
+mod pytorch_update;
 mod readers;
 mod report;
 mod run_command;

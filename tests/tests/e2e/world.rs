@@ -6,7 +6,8 @@ use std::sync::Arc;
 use proptest::prelude::*;
 use world::reference::ReferenceEpisode;
 use world::{
-    Action, Cell, Channels, Episode, Map, ObservationConfig, Observer, Seed, World, WorldParams,
+    Action, Cell, Channels, Episode, Map, ObservationCodes, ObservationConfig, ObservationScale,
+    Observer, Seed, World, WorldParams,
 };
 
 fn maps_dir() -> PathBuf {
@@ -52,6 +53,12 @@ fn assert_same_as_reference(world: &Arc<World>, agents: usize, steps: usize, see
             channels: Channels::Mini,
             mark_others_on_mini: true,
             mini_map_block: Some(3),
+            ..ObservationConfig::default()
+        },
+        ObservationConfig {
+            codes: ObservationCodes::Released,
+            scale: ObservationScale::Raw,
+            ..ObservationConfig::default()
         },
         ObservationConfig {
             channels: Channels::Local,

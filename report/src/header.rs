@@ -54,13 +54,17 @@ pub(crate) fn section(
     );
     let testing = testing_line(tables.episodes)?;
     let lines = match tables.cells {
-        Some(cells) => vec![
-            training_line(cells, tables.training)?,
-            testing,
-            compute_line(cells, tables.training, tables.convergence)?,
-            code,
-            format!("- **CPU**: {}.", platforms(cells)?),
-        ],
+        Some(cells) => [
+            Some(training_line(cells, tables.training)?),
+            uniform_attention_line(cells)?,
+            Some(testing),
+            Some(compute_line(cells, tables.training, tables.convergence)?),
+            Some(code),
+            Some(format!("- **CPU**: {}.", platforms(cells)?)),
+        ]
+        .into_iter()
+        .flatten()
+        .collect(),
         None => vec![
             testing,
             code,
@@ -76,6 +80,41 @@ pub(crate) fn section(
         improving_section(report, training)?;
     }
     Ok(())
+}
+
+/// A line naming the MA-G-PPO policies whose attention was pushed toward uniform: trained
+/// with the attention-entropy bonus of our first reading (a configuration without
+/// `attention_entropy_term`), where the released code penalises the entropy of the heads'
+/// mean (`docs/released-training.md`). Their runs compared mean pooling, not attention.
+fn uniform_attention_line(cells: &DataFrame) -> Result<Option<String>, ReportError> {
+    let configs = store::columns::optional_strings(cells, cells::TRAINING_CONFIG)?;
+    let policies = strings(cells, cell::POLICY)?;
+    let held: Vec<String> = distinct(
+        policies
+            .into_iter()
+            .zip(configs)
+            .filter(|(_, config)| config.as_deref().is_some_and(attention_held_uniform))
+            .map(|(policy, _)| format!("`{policy}`"))
+            .collect::<Vec<String>>(),
+    );
+    Ok((!held.is_empty()).then(|| {
+        format!(
+            "- **Attention**: {}'s attention was held uniform: trained with an attention-entropy              bonus on each head and {}, where the released code penalises the entropy of the              heads' mean and attends with self-loops (docs/released-training.md), so its              attention stayed at ln(neighbours) and what it measures is mean pooling over the              other agents, not attention.",
+            held.join(", "),
+            "no self-loops"
+        )
+    }))
+}
+
+/// Whether a training configuration (JSON) is MA-G-PPO's with the entropy bonus.
+fn attention_held_uniform(config: &str) -> bool {
+    let Ok(config) = serde_json::from_str::<serde_json::Value>(config) else {
+        return false;
+    };
+    config["architecture"] == "ma_g_ppo"
+        && config
+            .get("attention_entropy_term")
+            .is_none_or(|term| term == "bonus")
 }
 
 /// A line in bold when a commit had uncommitted changes: no commit holds that code, so its

@@ -14,7 +14,7 @@ pub fn strings(frame: &DataFrame, name: &str) -> PolarsResult<Vec<String>> {
         .collect()
 }
 
-pub(crate) fn optional_strings(frame: &DataFrame, name: &str) -> PolarsResult<Vec<Option<String>>> {
+pub fn optional_strings(frame: &DataFrame, name: &str) -> PolarsResult<Vec<Option<String>>> {
     Ok(frame
         .column(name)?
         .str()?

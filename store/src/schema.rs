@@ -61,7 +61,7 @@ pub mod cells {
     /// The cell's configuration as JSON.
     pub const CONFIG: &str = "config";
     /// A learned cell's training configuration, resolved from profile and overrides, as JSON.
-    pub(crate) const TRAINING_CONFIG: &str = "training_config";
+    pub const TRAINING_CONFIG: &str = "training_config";
     pub(crate) const EPISODES_HASH: &str = "episodes_hash";
     pub(crate) const WEIGHTS_HASH: &str = "weights_hash";
     pub(crate) const TRAINING_HASH: &str = "training_hash";

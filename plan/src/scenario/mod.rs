@@ -176,7 +176,7 @@ mod tests {
             ),
             (
                 "  - ma-ppo: {profile: slow, episodes: 5}\n",
-                "policies[1].ma-ppo.profile: unknown profile `slow` (known: paper, fast, fast-v1, fast-v2)",
+                "policies[1].ma-ppo.profile: unknown profile `slow` (known: paper, paper-v1, paper-v2, fast, fast-v1, fast-v2, fast-v3)",
             ),
             (
                 "  - ma-g-ppo: {episodes: 0, set: {network: compact}}\n",
@@ -515,8 +515,8 @@ mod tests {
         );
         let error = parse(&today).unwrap_err().to_string();
         let expected = "no policy \"ma-ppo@fast\" in this scenario (its policies: random, \
-                        ma-ppo@fast-v2); `@fast` labels the profile fast-v1 (the first `fast`), \
-                        while `profile: fast` trains fast-v2 today, labelled \"ma-ppo@fast-v2\"";
+                        ma-ppo@fast-v3); `@fast` labels the profile fast-v1 (the first `fast`), \
+                        while `profile: fast` trains fast-v3 today, labelled \"ma-ppo@fast-v3\"";
         assert!(error.contains(expected), "{error}");
     }
 

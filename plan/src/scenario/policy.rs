@@ -282,12 +282,17 @@ mod tests {
         };
         // fast-v1's cells were keyed when it was called fast: its key still says so.
         assert!(key_of("fast-v1").contains(r#""profile":"fast""#));
-        assert!(key_of("paper").contains(r#""profile":"paper""#));
+        // So were paper-v1's, when it was called paper; `paper` is the released training now.
+        assert!(key_of("paper-v1").contains(r#""profile":"paper""#));
+        assert!(key_of("paper").contains(r#""profile":"paper-v2""#));
         let default = from_file("ma-g-ppo: {profile: fast, episodes: 5}").unwrap();
         assert_eq!(default.learned().unwrap().profile, Profile::FAST);
         let unknown = from_file("ma-g-ppo: {profile: fastest, episodes: 5}").unwrap_err();
         assert!(
-            unknown.contains("unknown profile `fastest` (known: paper, fast, fast-v1, fast-v2)"),
+            unknown.contains(
+                "unknown profile `fastest` (known: paper, paper-v1, paper-v2, fast, fast-v1, \
+                 fast-v2, fast-v3)"
+            ),
             "{unknown}"
         );
     }

@@ -99,9 +99,12 @@ fn uniform_attention_line(cells: &DataFrame) -> Result<Option<String>, ReportErr
     );
     Ok((!held.is_empty()).then(|| {
         format!(
-            "- **Attention**: {}'s attention was held uniform: trained with an attention-entropy              bonus on each head and {}, where the released code penalises the entropy of the              heads' mean and attends with self-loops (docs/released-training.md), so its              attention stayed at ln(neighbours) and what it measures is mean pooling over the              other agents, not attention.",
-            held.join(", "),
-            "no self-loops"
+            "- **Attention**: held uniform in {}: trained with an attention-entropy bonus on \
+             each head, where the released code penalises the entropy of the heads' mean \
+             (docs/released-training.md), which pushes the weights toward even (in rq4's runs \
+             their entropy stayed at ln(neighbours)); what these runs compare is mean pooling \
+             over the neighbours, not attention.",
+            held.join(", ")
         )
     }))
 }
@@ -658,5 +661,16 @@ mod tests {
         assert_eq!(thousands(1_234_567), "1,234,567");
         assert_eq!(range(&[2, 3, 2]), "2 to 3");
         assert_eq!(range(&[3, 3]), "3");
+    }
+
+    #[test]
+    fn only_ma_g_ppo_with_the_entropy_bonus_is_held_uniform() {
+        assert!(attention_held_uniform(r#"{"architecture":"ma_g_ppo"}"#));
+        let bonus = r#"{"architecture":"ma_g_ppo","attention_entropy_term":"bonus"}"#;
+        assert!(attention_held_uniform(bonus));
+        let released = r#"{"architecture":"ma_g_ppo","attention_entropy_term":"penalty"}"#;
+        assert!(!attention_held_uniform(released));
+        assert!(!attention_held_uniform(r#"{"architecture":"ma_ppo"}"#));
+        assert!(!attention_held_uniform("not json"));
     }
 }

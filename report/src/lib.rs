@@ -5,6 +5,7 @@
 //! figure never shows a number the report's tables do not hold. Penalties are in units of
 //! 10^6, as in the paper.
 
+mod attention;
 mod behaviour;
 mod behaviour_claims;
 mod behaviour_replay;
@@ -128,6 +129,7 @@ pub fn write_report(
     }
     if let Some(training) = &training {
         training::section(&mut report, training)?;
+        attention::section(&mut report, training)?;
     }
     if let Some(curve) = &test_curve {
         let levels = time_to_quality::levels(&comparison::samples(&episodes)?);

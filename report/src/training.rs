@@ -28,6 +28,24 @@ fn window(episodes: usize) -> usize {
     share.clamp(1, (episodes / 4).max(1))
 }
 
+/// A column of the training table drawn as curves: its name in titles and captions, its unit
+/// and how its values are divided for it.
+pub(crate) struct Measure {
+    pub(crate) column: &'static str,
+    /// What the curves show, in a caption ("Training penalty").
+    pub(crate) name: &'static str,
+    pub(crate) y_label: &'static str,
+    pub(crate) divisor: f64,
+}
+
+/// The training penalty, in 10^6.
+const PENALTY: Measure = Measure {
+    column: training::PENALTY,
+    name: "Training penalty",
+    y_label: "penalty (10^6)",
+    divisor: PENALTY_UNIT,
+};
+
 /// Points kept per curve; longer curves are sampled evenly (their last episode always kept).
 /// A figure is under 900 pixels wide.
 const POINTS: usize = 600;
@@ -41,9 +59,9 @@ struct Run {
 
 /// One policy's training on one map: its runs, and at every episode the mean, the lowest
 /// and the highest of the runs' rolling means.
-struct Curve {
-    map: String,
-    policy: PolicyKey,
+pub(crate) struct Curve {
+    pub(crate) map: String,
+    pub(crate) policy: PolicyKey,
     /// The rolling window, in episodes.
     window: usize,
     episode: Vec<u64>,
@@ -56,7 +74,7 @@ struct Curve {
 
 pub(crate) fn section(report: &mut ReportWriter, training: &DataFrame) -> Result<(), ReportError> {
     report.heading(2, "Training curves: how did training progress, run by run?");
-    let curves = curves(training)?;
+    let curves = curves(training, &PENALTY)?;
     report.paragraph(
         "Training penalty per episode (10^6). Each training run is smoothed by a rolling mean \
          over a sixtieth of the run (the paper's 500 of 30,000 episodes; never more than a \
@@ -81,7 +99,9 @@ pub(crate) fn section(report: &mut ReportWriter, training: &DataFrame) -> Result
             .collect();
         let stem = file_stem(&["training", &map, &format!("train{n}")]);
         let setting = format!("on `{map}`, N_train = {n}");
-        figure(report, &stem, &setting, &shown, |c| c.policy.policy.clone())?;
+        figure(report, &stem, &setting, &shown, &PENALTY, |c| {
+            c.policy.policy.clone()
+        })?;
     }
     // The paper also plots the maps against each other (RQ1: open against eight_room).
     if distinct(curves.iter().map(|c| c.map.clone())).len() > 1 {
@@ -93,7 +113,7 @@ pub(crate) fn section(report: &mut ReportWriter, training: &DataFrame) -> Result
                 .collect();
             let stem = file_stem(&["training", "all-maps", &format!("train{n}")]);
             let setting = format!("on every map, N_train = {n}");
-            figure(report, &stem, &setting, &shown, |c| {
+            figure(report, &stem, &setting, &shown, &PENALTY, |c| {
                 format!("{}: {}", c.map, c.policy.policy)
             })?;
         }
@@ -101,22 +121,23 @@ pub(crate) fn section(report: &mut ReportWriter, training: &DataFrame) -> Result
     Ok(())
 }
 
-fn n_train_label(n_train: Option<u32>) -> String {
+pub(crate) fn n_train_label(n_train: Option<u32>) -> String {
     n_train.map_or("?".into(), |n| n.to_string())
 }
 
-/// One plot of `curves`, each labelled by `label`; `setting` completes its title and caption
-/// ("on `open`, N_train = 4").
-fn figure(
+/// One plot of `curves` of `measure`, each labelled by `label`; `setting` completes its title
+/// and caption ("on `open`, N_train = 4").
+pub(crate) fn figure(
     report: &mut ReportWriter,
     stem: &str,
     setting: &str,
     curves: &[&Curve],
+    measure: &Measure,
     label: impl Fn(&Curve) -> String,
 ) -> Result<(), ReportError> {
     let panel = Panel {
-        title: format!("Training {}", setting.replace('`', "")),
-        y_label: "penalty (10^6)".into(),
+        title: format!("{} {}", measure.name, setting.replace('`', "")),
+        y_label: measure.y_label.into(),
         lines: curves.iter().map(|c| spread(c, label(c))).collect(),
     };
     let log = panel.axis().log;
@@ -124,11 +145,11 @@ fn figure(
         x_label: "training episode".into(),
         panels: vec![panel],
     };
-    report.figure(stem, &chart, &caption(curves, setting, log))
+    report.figure(stem, &chart, &caption(curves, setting, measure, log))
 }
 
 /// What a training figure shows, with its window and runs.
-fn caption(curves: &[&Curve], setting: &str, log: bool) -> String {
+fn caption(curves: &[&Curve], setting: &str, measure: &Measure, log: bool) -> String {
     let list = |values: Vec<String>| values.join(" or ");
     let windows = match list(distinct(curves.iter().map(|c| c.window.to_string()))) {
         one if one == "1" => "1 episode (no smoothing)".to_owned(),
@@ -140,9 +161,10 @@ fn caption(curves: &[&Curve], setting: &str, log: bool) -> String {
         false => "",
     };
     format!(
-        "Training penalty {setting}: each training run's rolling mean over {windows} \
+        "{} {setting}: each training run's rolling mean over {windows} \
          (thin; {runs} runs per policy), the mean of the runs (thick, with its marker) and the \
-         band from the lowest to the highest run at every episode{scale}"
+         band from the lowest to the highest run at every episode{scale}",
+        measure.name
     )
 }
 
@@ -183,15 +205,18 @@ pub(crate) fn episodes_per_run(training: &DataFrame) -> PolarsResult<Vec<(Settin
         .collect())
 }
 
-/// The training table's penalties (10^6) by (map, policy) and, within, by run (cell), each
-/// run sorted by episode.
-fn runs_of(training: &DataFrame) -> Result<Vec<(Setting, RunsByCell)>, ReportError> {
+/// The training table's `measure` by (map, policy) and, within, by run (cell), each run
+/// sorted by episode.
+fn runs_of(
+    training: &DataFrame,
+    measure: &Measure,
+) -> Result<Vec<(Setting, RunsByCell)>, ReportError> {
     let cells = strings(training, cell::KEY)?;
     let episodes: Vec<u64> = f64s(training, training::EPISODE)?
         .into_iter()
         .map(|e| e as u64)
         .collect();
-    let penalties = f64s(training, training::PENALTY)?;
+    let values = f64s(training, measure.column)?;
     let keys: Vec<Setting> = trained_keys(training)?;
     Ok(group_rows(&keys)
         .into_iter()
@@ -199,7 +224,7 @@ fn runs_of(training: &DataFrame) -> Result<Vec<(Setting, RunsByCell)>, ReportErr
             let mut by_cell: RunsByCell = BTreeMap::new();
             for &r in &rows {
                 let run = by_cell.entry(cells[r].clone()).or_default();
-                run.insert(episodes[r], penalties[r] / PENALTY_UNIT);
+                run.insert(episodes[r], values[r] / measure.divisor);
             }
             (key, by_cell)
         })
@@ -209,11 +234,12 @@ fn runs_of(training: &DataFrame) -> Result<Vec<(Setting, RunsByCell)>, ReportErr
 /// A learned setting: the map, and the policy trained on it with its N_train.
 pub(crate) type Setting = (String, PolicyKey);
 
-/// Per run (cell), its penalty by episode.
+/// Per run (cell), its value by episode.
 type RunsByCell = BTreeMap<String, BTreeMap<u64, f64>>;
 
-fn curves(training: &DataFrame) -> Result<Vec<Curve>, ReportError> {
-    Ok(runs_of(training)?
+/// Every (map, policy)'s curve of `measure`.
+pub(crate) fn curves(training: &DataFrame, measure: &Measure) -> Result<Vec<Curve>, ReportError> {
+    Ok(runs_of(training, measure)?
         .into_iter()
         .map(|((map, policy), runs)| curve(map, policy, &runs))
         .collect())
@@ -316,7 +342,7 @@ fn repeat<T: Clone>(
         .collect()
 }
 
-fn curves_frame(curves: &[Curve]) -> PolarsResult<DataFrame> {
+pub(crate) fn curves_frame(curves: &[Curve]) -> PolarsResult<DataFrame> {
     let rows = |c: &Curve| c.episode.len();
     let all = |f: fn(&Curve) -> &Vec<f64>| -> Vec<f64> {
         curves.iter().flat_map(|c| f(c).clone()).collect()
@@ -416,7 +442,7 @@ mod tests {
 
     #[test]
     fn a_training_table_gives_one_curve_per_policy_with_its_runs() {
-        let curves = curves(&training()).unwrap();
+        let curves = curves(&training(), &PENALTY).unwrap();
         assert_eq!(curves.len(), 2);
         let collapsed = &curves[1];
         assert_eq!((collapsed.window, collapsed.runs.len()), (1, 2));
@@ -424,7 +450,12 @@ mod tests {
         assert_eq!(collapsed.mean[5], 452.5);
         assert_eq!(curves_frame(&curves).unwrap().height(), 12);
         assert_eq!(runs_frame(&curves).unwrap().height(), 24);
-        let caption = caption(&curves.iter().collect::<Vec<_>>(), "on `open`", true);
+        let caption = caption(
+            &curves.iter().collect::<Vec<_>>(),
+            "on `open`",
+            &PENALTY,
+            true,
+        );
         assert!(
             caption.contains("over 1 episode (no smoothing)") && caption.contains("2 runs"),
             "{caption}"

@@ -76,3 +76,46 @@ fn disturbed_play_and_training_with_losses_give_the_pinned_bits() {
     assert_eq!(computed, DISTURBED_PINNED);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The released training's variants, which the fingerprint scenario predates: MA-G-PPO and
+/// MA-PPO of `fast-v3` and MA-G-PPO of `paper` (`paper-v2`), on the disturbed scenario's map.
+const RELEASED: &str = "name: released-fingerprint
+seed: 17
+maps:
+  - inline:
+      name: two_rooms
+      grid: |
+        ..............#.......
+        ..............#.......
+        ..............#.......
+        ......................
+        ......................
+        ..............#.......
+        ..............#.......
+        #######.#######.......
+        ......................
+        ......................
+world: {fov: 25, decay: 1, rmax: 40, train_steps: 40, test_steps: 60}
+policies:
+  - baseline: {name: random}
+  - ma-g-ppo: {profile: fast-v3, episodes: 8}
+  - ma-ppo: {profile: fast-v3, episodes: 8}
+  - ma-g-ppo: {profile: paper, episodes: 2}
+agents: {train: [3], test: [2, 3]}
+repetitions: 1
+test_episodes: 2
+";
+
+/// What the released variants' cells compute with the code of the pinned fingerprint.
+const RELEASED_PINNED: &str = "2443a5d2a413ae9410eca255cb3ea155";
+
+/// Cells of `fast-v3` and `paper-v2` keep their keys while the fingerprint does: this holds
+/// their bits until the next re-pin of the fingerprint takes them into its scenario (which
+/// re-keys every cell, RQ4's finished ones with the rest).
+#[test]
+fn the_released_variants_give_the_pinned_bits() {
+    let dir = scratch("released-fingerprint");
+    let computed = compute_for(RELEASED, Path::new("released.yaml"), &dir, 2).unwrap();
+    assert_eq!(computed, RELEASED_PINNED);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -17,6 +17,7 @@ use super::{ReportError, ReportWriter, file_stem};
 /// The attention entropy, in nats.
 const ATTENTION: Measure = Measure {
     column: training::ATTENTION_ENTROPY,
+    title: "Attention entropy",
     name: "Attention entropy in training",
     y_label: "attention entropy (nats)",
     divisor: 1.0,

@@ -32,6 +32,8 @@ fn window(episodes: usize) -> usize {
 /// and how its values are divided for it.
 pub(crate) struct Measure {
     pub(crate) column: &'static str,
+    /// What a figure's title starts with ("Training").
+    pub(crate) title: &'static str,
     /// What the curves show, in a caption ("Training penalty").
     pub(crate) name: &'static str,
     pub(crate) y_label: &'static str,
@@ -41,6 +43,7 @@ pub(crate) struct Measure {
 /// The training penalty, in 10^6.
 const PENALTY: Measure = Measure {
     column: training::PENALTY,
+    title: "Training",
     name: "Training penalty",
     y_label: "penalty (10^6)",
     divisor: PENALTY_UNIT,
@@ -136,7 +139,7 @@ pub(crate) fn figure(
     label: impl Fn(&Curve) -> String,
 ) -> Result<(), ReportError> {
     let panel = Panel {
-        title: format!("{} {}", measure.name, setting.replace('`', "")),
+        title: format!("{} {}", measure.title, setting.replace('`', "")),
         y_label: measure.y_label.into(),
         lines: curves.iter().map(|c| spread(c, label(c))).collect(),
     };

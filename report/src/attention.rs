@@ -56,8 +56,9 @@ pub(crate) fn section(report: &mut ReportWriter, training: &DataFrame) -> Result
     report.paragraph(&format!(
         "The attention entropy of each MA-G-PPO training run at its first episode and settled \
          (the mean of its last {:.0} % of episodes), beside ln N and ln(N - 1), the entropies of \
-         even weights over N agents with self-loops and over the N - 1 others without: {moved} \
-         of {} runs settled below {:.0} % of their first episode's entropy.",
+         even weights over N agents with self-loops and over the N - 1 others without (runs \
+         whose entropy is 0 throughout are left out: MA-PPO's, and MA-G-PPO's with one \
+         neighbour): {moved} of {} runs settled below {:.0} % of their first episode's entropy.",
         LATE_SHARE * 100.0,
         runs.len(),
         MOVED * 100.0

@@ -53,10 +53,10 @@ fn trains_writes_its_files_and_resumes_to_the_same_weights() {
     let (straight, resumed) = (dir.join("straight"), dir.join("resumed"));
     succeed(train(&straight, &[]));
     succeed(train(&resumed, &[("--until", "4")]));
-    // The run started as `fast`, today fast-v2: by its own name it is the same run.
+    // The run started as `fast`, today fast-v3: by its own name it is the same run.
     succeed(train(
         &resumed,
-        &[("--resume", ""), ("--profile", "fast-v2")],
+        &[("--resume", ""), ("--profile", "fast-v3")],
     ));
     for name in [
         "checkpoint.safetensors",
@@ -144,11 +144,11 @@ fn a_resume_that_asks_for_another_run_is_refused_and_changes_nothing() {
     };
     refused(
         &[("--profile", "paper")],
-        "it was saved with profile fast-v2, this command asks for paper",
+        "it was saved with profile fast-v3, this command asks for paper-v2",
     );
     refused(
         &[("--profile", "fast-v1")],
-        "it was saved with profile fast-v2, this command asks for fast-v1",
+        "it was saved with profile fast-v3, this command asks for fast-v1",
     );
     refused(
         &[("--architecture", "ma-ppo")],

@@ -20,11 +20,10 @@ fn the_code_gives_the_pinned_results_fingerprint() {
     );
 }
 
-/// Disturbed test episodes and training with losses, which the fingerprint scenario leaves out
-/// (adding them would re-key every cell, the finished `rq6` cells with the rest).
-const DISTURBED: &str = "name: disturbed-fingerprint
-seed: 13
-maps:
+/// The two-room map and world of the pinned scenarios below.
+macro_rules! two_rooms {
+    () => {
+        "maps:
   - inline:
       name: two_rooms
       grid: |
@@ -39,7 +38,16 @@ maps:
         ......................
         ......................
 world: {fov: 25, decay: 1, rmax: 40, train_steps: 40, test_steps: 60}
-policies:
+"
+    };
+}
+
+/// Disturbed test episodes and training with losses, which the fingerprint scenario leaves out
+/// (adding them would re-key every cell, the finished `rq6` cells with the rest).
+const DISTURBED: &str = concat!(
+    "name: disturbed-fingerprint\nseed: 13\n",
+    two_rooms!(),
+    "policies:
   - baseline: {name: gcs}
   - baseline: {name: gcs-paper-text}
   - baseline: {name: tspc}
@@ -58,7 +66,8 @@ disturbances:
     lose: {which: [0], at: 10}
   - name: cut
     links: {drop: 0.5, radius: 8}
-";
+"
+);
 
 /// What the disturbed scenario's cells compute with the code whose keys the `rq6` cells hold
 /// (`harness audit` plays their stored rows, disturbed ones included, bit for bit).
@@ -79,24 +88,10 @@ fn disturbed_play_and_training_with_losses_give_the_pinned_bits() {
 
 /// The released training's variants, which the fingerprint scenario predates: MA-G-PPO and
 /// MA-PPO of `fast-v3` and MA-G-PPO of `paper` (`paper-v2`), on the disturbed scenario's map.
-const RELEASED: &str = "name: released-fingerprint
-seed: 17
-maps:
-  - inline:
-      name: two_rooms
-      grid: |
-        ..............#.......
-        ..............#.......
-        ..............#.......
-        ......................
-        ......................
-        ..............#.......
-        ..............#.......
-        #######.#######.......
-        ......................
-        ......................
-world: {fov: 25, decay: 1, rmax: 40, train_steps: 40, test_steps: 60}
-policies:
+const RELEASED: &str = concat!(
+    "name: released-fingerprint\nseed: 17\n",
+    two_rooms!(),
+    "policies:
   - baseline: {name: random}
   - ma-g-ppo: {profile: fast-v3, episodes: 8}
   - ma-ppo: {profile: fast-v3, episodes: 8}
@@ -104,7 +99,8 @@ policies:
 agents: {train: [3], test: [2, 3]}
 repetitions: 1
 test_episodes: 2
-";
+"
+);
 
 /// What the released variants' cells compute with the code of the pinned fingerprint.
 const RELEASED_PINNED: &str = "2443a5d2a413ae9410eca255cb3ea155";

@@ -148,6 +148,7 @@ pub(crate) fn run(args: TrainArgs) -> anyhow::Result<()> {
 /// Writes the trace of a fresh run's first update into `--out`, each file atomically and
 /// `trace.json` last, so that a folder with `trace.json` is whole.
 fn trace_update(args: &TrainArgs, world: std::sync::Arc<world::World>) -> anyhow::Result<()> {
+    run_folder::refuse_existing_run(&args.out, args.replace)?;
     let profile = args.profile.unwrap_or(Profile::FAST);
     let config = TrainingConfig::profile(profile).with_overrides(&args.overrides()?)?;
     let mut trainer = learning::ppo::Trainer::new(world.clone(), config, args.seed.unwrap_or(0))?;

@@ -200,7 +200,7 @@ fn the_smoke_sweep_s_events_hold_its_training_logs_run_by_run() {
     assert_eq!(learned, 12);
     assert_eq!(runs.len(), learned, "{:?}", runs.keys());
     assert!(
-        runs.contains_key("events/open-ma-g-ppo@fast-v2-n2-seed0"),
+        runs.contains_key("events/open-ma-g-ppo@fast-v3-n2-seed0"),
         "{:?}",
         runs.keys()
     );

@@ -493,14 +493,25 @@ fn stored_tensors(
         .collect()
 }
 
+/// A tensor as stored: its name, type, shape and little-endian bytes.
+pub type RawTensor = (String, Dtype, Vec<usize>, Vec<u8>);
+
 /// A safetensors file of f32 tensors, in the given order.
 pub fn serialize_f32(tensors: &[NamedTensor]) -> Vec<u8> {
-    let bytes: Vec<Vec<u8>> = tensors
+    let raw: Vec<RawTensor> = tensors
         .iter()
-        .map(|(_, _, values)| values.iter().flat_map(|v| v.to_le_bytes()).collect())
+        .map(|(name, shape, values)| {
+            let bytes = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+            (name.clone(), Dtype::F32, shape.clone(), bytes)
+        })
         .collect();
-    let views = tensors.iter().zip(&bytes).map(|((name, shape, _), bytes)| {
-        let view = TensorView::new(Dtype::F32, shape.clone(), bytes).expect("sizes match shapes");
+    serialize(&raw)
+}
+
+/// A safetensors file of `tensors`, in the given order, in PyTorch's format.
+pub fn serialize(tensors: &[RawTensor]) -> Vec<u8> {
+    let views = tensors.iter().map(|(name, dtype, shape, bytes)| {
+        let view = TensorView::new(*dtype, shape.clone(), bytes).expect("sizes match shapes");
         (name.clone(), view)
     });
     let header = HashMap::from([("format".to_owned(), "pt".to_owned())]);

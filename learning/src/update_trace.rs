@@ -14,12 +14,10 @@
 //! - `ours.safetensors`: `returns` (the critic's targets), `grad.NAME` (the first minibatch's
 //!   gradient of every tensor) and `after.NAME` (the weights after every epoch).
 
-use std::collections::HashMap;
-
-use safetensors::tensor::{Dtype, TensorView};
+use safetensors::tensor::Dtype;
 use serde::Serialize;
 
-use crate::checkpoint::{NamedTensor, pytorch_tensors, serialize_f32};
+use crate::checkpoint::{NamedTensor, RawTensor, pytorch_tensors, serialize, serialize_f32};
 use crate::ppo::{LossTerms, TrainingConfig, UpdateTrace};
 
 /// The version of the folder's layout, in `trace.json`.
@@ -85,21 +83,16 @@ fn rollout(trace: &UpdateTrace, world: &world::World) -> Vec<u8> {
         ("actions", vec![steps * agents], actions),
         ("positions", vec![steps, agents, 2], positions),
     ];
-    let mut bytes: Vec<(String, Dtype, Vec<usize>, Vec<u8>)> = Vec::new();
+    let mut tensors: Vec<RawTensor> = Vec::new();
     for (name, shape, values) in floats {
         let data = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-        bytes.push((name.to_owned(), Dtype::F32, shape, data));
+        tensors.push((name.to_owned(), Dtype::F32, shape, data));
     }
     for (name, shape, values) in integers {
         let data = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-        bytes.push((name.to_owned(), Dtype::I64, shape, data));
+        tensors.push((name.to_owned(), Dtype::I64, shape, data));
     }
-    let views = bytes.iter().map(|(name, dtype, shape, data)| {
-        let view = TensorView::new(*dtype, shape.clone(), data).expect("sizes match shapes");
-        (name.clone(), view)
-    });
-    let header = HashMap::from([("format".to_owned(), "pt".to_owned())]);
-    safetensors::tensor::serialize(views, Some(header)).expect("tensors serialise")
+    serialize(&tensors)
 }
 
 #[derive(Serialize)]

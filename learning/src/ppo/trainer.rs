@@ -166,18 +166,19 @@ impl Trainer {
     pub fn trace_update(&mut self) -> Result<UpdateTrace, TrainError> {
         let config = &self.state.config;
         let refusal = if config.environments != 1 {
-            Some("a traced update is one environment's round; set environments=1")
+            Some((
+                "environments",
+                "a traced update is one environment's round; set environments=1",
+            ))
         } else if config.loss_probability > 0.0 {
-            Some("a traced update loses no robot; set loss_probability=0")
+            Some((
+                "loss_probability",
+                "a traced update loses no robot; set loss_probability=0",
+            ))
         } else {
             None
         };
-        if let Some(reason) = refusal {
-            let field = if config.environments != 1 {
-                "environments"
-            } else {
-                "loss_probability"
-            };
+        if let Some((field, reason)) = refusal {
             let reason = reason.to_owned();
             return Err(ConfigError::Invalid { field, reason }.into());
         }

@@ -80,9 +80,15 @@ const DISTURBED_PINNED: &str = "7d117adc98595c3f7f3efa81e0ae0b88";
 /// this test has done its work.
 #[test]
 fn disturbed_play_and_training_with_losses_give_the_pinned_bits() {
-    let dir = scratch("disturbed-fingerprint");
-    let computed = compute_for(DISTURBED, Path::new("disturbed.yaml"), &dir, 2).unwrap();
-    assert_eq!(computed, DISTURBED_PINNED);
+    assert_gives(DISTURBED, "disturbed", DISTURBED_PINNED);
+}
+
+/// The fingerprint of `scenario`'s cells, computed in a scratch folder, is `pinned`.
+fn assert_gives(scenario: &str, name: &str, pinned: &str) {
+    let dir = scratch(&format!("{name}-fingerprint"));
+    let file = format!("{name}.yaml");
+    let computed = compute_for(scenario, Path::new(&file), &dir, 2).unwrap();
+    assert_eq!(computed, pinned);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -110,8 +116,5 @@ const RELEASED_PINNED: &str = "2443a5d2a413ae9410eca255cb3ea155";
 /// re-keys every cell, RQ4's finished ones with the rest).
 #[test]
 fn the_released_variants_give_the_pinned_bits() {
-    let dir = scratch("released-fingerprint");
-    let computed = compute_for(RELEASED, Path::new("released.yaml"), &dir, 2).unwrap();
-    assert_eq!(computed, RELEASED_PINNED);
-    let _ = std::fs::remove_dir_all(&dir);
+    assert_gives(RELEASED, "released", RELEASED_PINNED);
 }

@@ -13,6 +13,8 @@ pub enum StatsError {
     NoResamples,
     #[error("paired samples must hold the same runs (and episodes) in the same order")]
     Unpaired,
+    #[error("{successes} of {trials} is not a count of some of a number of trials")]
+    Count { successes: f64, trials: f64 },
     #[error("value {index} is {value}, not a finite number")]
     NotFinite { index: usize, value: f64 },
 }

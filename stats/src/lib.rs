@@ -1,7 +1,8 @@
 //! Summaries of episode results: mean, spread, robust centres (median, interquartile mean),
 //! bootstrap intervals (`resampling`: a learned policy's training runs are the unit of
 //! replication), a multiple-testing correction (`multiplicity`), rows grouped by key
-//! (`grouping`), and the power of a comparison: the runs it needs (`power`). The engine's
+//! (`grouping`), the power of a comparison: the runs it needs (`power`), and rates of failed
+//! runs and episodes with their intervals (`proportion`). The engine's
 //! summary table and the report's verdicts both use them; they read no store and run nothing.
 //!
 //! Ten test episodes are too few to trust a normal approximation, and penalties are skewed
@@ -14,6 +15,7 @@ pub mod grouping;
 mod moments;
 mod multiplicity;
 pub mod power;
+pub mod proportion;
 mod resampling;
 
 use world::Seed;

@@ -131,6 +131,19 @@ pub struct Episode {
     seeing: Vec<Cell>,
     /// Disturbed communication this episode (`Episode::set_links`); `None`: all hear all.
     links: Option<Links>,
+    /// Why each agent's move of the last step was refused, if it was (`Episode::refused`).
+    refused: Vec<Option<Refusal>>,
+}
+
+/// Why a move was refused: the robot chose to move and stayed where it was. A policy that
+/// keeps choosing a refused move stays put for as long as it does, which is how an episode
+/// fails without the world ever saying so; the measure of that (`refused`) reads this.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Refusal {
+    /// Off the map or into an obstacle: refused whatever the others do.
+    Wall,
+    /// Onto another agent, as moved so far this step.
+    Agent,
 }
 
 impl Episode {
@@ -153,6 +166,7 @@ impl Episode {
             stopped: vec![false; agents],
             seeing: Vec::with_capacity(agents),
             links: None,
+            refused: vec![None; agents],
         };
         episode.restart();
         Ok(episode)
@@ -192,6 +206,7 @@ impl Episode {
         }
         self.penalty.clear();
         self.stopped.fill(false);
+        self.refused.fill(None);
         self.links = None;
         self.time = 0;
         self.reward = self.penalty.update(&self.world.visibility, &self.positions);
@@ -239,16 +254,25 @@ impl Episode {
     pub fn step(&mut self, actions: &[Action]) -> f64 {
         debug_assert_eq!(actions.len(), self.positions.len());
         let map = &self.world.map;
-        let moving = self.positions.iter_mut().zip(actions).zip(&self.stopped);
-        for ((position, action), _) in moving.filter(|(_, stopped)| !**stopped) {
+        self.refused.fill(None);
+        let moving = (self.positions.iter_mut().zip(actions))
+            .zip(self.refused.iter_mut())
+            .zip(&self.stopped);
+        for (((position, action), refused), _) in moving.filter(|(_, stopped)| !**stopped) {
+            if *action == Action::Stay {
+                continue;
+            }
             let (dx, dy) = action.delta();
             let (x, y) = (position.x as i64 + dx, position.y as i64 + dy);
             if map.is_obstacle(x, y) {
+                *refused = Some(Refusal::Wall);
                 continue;
             }
             let target = Cell::new(x as u16, y as u16);
             let (from, to) = (map.index(*position), map.index(target));
-            if !self.occupied[to] {
+            if self.occupied[to] {
+                *refused = Some(Refusal::Agent);
+            } else {
                 self.occupied[from] = false;
                 self.occupied[to] = true;
                 *position = target;
@@ -274,6 +298,12 @@ impl Episode {
 
     pub fn positions(&self) -> &[Cell] {
         &self.positions
+    }
+
+    /// Per agent, why its move of the last step was refused (`None`: it moved, chose to
+    /// stay, or is lost); all `None` right after a reset.
+    pub fn refused(&self) -> &[Option<Refusal>] {
+        &self.refused
     }
 
     pub fn agents(&self) -> usize {
@@ -368,7 +398,9 @@ mod tests {
         e.reset_at(&[Cell::new(0, 0), Cell::new(1, 0)]).unwrap();
         e.step(&[Action::Left, Action::Up]);
         assert_eq!(e.positions(), &[Cell::new(0, 0), Cell::new(1, 0)]);
+        assert_eq!(e.refused(), &[Some(Refusal::Wall), Some(Refusal::Wall)]);
         e.step(&[Action::Right, Action::Right]);
+        assert_eq!(e.refused(), &[Some(Refusal::Agent), None]);
         let refused = [Cell::new(0, 0), Cell::new(2, 0)];
         assert_eq!(
             e.positions(),
@@ -382,7 +414,14 @@ mod tests {
             &refused,
             "agent 0 took (1,0) before agent 1 moved"
         );
-        assert_eq!(e.time(), 3);
+        assert_eq!(e.refused(), &[None, Some(Refusal::Agent)]);
+        e.step(&[Action::Stay, Action::Stay]);
+        assert_eq!(e.refused(), &[None, None], "staying is never refused");
+        assert_eq!(e.time(), 4);
+        e.reset_at(&[Cell::new(0, 0), Cell::new(1, 0)]).unwrap();
+        e.step(&[Action::Down, Action::Stay]);
+        e.reset_at(&[Cell::new(0, 0), Cell::new(1, 0)]).unwrap();
+        assert_eq!(e.refused(), &[None, None], "a reset forgets the last step");
     }
 
     #[test]

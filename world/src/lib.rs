@@ -20,7 +20,7 @@ pub mod reference;
 pub mod seed;
 mod visibility;
 
-pub use episode::{Action, Episode, StartError, World};
+pub use episode::{Action, Episode, Refusal, StartError, World};
 pub use input::{InputError, InputProblem, read_bounded, read_bounded_text};
 pub use links::Links;
 pub use map::{Cell, Map, MapError, MapErrorKind};

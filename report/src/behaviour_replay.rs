@@ -2,20 +2,15 @@
 //! every training run (cell) of the claimed (map, policy, N_train) at the claimed N_test.
 //!
 //! A sweep records the motion of one test episode only (the first, of the first run: see
-//! `engine::trajectory`), and recording more would change what a cell stores, so every
-//! finished cell's key (the results fingerprint hashes a cell's files). The episodes are
-//! played again instead, at report time, from the cell's config and checkpoint (a test episode
-//! is a pure function of them, as `harness audit` checks bit for bit), and measured as the
-//! report measures its recorded episodes (`behaviour::measure`). That is done once: the
-//! measurements are kept in the store's `behaviour_episodes` table, and a store without cells
-//! (a committed report's copy, tables only) is judged from that table alone.
+//! `engine::trajectory`); the others are played again (`replayed`) and measured as the report
+//! measures its recorded episodes (`behaviour::measure`), once: the measurements are kept in
+//! the store's `behaviour_episodes` table, from which a store without cells is judged alone.
 
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 use store::schema::{behaviour_episodes, cell, cells, episodes};
 
 use polars::prelude::*;
-use rayon::prelude::*;
 use world::World;
 
 use super::behaviour::{EpisodeRoles, measure};
@@ -25,24 +20,8 @@ use super::motion::{Motion, centre, sin_theta};
 use plan::scenario::claims::{Claim, ClaimTest, Point};
 use store::{CellRecord, Store, StoreError};
 
-pub use crate::error::{BehaviourError, ReplayError};
-
-/// Plays stored test episodes again. The engine does it (`engine::execution`, handed in by the
-/// binary): the report only measures what it is shown, and runs no cell itself.
-pub trait Replay: Sync {
-    /// Plays test episodes `episodes`, in that order, of the stored cell `record` with `n_test`
-    /// agents in `world`, one policy for all of them as the cell's tests had, calling
-    /// `after_step(episode, state)` after every step.
-    fn play(
-        &self,
-        store: &Store,
-        record: &CellRecord,
-        world: &Arc<World>,
-        n_test: u32,
-        episodes: &[u32],
-        after_step: &mut dyn FnMut(u32, &world::Episode),
-    ) -> Result<(), ReplayError>;
-}
+use crate::error::ReplayedError;
+use crate::replayed::{Replay, ReplayError, cells_at_hand, replay_cells};
 
 /// The store table of measured episodes (`NAME.parquet` and `NAME.csv` in the store's root).
 const TABLE: &str = behaviour_episodes::TABLE;
@@ -72,12 +51,12 @@ pub(crate) fn measures(
     claims: &[Claim],
     (episodes, motions): (&DataFrame, &[Motion]),
     replayer: &dyn Replay,
-) -> Result<Vec<EpisodeMeasure>, BehaviourError> {
+) -> Result<Vec<EpisodeMeasure>, ReplayedError> {
     let points = claimed_points(claims);
     if points.is_empty() {
         return Ok(Vec::new());
     }
-    let index = EpisodeIndex::of(episodes).map_err(BehaviourError::Episodes)?;
+    let index = EpisodeIndex::of(episodes).map_err(ReplayedError::Episodes)?;
     let (mut table, whole) = read_table(store)?;
     // A table measured before a measure existed is measured again where the cells are at
     // hand, and written whole (the measure null where they are not).
@@ -110,14 +89,6 @@ pub(crate) fn measures(
             .any(|(p, point)| at_point(&m.group, p, point))
     });
     Ok(table)
-}
-
-/// Whether the store has every cell of `needed` to replay: not a table store (its cells are
-/// rows of a table, without checkpoints), and each cell finished.
-fn cells_at_hand(store: &Store, needed: &BTreeMap<String, BTreeSet<u32>>) -> bool {
-    !needed.is_empty()
-        && !store.is_table_store()
-        && needed.keys().all(|key| store.finished(key).is_some())
 }
 
 /// Every (policy, point) a behaviour claim of `claims` reads, once.
@@ -223,38 +194,16 @@ fn replay(
     store: &Store,
     pool: &Pool,
     (needed, n_test): (&BTreeMap<String, BTreeSet<u32>>, u32),
-) -> Result<Vec<EpisodeMeasure>, BehaviourError> {
-    let records: Vec<CellRecord> = (needed.keys())
-        .map(|key| store.verified_record(key))
-        .collect::<Result<_, _>>()?;
-    let mut worlds: HashMap<String, Arc<World>> = HashMap::new();
-    for record in &records {
-        let config = &record.config;
-        if !worlds.contains_key(&config.map.hash) {
-            let params = config
-                .world
-                .params()
-                .map_err(|source| BehaviourError::World {
-                    key: record.key.clone(),
-                    source,
-                })?;
-            let map = store.map(&config.map.name, &config.map.hash)?;
-            worlds.insert(config.map.hash.clone(), World::new(map, params));
-        }
-    }
-    let per_cell: Vec<Vec<EpisodeMeasure>> = records
-        .par_iter()
-        .map(|record| {
-            let world = &worlds[&record.config.map.hash];
-            let episodes = &needed[&record.key];
-            let played = (world, record, episodes, n_test);
-            replay_cell(replayer, store, pool, played).map_err(|source| BehaviourError::Replay {
-                key: record.key.clone(),
-                source,
-            })
-        })
-        .collect::<Result<_, _>>()?;
-    Ok(per_cell.concat())
+) -> Result<Vec<EpisodeMeasure>, ReplayedError> {
+    let keys: Vec<&String> = needed.keys().collect();
+    replay_cells(store, &keys, |record, world| {
+        replay_cell(
+            replayer,
+            store,
+            pool,
+            (world, record, &needed[&record.key], n_test),
+        )
+    })
 }
 
 fn replay_cell(
@@ -336,7 +285,7 @@ fn follow(motion: &mut Motion, episode: &world::Episode) {
 /// The store's table as rows, and whether it has every column (not one measured before a
 /// column was added); none when it is not there or, in a sweep's store, does not match its
 /// hash in `tables.json` (its episodes are then measured again from the cells).
-fn read_table(store: &Store) -> Result<(Vec<EpisodeMeasure>, bool), BehaviourError> {
+fn read_table(store: &Store) -> Result<(Vec<EpisodeMeasure>, bool), ReplayedError> {
     let path = store.root().join(format!("{TABLE}.parquet"));
     if !path.exists() {
         return Ok((Vec::new(), true));
@@ -349,7 +298,7 @@ fn read_table(store: &Store) -> Result<(Vec<EpisodeMeasure>, bool), BehaviourErr
     };
     let columns = store::schema::columns_of(TABLE).unwrap_or_default();
     let whole = columns.iter().all(|c| frame.column(c).is_ok());
-    let rows = rows(&frame).map_err(|source| BehaviourError::Table { path, source })?;
+    let rows = rows(&frame).map_err(|source| ReplayedError::Table { path, source })?;
     Ok((rows, whole))
 }
 

@@ -10,9 +10,11 @@ use store::schema::{cell, checkpoints, convergence as run, episodes};
 
 use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
 use super::comparison::{Sample, samples};
+use super::failures::{self, FAILED_RUN_RATIO, RunFailures, STALL_STEPS};
+use super::refusal_replay::EpisodeRefusals;
 use super::verdicts::ClaimResult;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
-use plan::scenario::claims::{Claim, ClaimTest, RANDOM};
+use plan::scenario::claims::{Claim, ClaimTest};
 use stats::{mean, median, standard_deviation};
 
 /// The section, with the best-against-final table when the store has both policies' tests.
@@ -22,9 +24,10 @@ pub(crate) fn section(
     convergence: &DataFrame,
     tests: &DataFrame,
     both: Option<&DataFrame>,
+    refusals: &[EpisodeRefusals],
 ) -> Result<(), ReportError> {
     report.heading(3, "Did the training runs converge?");
-    report.paragraph(
+    report.paragraph(&format!(
         "For each learned (map, policy, N_train) trained until converged: its runs, how many \
          the stopping rule ended (*converged*: the best validation penalty improved by less \
          than the rule's minimum over its last `patience` validations) and how many reached \
@@ -38,11 +41,17 @@ pub(crate) fn section(
          make (a one-way split: more test episodes a cell shrink that part alone), and, run \
          by run, how many of those test episodes left more than Random's mean at that map \
          and N (`-` where the sweep has no Random): failed episodes, each of which moves its \
-         run's mean far. Validation episodes have their own seeds, never a test episode's. \
+         run's mean far; how many stalled, a robot's move refused by a wall {STALL_STEPS} steps \
+         running (`-` where the runs could not be played again), and how many runs failed \
+         (a mean more than {FAILED_RUN_RATIO} times the setting's median run; see *Failed \
+         runs and episodes*). Validation episodes have their own seeds, never a test episode's. \
          The claims are judged on the tested policy; where judging them on the runs' other \
-         policy gives another verdict, the claim's text adds that verdict and its numbers.",
-    );
-    report.table("convergence", &convergence_frame(convergence, tests)?)?;
+         policy gives another verdict, the claim's text adds that verdict and its numbers."
+    ));
+    report.table(
+        "convergence",
+        &convergence_frame(convergence, tests, refusals)?,
+    )?;
     if let Some(both) = both {
         report.heading(3, "The best policy against the final one");
         report.paragraph(
@@ -167,52 +176,6 @@ fn listed<T: std::fmt::Display>(values: impl IntoIterator<Item = T>) -> String {
     texts.join(", ")
 }
 
-/// What a run's tested policy left at N_test = N_train.
-#[derive(Clone, Copy)]
-struct OwnTests {
-    /// Its mean test penalty (10^6).
-    mean: f64,
-    /// How many of its test episodes left more than Random's mean there, when the store
-    /// has Random at that map and N_test.
-    worse_than_random: Option<usize>,
-}
-
-/// Each run's (cell key's) [`OwnTests`], from the episodes table's samples; a run without
-/// test episodes at its own N has none.
-fn own_n_test_results(
-    table: &DataFrame,
-    samples: &[Sample],
-) -> Result<Vec<Option<OwnTests>>, ReportError> {
-    let mut random: HashMap<(&str, u32), f64> = HashMap::new();
-    for sample in samples {
-        if sample.group.policy.policy == RANDOM && sample.group.policy.n_train.is_none() {
-            random.insert(
-                (&sample.group.map, sample.group.n_test),
-                mean(&sample.values())?,
-            );
-        }
-    }
-    let mut by_run: HashMap<&str, OwnTests> = HashMap::new();
-    for sample in samples {
-        if sample.group.policy.n_train == Some(sample.group.n_test) {
-            let random = random.get(&(sample.group.map.as_str(), sample.group.n_test));
-            for (cell, stratum) in sample.cells.iter().zip(&sample.strata) {
-                let worse = |random: &f64| stratum.iter().filter(|&v| v > random).count();
-                let own = OwnTests {
-                    mean: mean(stratum)?,
-                    worse_than_random: random.map(worse),
-                };
-                by_run.insert(cell, own);
-            }
-        }
-    }
-    let runs = strings(table, cell::KEY)?;
-    Ok(runs
-        .iter()
-        .map(|key| by_run.get(key.as_str()).copied())
-        .collect())
-}
-
 /// Each learned (map, policy) setting's share of its runs' variance at N_test = N_train that
 /// their test episodes make (`stats::power::EpisodeNoise`): the part more test episodes a
 /// cell would shrink, the rest lying between the runs themselves.
@@ -227,10 +190,17 @@ fn episode_shares(samples: &[Sample]) -> HashMap<(&str, &PolicyKey), f64> {
         .collect()
 }
 
-fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, ReportError> {
+fn convergence_frame(
+    table: &DataFrame,
+    tests: &DataFrame,
+    refusals: &[EpisodeRefusals],
+) -> Result<DataFrame, ReportError> {
     let settings = trained_keys(table)?;
     let samples = samples(tests)?;
-    let own_tests = own_n_test_results(table, &samples)?;
+    let failures = failures::of_runs(&samples, refusals)?;
+    let own_tests: Vec<Option<&RunFailures>> = (strings(table, cell::KEY)?.iter())
+        .map(|key| failures.get(key))
+        .collect();
     let shares = episode_shares(&samples);
     let stops = f64s(table, run::STOP_EPISODE)?;
     let best = f64s(table, run::BEST_EPISODE)?;
@@ -243,7 +213,13 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
         let of = |values: &[f64]| within.iter().map(|&r| values[r]).collect::<Vec<f64>>();
         let count = |reason: &str| within.iter().filter(|&&r| reasons[r] == reason).count();
         let minutes: Vec<f64> = of(&cpu).iter().map(|s| s / 60.0).collect();
-        let of_runs: Vec<Option<OwnTests>> = within.iter().map(|&r| own_tests[r]).collect();
+        let of_runs: Vec<Option<&RunFailures>> = within.iter().map(|&r| own_tests[r]).collect();
+        let per_run = |of: fn(&RunFailures) -> Option<u64>| {
+            listed(of_runs.iter().map(|own| match own.and_then(of) {
+                Some(count) => count.to_string(),
+                None => "-".to_owned(),
+            }))
+        };
         let penalties: Vec<f64> = of_runs.iter().flatten().map(|own| own.mean).collect();
         rows.push(SettingRow {
             map: map.clone(),
@@ -261,12 +237,9 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
                 Some(own) => format!("{:.1}", own.mean),
                 None => "-".to_owned(),
             })),
-            worse_than_random: listed(of_runs.iter().map(|own| {
-                match own.and_then(|own| own.worse_than_random) {
-                    Some(count) => count.to_string(),
-                    None => "-".to_owned(),
-                }
-            })),
+            worse_than_random: per_run(|own| own.failed_episodes),
+            stalled: per_run(|own| own.stalled_episodes),
+            failed_runs: of_runs.iter().flatten().filter(|own| own.failed).count() as u32,
             median_test_penalty: (!penalties.is_empty())
                 .then(|| median(&penalties))
                 .transpose()?,
@@ -294,6 +267,8 @@ fn convergence_frame(table: &DataFrame, tests: &DataFrame) -> Result<DataFrame, 
         "sd_test_penalty" => rows.iter().map(|r| r.sd_test_penalty).collect::<Vec<_>>(),
         "episode_share" => rows.iter().map(|r| r.episode_share).collect::<Vec<_>>(),
         "worse_than_random" => rows.iter().map(|r| r.worse_than_random.as_str()).collect::<Vec<_>>(),
+        "stalled_episodes" => rows.iter().map(|r| r.stalled.as_str()).collect::<Vec<_>>(),
+        "failed_runs" => rows.iter().map(|r| r.failed_runs).collect::<Vec<_>>(),
     )?)
 }
 
@@ -327,6 +302,10 @@ struct SettingRow {
     /// Per run, how many of those test episodes left more than Random's mean ("-" where the
     /// store has no Random there): the failed episodes that widen a run's mean.
     worse_than_random: String,
+    /// Per run, its stalled test episodes there ("-" where not measured; `failures`).
+    stalled: String,
+    /// The runs that failed (`failures::failed_runs`).
+    failed_runs: u32,
 }
 
 /// Per (map, policy, N_train, N_test): the mean over runs of each policy's run mean.
@@ -376,6 +355,7 @@ fn best_against_final(both: &DataFrame) -> Result<DataFrame, ReportError> {
 mod tests {
     use super::*;
     use crate::judgement::Verdict;
+    use plan::scenario::claims::RANDOM;
 
     fn convergence_table() -> DataFrame {
         df!(
@@ -416,7 +396,7 @@ mod tests {
 
     #[test]
     fn a_setting_counts_its_converged_and_capped_runs() {
-        let frame = convergence_frame(&convergence_table(), &test_episodes()).unwrap();
+        let frame = convergence_frame(&convergence_table(), &test_episodes(), &[]).unwrap();
         assert_eq!(frame.height(), 1);
         let text = |name: &str| {
             frame
@@ -450,6 +430,8 @@ mod tests {
         assert!((sd - 15.0 / 2f64.sqrt()).abs() < 1e-12, "{sd}");
         // Above Random's mean of 35 at N = 4: none of a's (20, 30), both of b's (40, 40).
         assert_eq!(text("worse_than_random"), "0, 2, -");
+        assert_eq!(text("stalled_episodes"), "-, -, -", "no refusals measured");
+        assert_eq!(number("failed_runs"), 0, "two runs tested say nothing");
         // The run means 25 and 40 vary 112.5; the episodes' part is the mean of 50 / 2 and
         // 0 / 2: a ninth of it.
         let share = float("episode_share").unwrap();

@@ -30,14 +30,14 @@ pub enum ReportError {
     #[error(transparent)]
     Status(#[from] store::status::StatusError),
     #[error(transparent)]
-    Behaviour(#[from] BehaviourError),
+    Replayed(#[from] ReplayedError),
 }
 
 /// Why a replay failed, as the engine says it.
 pub type ReplayError = Box<dyn std::error::Error + Send + Sync>;
 
 #[derive(Debug, thiserror::Error)]
-pub enum BehaviourError {
+pub enum ReplayedError {
     #[error(transparent)]
     Store(#[from] StoreError),
     #[error("replaying test episodes of cell {key}: {source}")]

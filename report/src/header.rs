@@ -31,6 +31,8 @@ pub(crate) struct HeaderTables<'a> {
     /// both their policies' tests.
     pub(crate) convergence: Option<&'a DataFrame>,
     pub(crate) checkpoints: Option<&'a DataFrame>,
+    /// The learned runs' replayed refusals (`refusal_replay`), for the stalled episodes.
+    pub(crate) refusals: &'a [super::refusal_replay::EpisodeRefusals],
 }
 
 /// The header of a report written by the code at commit `writer`.
@@ -75,7 +77,8 @@ pub(crate) fn section(
     };
     report.paragraph(&lines.join("\n"));
     if let Some(convergence) = tables.convergence {
-        super::convergence::section(report, convergence, tables.episodes, tables.checkpoints)?;
+        let (episodes, checkpoints) = (tables.episodes, tables.checkpoints);
+        super::convergence::section(report, convergence, episodes, checkpoints, tables.refusals)?;
     } else if let Some(training) = tables.training {
         improving_section(report, training)?;
     }

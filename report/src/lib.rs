@@ -17,6 +17,7 @@ mod convergence;
 mod disturbance;
 mod earlier;
 mod error;
+mod failures;
 mod header;
 mod illustration;
 pub mod judgement;
@@ -25,6 +26,8 @@ mod missing;
 mod motion;
 mod penalty;
 mod publish;
+mod refusal_replay;
+mod replayed;
 mod run_seconds;
 mod test_curve;
 mod time_to_quality;
@@ -44,8 +47,8 @@ use store::provenance::BuiltFrom;
 use store::schema;
 use world::Map;
 
-pub use behaviour_replay::{Replay, ReplayError};
 pub use error::ReportError;
+pub use replayed::{Replay, ReplayError};
 pub use run_seconds::{LearnedSetting, training_run_seconds};
 use units::PENALTY_UNIT;
 pub use writer::ReportSummary;
@@ -87,12 +90,14 @@ pub fn write_report(
     ));
     let loaded = StoreTables::load(store)?;
     let cells = store.optional_table(schema::cells::TABLE)?;
+    let refusals = refusal_replay::measures(store, &loaded.episodes, replay)?;
     let header = header::HeaderTables {
         cells: cells.as_ref(),
         episodes: &loaded.episodes,
         training: loaded.training.as_ref(),
         convergence: loaded.convergence.as_ref(),
         checkpoints: loaded.checkpoints.as_ref(),
+        refusals: &refusals,
     };
     header::section(&mut report, &header, &writer.git_commit)?;
     let missing = missing::cells(store)?;
@@ -119,6 +124,7 @@ pub fn write_report(
     let summary = store.table(schema::summary::TABLE)?;
     let comparisons = comparison::comparisons(&episodes)?;
     penalty::section(&mut report, &summary, &episodes, &comparisons)?;
+    failures::section(&mut report, &comparison::samples(&episodes)?, &refusals)?;
     comparison::section(&mut report, &comparisons)?;
     transfer::section(&mut report, &summary)?;
     if let (Some(disturbed), Some(steps)) = (

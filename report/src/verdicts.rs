@@ -17,6 +17,7 @@ use super::budget::{trained_for, trained_runs};
 use super::columns::{GroupKey, PolicyKey, f64s, named_seed, optional_u32s, strings};
 use super::comparison::{CONFIDENCE, Sample, bootstrap_of, difference_and_improvement, samples};
 use super::disturbance::{DisturbedSamples, ratio};
+use super::failures::failed_runs;
 use super::judgement::{PointTest, Verdict, find};
 use super::markdown::{interval, number};
 use super::test_curve::{samples_at, trained_curves};
@@ -560,11 +561,19 @@ fn lower(samples: Sides, pair: &Pair, seed: world::Seed) -> Result<Judged, Repor
     })
 }
 
-/// How many draws a sample rests on: "3 runs" or "30 episodes".
+/// How many draws a sample rests on, and how many of its runs failed: "3 runs", "15 runs, 1
+/// failed" (a mean over twice their median: `failures`) or "30 episodes".
 fn draws(sample: &Sample) -> String {
+    let failed = || {
+        let means = sample.units().unwrap_or_default();
+        failed_runs(&means).into_iter().filter(|&f| f).count()
+    };
     match sample.group.policy.n_train {
         Some(_) if sample.runs() == 1 => "1 run".to_owned(),
-        Some(_) => format!("{} runs", sample.runs()),
+        Some(_) => match failed() {
+            0 => format!("{} runs", sample.runs()),
+            failed => format!("{} runs, {failed} failed", sample.runs()),
+        },
         None => format!("{} episodes", sample.values().len()),
     }
 }

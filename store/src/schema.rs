@@ -469,6 +469,36 @@ pub mod behaviour_episodes {
     }
 }
 
+/// How long robots kept choosing a refused move in every learned run's test episodes at
+/// N_test = N_train (written by the report's replay).
+pub mod refusals {
+    use super::{cell, cells, episodes};
+
+    pub const TABLE: &str = "refusals";
+    /// The most consecutive steps in which one robot's chosen move was refused by a wall (off
+    /// the map or into an obstacle): a robot pressing against it.
+    pub const LONGEST_WALL: &str = "longest_wall_refusal";
+    /// Robot-steps whose move a wall refused, over the episode.
+    pub const WALL_STEPS: &str = "wall_refused_steps";
+    /// Robot-steps whose move another robot refused.
+    pub const AGENT_STEPS: &str = "agent_refused_steps";
+
+    pub(crate) fn columns() -> Vec<&'static str> {
+        vec![
+            cell::MAP,
+            cell::POLICY,
+            cell::N_TRAIN,
+            episodes::N_TEST,
+            cell::KEY,
+            cells::REPETITION,
+            episodes::EPISODE,
+            LONGEST_WALL,
+            WALL_STEPS,
+            AGENT_STEPS,
+        ]
+    }
+}
+
 /// The columns of table `name` that a store written before they existed lacks: a reader takes
 /// the table without them.
 pub fn added_later(name: &str) -> Vec<&'static str> {
@@ -494,6 +524,7 @@ pub fn columns_of(name: &str) -> Option<Vec<&'static str>> {
         disturbed::TABLE => disturbed::columns(),
         disturbed_steps::TABLE => disturbed_steps::columns(),
         behaviour_episodes::TABLE => behaviour_episodes::columns(),
+        refusals::TABLE => refusals::columns(),
         _ => return None,
     })
 }

@@ -1,9 +1,12 @@
 //! What every learned actor does at a step, in training and in tests alike: read an action
-//! from the policy's distribution, and put the agents into the attention graph.
+//! from the policy's distribution, the moves it may choose, and put the agents into the
+//! attention graph.
 
 use rand::RngExt;
 use rand_pcg::Pcg64Mcg;
-use world::Cell;
+use world::{Cell, Episode};
+
+use crate::ppo::config::BlockedMoves;
 
 use nn::{AgentGraph, CategoricalBatch, Neighbours};
 
@@ -46,4 +49,12 @@ pub(crate) fn push_agents(
     scratch.clear();
     scratch.extend(positions.iter().map(|c| [c.x as f64, c.y as f64]));
     graph.push_group(rule, scratch);
+}
+
+/// Appends the moves each agent of `episode` may choose (`nn::CategoricalBatch::set_mask`'s
+/// bits) where `rule` masks blocked moves; appends nothing where every move may be chosen.
+pub(crate) fn push_allowed_moves(rule: BlockedMoves, episode: &Episode, masks: &mut Vec<u8>) {
+    if rule == BlockedMoves::Masked {
+        masks.extend((0..episode.agents()).map(|agent| episode.wall_free_moves(agent)));
+    }
 }

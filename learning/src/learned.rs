@@ -6,8 +6,8 @@ use rand_pcg::Pcg64Mcg;
 use world::seed::purpose;
 use world::{Action, Episode, Observer, Seed, World};
 
-use crate::acting::{ActionChoice, push_agents};
-use crate::ppo::config::{ArchitectureName, ConfigError, TrainingConfig};
+use crate::acting::{ActionChoice, push_agents, push_allowed_moves};
+use crate::ppo::config::{ArchitectureName, BlockedMoves, ConfigError, TrainingConfig};
 use nn::Real;
 use nn::{ActorCritic, AgentGraph, Architecture, ModelWorkspace, Neighbours};
 use world::{AttentionEdges, Policy};
@@ -19,6 +19,9 @@ pub struct LearnedPolicy {
     model: ActorCritic<f32>,
     neighbours: Neighbours,
     choice: ActionChoice,
+    blocked_moves: BlockedMoves,
+    /// The moves each agent may choose at the last step (empty: all).
+    allowed: Vec<u8>,
     observer: Observer,
     workspace: ModelWorkspace<f32>,
     graph: AgentGraph,
@@ -73,6 +76,8 @@ impl LearnedPolicy {
             model,
             neighbours: config.neighbours.to_nn(),
             choice,
+            blocked_moves: config.blocked_moves,
+            allowed: Vec::new(),
             observer,
             workspace: ModelWorkspace::default(),
             graph: AgentGraph::new(),
@@ -86,6 +91,7 @@ impl LearnedPolicy {
     /// The observations of the last [`Policy::act`] and the whole network's outputs on them:
     /// the actor's probabilities and the critic's values, on the same attention graph.
     pub fn inspect_last_step(&mut self) -> Inspection<'_> {
+        self.inspection.set_action_mask(&self.allowed);
         self.model
             .forward(&mut self.inspection, &self.observations, &self.graph);
         let probabilities = self
@@ -150,6 +156,9 @@ impl Policy for LearnedPolicy {
             self.graph
                 .retain_from(0, |agent, neighbour| episode.hears(agent, neighbour));
         }
+        self.allowed.clear();
+        push_allowed_moves(self.blocked_moves, episode, &mut self.allowed);
+        self.workspace.set_action_mask(&self.allowed);
         self.model
             .forward_policy(&mut self.workspace, &self.observations, &self.graph);
         let policy = self.workspace.policy();
@@ -198,5 +207,43 @@ mod tests {
         episode.set_links(world::Links::new(None, 1.0, Seed::new(4)).unwrap());
         policy.act(&episode, &mut actions);
         assert!(senders(&policy).is_empty());
+    }
+
+    /// On a corridor with walls all round, an untrained policy that may choose every move is
+    /// refused by walls often; with blocked moves masked, never, and its probabilities on
+    /// them are exactly 0.
+    #[test]
+    fn a_policy_with_blocked_moves_masked_never_presses_against_a_wall() {
+        let map = Map::parse_text("corridor", "..........\n", Path::new("c.txt")).unwrap();
+        let world = World::new(map, WorldParams::new(3, 1.0, 40.0).unwrap());
+        let refused = |rule: &str| -> (usize, f32) {
+            let config = TrainingConfig::profile(Profile::FastV1)
+                .with_overrides(&["network=compact", &format!("blocked_moves={rule}")])
+                .unwrap();
+            let side = Observer::new(&world, config.observation_config()).side();
+            let model_config = config.model_config(side).unwrap();
+            let model = ActorCritic::new(&model_config, &mut Seed::new(1).rng()).unwrap();
+            let mut policy =
+                LearnedPolicy::new(&world, model, &config, ActionChoice::Sampled).unwrap();
+            let mut episode = Episode::new(world.clone(), 2).unwrap();
+            episode.reset(Seed::new(2));
+            policy.reset(&episode, Seed::new(3));
+            let (mut walls, mut blocked_probability) = (0, 0.0f32);
+            let mut actions = [Action::Stay; 2];
+            for _ in 0..200 {
+                policy.act(&episode, &mut actions);
+                let inspected = policy.inspect_last_step().probabilities;
+                // Up (+y) and down (-y) lead off a one-row map.
+                blocked_probability += inspected.chunks(5).map(|p| p[1] + p[3]).sum::<f32>();
+                episode.step(&actions);
+                walls += (episode.refused().iter())
+                    .filter(|r| **r == Some(world::Refusal::Wall))
+                    .count();
+            }
+            (walls, blocked_probability)
+        };
+        let (walls, probability) = refused("allowed");
+        assert!(walls > 50 && probability > 10.0, "{walls} {probability}");
+        assert_eq!(refused("masked"), (0, 0.0));
     }
 }

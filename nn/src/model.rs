@@ -195,6 +195,12 @@ pub struct ModelWorkspace<T> {
 }
 
 impl<T: Real> ModelWorkspace<T> {
+    /// Masks actions out of the policy of the next forward passes (`CategoricalBatch::set_mask`:
+    /// per sample, the allowed actions as bits; empty lifts it).
+    pub fn set_action_mask(&mut self, allowed: &[u8]) {
+        self.policy.set_mask(allowed);
+    }
+
     /// The policy of every sample (log-probabilities, entropies, sampling).
     pub fn policy(&self) -> &CategoricalBatch<T> {
         &self.policy

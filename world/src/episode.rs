@@ -300,6 +300,20 @@ impl Episode {
         &self.positions
     }
 
+    /// The actions a wall would not refuse `agent` now, as bits (bit a for `Action::ALL[a]`):
+    /// staying always, a move unless it leads off the map or into an obstacle. Whether another
+    /// robot would refuse it depends on the others' moves this step, known to no one yet.
+    pub fn wall_free_moves(&self, agent: usize) -> u8 {
+        let (map, at) = (&self.world.map, self.positions[agent]);
+        let free = |action: &Action| {
+            let (dx, dy) = action.delta();
+            !map.is_obstacle(at.x as i64 + dx, at.y as i64 + dy)
+        };
+        (Action::ALL.iter().enumerate())
+            .filter(|(_, action)| free(action))
+            .fold(0, |bits, (a, _)| bits | 1 << a)
+    }
+
     /// Per agent, why its move of the last step was refused (`None`: it moved, chose to
     /// stay, or is lost); all `None` right after a reset.
     pub fn refused(&self) -> &[Option<Refusal>] {
@@ -399,6 +413,9 @@ mod tests {
         e.step(&[Action::Left, Action::Up]);
         assert_eq!(e.positions(), &[Cell::new(0, 0), Cell::new(1, 0)]);
         assert_eq!(e.refused(), &[Some(Refusal::Wall), Some(Refusal::Wall)]);
+        // At (0, 0): +y and +x open, -x and -y off the map; at (1, 0) +y is the obstacle.
+        assert_eq!(e.wall_free_moves(0), 0b10011);
+        assert_eq!(e.wall_free_moves(1), 0b10101);
         e.step(&[Action::Right, Action::Right]);
         assert_eq!(e.refused(), &[Some(Refusal::Agent), None]);
         let refused = [Cell::new(0, 0), Cell::new(2, 0)];

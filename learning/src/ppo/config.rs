@@ -283,6 +283,21 @@ pub enum AttentionEntropyOf {
     HeadMean,
 }
 
+/// What a policy may choose where a wall blocks a move.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BlockedMoves {
+    /// Every action, as the released code: a move off the map or into an obstacle is refused
+    /// and the robot stays (what a record without the field means).
+    #[default]
+    Allowed,
+    /// Moves off the map or into an obstacle taken out of the policy's distribution before it
+    /// acts, in training and in tests alike (the robot may always stay): a remedy for robots
+    /// that press against a wall (`reports/failures`). The world's rules do not change; the
+    /// policy no longer puts probability where the world would refuse it.
+    Masked,
+}
+
 /// Agents per training episode: fixed (`min == max`) or drawn uniformly from `min..=max`
 /// for every episode (the released code drew 2..=10).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -385,6 +400,10 @@ pub struct TrainingParams {
     /// What the codes are divided by (`rmax`, left out of the file, or the released `raw`).
     #[serde(default, skip_serializing_if = "is_default")]
     pub observation_scale: ObservationScale,
+    /// Whether moves a wall would refuse can be chosen (`allowed`, left out of the file, or
+    /// `masked`).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub blocked_moves: BlockedMoves,
 }
 
 // Defaults are left out of the JSON, so that a field added later keeps every cell's key.
@@ -504,6 +523,7 @@ impl TrainingParams {
             attention_entropy_of: AttentionEntropyOf::EachHead,
             observation_codes: ObservationCodes::PaperText,
             observation_scale: ObservationScale::Rmax,
+            blocked_moves: BlockedMoves::Allowed,
         }
     }
 

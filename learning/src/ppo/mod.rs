@@ -17,8 +17,8 @@ pub(crate) mod update;
 pub(crate) mod value_norm;
 
 pub use config::{
-    AgentCount, ArchitectureName, ConfigError, NeighbourRule, Network, Profile, TrainingConfig,
-    TrainingParams,
+    AgentCount, ArchitectureName, BlockedMoves, ConfigError, NeighbourRule, Network, Profile,
+    TrainingConfig, TrainingParams,
 };
 pub use loss::LossTerms;
 pub use trainer::{EpisodeRecord, TrainError, Trainer, TrainingState, UpdateTrace, adam_config};

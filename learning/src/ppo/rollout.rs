@@ -12,8 +12,8 @@ use rayon::prelude::*;
 use world::seed::purpose;
 use world::{Action, Episode, Observer, Seed, StartError, World};
 
-use crate::acting::{ActionChoice, push_agents};
-use crate::ppo::config::{RewardScale, TrainingConfig};
+use crate::acting::{ActionChoice, push_agents, push_allowed_moves};
+use crate::ppo::config::{BlockedMoves, RewardScale, TrainingConfig};
 use nn::{ActorCritic, AgentGraph, ModelWorkspace, Neighbours};
 
 /// One environment's episode and its record, `[step][agent]` throughout.
@@ -32,6 +32,10 @@ pub(crate) struct EnvironmentRollout {
     pub(crate) observations: Vec<f32>,
     /// Agent positions at each of the `steps + 1` observations, for the attention graph.
     positions: Vec<world::Cell>,
+    /// Where blocked moves are masked, the moves each agent may choose at each of the
+    /// `steps + 1` observations (`acting::push_allowed_moves`); else empty.
+    blocked_moves: BlockedMoves,
+    allowed: Vec<u8>,
     pub(crate) actions: Vec<u8>,
     pub(crate) log_probs: Vec<f32>,
     /// One scaled reward per step, shared by the team.
@@ -78,6 +82,8 @@ impl EnvironmentRollout {
         let mut rollout = EnvironmentRollout {
             observations: vec![0.0; (steps + 1) * agents * observer.per_agent()],
             positions: Vec::with_capacity((steps + 1) * agents),
+            blocked_moves: config.blocked_moves,
+            allowed: Vec::new(),
             actions: vec![0; steps * agents],
             log_probs: vec![0.0; steps * agents],
             rewards: vec![0.0; steps],
@@ -135,17 +141,21 @@ impl EnvironmentRollout {
         &self.positions[t * self.agents..(t + 1) * self.agents]
     }
 
-    /// Appends step `t`'s observations and its group of agents to a batch being assembled
-    /// (the rollout's policy batch, the update's minibatches).
+    /// Appends step `t`'s observations, the moves its agents may choose (where masked) and its
+    /// group of agents to a batch being assembled (the rollout's policy batch, the update's
+    /// minibatches).
     pub(crate) fn push_step(
         &self,
         t: usize,
         neighbours: Neighbours,
-        observations: &mut Vec<f32>,
+        (observations, allowed): (&mut Vec<f32>, &mut Vec<u8>),
         graph: &mut AgentGraph,
         points: &mut Vec<[f64; 2]>,
     ) {
         observations.extend_from_slice(self.observation(t));
+        if !self.allowed.is_empty() {
+            allowed.extend_from_slice(&self.allowed[t * self.agents..(t + 1) * self.agents]);
+        }
         let first = graph.agents();
         push_agents(graph, neighbours, self.positions_at(t), points);
         // As at test time: nobody hears a robot from the step it is lost.
@@ -161,6 +171,7 @@ impl EnvironmentRollout {
         let out = &mut self.observations[t * len..(t + 1) * len];
         self.observer.write(&self.episode, out);
         self.positions.extend_from_slice(self.episode.positions());
+        push_allowed_moves(self.blocked_moves, &self.episode, &mut self.allowed);
         self.record_penalty_map();
     }
 
@@ -193,6 +204,7 @@ impl EnvironmentRollout {
 #[derive(Debug, Default)]
 pub(crate) struct RolloutWorkspace {
     observations: Vec<f32>,
+    allowed: Vec<u8>,
     graph: AgentGraph,
     points: Vec<[f64; 2]>,
     model: ModelWorkspace<f32>,
@@ -209,16 +221,18 @@ impl RolloutWorkspace {
         let steps = environments.first().map_or(0, |e| e.steps);
         for t in 0..steps {
             self.observations.clear();
+            self.allowed.clear();
             self.graph.clear();
             for env in environments.iter() {
                 env.push_step(
                     t,
                     neighbours,
-                    &mut self.observations,
+                    (&mut self.observations, &mut self.allowed),
                     &mut self.graph,
                     &mut self.points,
                 );
             }
+            self.model.set_action_mask(&self.allowed);
             model.forward_policy(&mut self.model, &self.observations, &self.graph);
             let mut first = 0;
             for env in environments.iter_mut() {
@@ -267,7 +281,7 @@ mod tests {
         rollout.push_step(
             at - 1,
             Neighbours::AllOthers,
-            &mut observations,
+            (&mut observations, &mut Vec::new()),
             &mut graph,
             &mut points,
         );
@@ -275,7 +289,7 @@ mod tests {
         rollout.push_step(
             at,
             Neighbours::AllOthers,
-            &mut observations,
+            (&mut observations, &mut Vec::new()),
             &mut graph,
             &mut points,
         );

@@ -451,6 +451,7 @@ mod tests {
         let variants = [
             (vec![VALUE_NORMALISATION], &plain),
             (vec!["grad_clip_per_network=true"], &plain),
+            (vec!["blocked_moves=masked"], &plain),
             (
                 vec![VALUE_NORMALISATION, "advantage=monte_carlo"],
                 &plain_monte_carlo,
@@ -462,8 +463,30 @@ mod tests {
         }
         let (mean, deviation) = run(&[VALUE_NORMALISATION]).value_norm.unwrap().moments();
         assert!(mean < 0.0 && deviation > 0.0, "{mean} {deviation}");
-        let off = ["grad_clip_per_network=false", "value_normalisation=null"];
+        let off = [
+            "grad_clip_per_network=false",
+            "value_normalisation=null",
+            "blocked_moves=allowed",
+        ];
         assert_eq!(weights(&run(&off)), weights(&plain));
+    }
+
+    /// The update must take the log-probabilities of the masks the actions were drawn under:
+    /// on its first minibatch, with the rollout's own weights, every ratio is then 1 (to the
+    /// rounding of another kernel's sums), where unmasked log-probabilities of the same actions
+    /// would be lower by the blocked moves' share.
+    #[test]
+    fn a_masked_update_compares_the_actions_under_their_own_masks() {
+        let first_kl = |overrides: &[&str]| {
+            let config = tiny_config(&[&["environments=1"], overrides].concat());
+            let mut trainer = Trainer::new(tiny_world(), config, 5).unwrap();
+            let trace = trainer.trace_update().unwrap();
+            (trace.first.terms.approx_kl, trace.first.terms.clip_fraction)
+        };
+        for overrides in [&[][..], &["blocked_moves=masked"][..]] {
+            let (kl, clipped) = first_kl(overrides);
+            assert!(kl < 1e-6 && clipped == 0.0, "{overrides:?}: {kl} {clipped}");
+        }
     }
 
     #[test]

@@ -47,6 +47,8 @@ pub(crate) struct UpdateWorkspace {
     /// (environment, step) of every group, in minibatch order.
     groups: Vec<(usize, usize)>,
     observations: Vec<f32>,
+    /// The moves each sample's agent could choose, where blocked moves are masked.
+    allowed: Vec<u8>,
     graph: AgentGraph,
     points: Vec<[f64; 2]>,
     actions: Vec<usize>,
@@ -195,6 +197,7 @@ impl UpdateWorkspace {
         range: std::ops::Range<usize>,
     ) {
         self.observations.clear();
+        self.allowed.clear();
         self.graph.clear();
         self.actions.clear();
         self.old_log_probs.clear();
@@ -208,7 +211,7 @@ impl UpdateWorkspace {
             env.push_step(
                 t,
                 neighbours,
-                &mut self.observations,
+                (&mut self.observations, &mut self.allowed),
                 &mut self.graph,
                 &mut self.points,
             );
@@ -235,6 +238,8 @@ impl UpdateWorkspace {
         config: &TrainingConfig,
         coefficients: &LossCoefficients,
     ) -> (LossTerms, f64) {
+        // The masks the actions were drawn under, so that the ratio compares like with like.
+        self.model.set_action_mask(&self.allowed);
         model.forward(&mut self.model, &self.observations, &self.graph);
         let advantages = match config.advantage {
             AdvantageEstimator::MonteCarlo => Advantages::ReturnMinusValue,

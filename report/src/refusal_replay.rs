@@ -18,7 +18,7 @@ use world::{Refusal, World};
 
 use super::columns::{GroupKey, strings, u32s};
 use crate::error::ReplayedError;
-use crate::replayed::{Replay, ReplayError, cells_at_hand, replay_cells};
+use crate::replayed::{Replay, ReplayError, replay_cells, replayable};
 
 const TABLE: &str = refusals::TABLE;
 
@@ -38,7 +38,8 @@ pub(crate) struct EpisodeRefusals {
 
 /// The refusals of every learned run's test episodes at N_test = N_train: read from the
 /// store's table for the runs it covers, played again (and the table rewritten) for the others
-/// where the store has their cells; a run neither held nor replayable has no rows.
+/// the store can play again (`replayed::replayable`); a run neither held nor replayable has no
+/// rows.
 pub(crate) fn measures(
     store: &Store,
     episodes: &DataFrame,
@@ -56,15 +57,15 @@ pub(crate) fn measures(
             missing.push(key);
         }
     }
-    let playable: BTreeMap<String, BTreeSet<u32>> = (missing.iter())
-        .map(|&key| (key.clone(), needed[key].1.clone()))
+    let playable: Vec<&String> = (missing.into_iter())
+        .filter(|key| replayable(store, key))
         .collect();
-    if !missing.is_empty() && cells_at_hand(store, &playable) {
-        let rows = replay_cells(store, &missing, |record, world| {
+    if !playable.is_empty() {
+        let rows = replay_cells(store, &playable, |record, world| {
             let (group, wanted) = &needed[&record.key];
             replay_cell(replayer, store, (world, record), (group, wanted))
         })?;
-        table.retain(|r| !playable.contains_key(&r.cell_key));
+        table.retain(|r| !playable.contains(&&r.cell_key));
         table.extend(rows);
         store.write_table(TABLE, &frame(&table).map_err(StoreError::from)?)?;
     }

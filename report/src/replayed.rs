@@ -36,12 +36,16 @@ pub trait Replay: Sync {
     ) -> Result<(), ReplayError>;
 }
 
-/// Whether the store has every cell of `needed` to replay: not a table store (its cells are
-/// rows of a table, without checkpoints), and each cell finished.
+/// Whether the store can play cell `key` again: a finished cell of a sweep's store that was
+/// computed there (a table store's cells, and those a sweep took from one, are rows of a
+/// table, without checkpoints).
+pub(crate) fn replayable(store: &Store, key: &str) -> bool {
+    !store.is_table_store() && (store.finished(key)).is_some_and(|r| r.taken_from.is_none())
+}
+
+/// Whether the store can play every cell of `needed` again ([`replayable`]).
 pub(crate) fn cells_at_hand(store: &Store, needed: &BTreeMap<String, BTreeSet<u32>>) -> bool {
-    !needed.is_empty()
-        && !store.is_table_store()
-        && needed.keys().all(|key| store.finished(key).is_some())
+    !needed.is_empty() && needed.keys().all(|key| replayable(store, key))
 }
 
 /// `measure(record, world)` of every cell of `keys` (each verified first), the cells in

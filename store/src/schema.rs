@@ -427,9 +427,22 @@ pub mod disturbed_steps {
     }
 }
 
+/// The columns that name a replayed test episode, first in every table of measures the
+/// report's replay writes.
+fn replayed_episode() -> [&'static str; 7] {
+    [
+        cell::MAP,
+        cell::POLICY,
+        cell::N_TRAIN,
+        episodes::N_TEST,
+        cell::KEY,
+        cells::REPETITION,
+        episodes::EPISODE,
+    ]
+}
+
 /// The behaviour claims' measures of replayed test episodes (written by the report's replay).
 pub mod behaviour_episodes {
-    use super::{cell, cells, episodes};
 
     pub const TABLE: &str = "behaviour_episodes";
     /// The episode's stationary robots.
@@ -446,20 +459,8 @@ pub mod behaviour_episodes {
     pub const POOL: &str = "pool";
 
     pub(crate) fn columns() -> Vec<&'static str> {
-        vec![
-            cell::MAP,
-            cell::POLICY,
-            cell::N_TRAIN,
-            episodes::N_TEST,
-            cell::KEY,
-            cells::REPETITION,
-            episodes::EPISODE,
-            STATIONARY,
-            TOURING,
-            PERIODIC,
-            CENTRED,
-            POOL,
-        ]
+        let own = [STATIONARY, TOURING, PERIODIC, CENTRED, POOL];
+        [&super::replayed_episode()[..], &own].concat()
     }
 
     /// Columns that a table measured before they existed lacks (its reader reads them as
@@ -472,7 +473,6 @@ pub mod behaviour_episodes {
 /// How long robots kept choosing a refused move in every learned run's test episodes at
 /// N_test = N_train (written by the report's replay).
 pub mod refusals {
-    use super::{cell, cells, episodes};
 
     pub const TABLE: &str = "refusals";
     /// The most consecutive steps in which one robot's chosen move was refused by a wall (off
@@ -484,18 +484,8 @@ pub mod refusals {
     pub const AGENT_STEPS: &str = "agent_refused_steps";
 
     pub(crate) fn columns() -> Vec<&'static str> {
-        vec![
-            cell::MAP,
-            cell::POLICY,
-            cell::N_TRAIN,
-            episodes::N_TEST,
-            cell::KEY,
-            cells::REPETITION,
-            episodes::EPISODE,
-            LONGEST_WALL,
-            WALL_STEPS,
-            AGENT_STEPS,
-        ]
+        let own = [LONGEST_WALL, WALL_STEPS, AGENT_STEPS];
+        [&super::replayed_episode()[..], &own].concat()
     }
 }
 

@@ -6,9 +6,24 @@ use rand::RngExt;
 use rand_pcg::Pcg64Mcg;
 use world::{Cell, Episode};
 
-use crate::ppo::config::BlockedMoves;
+use serde::{Deserialize, Serialize};
 
 use nn::{AgentGraph, CategoricalBatch, Neighbours};
+
+/// What a policy may choose where a wall blocks a move.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BlockedMoves {
+    /// Every action, as the released code: a move off the map or into an obstacle is refused
+    /// and the robot stays (what a record without the field means).
+    #[default]
+    Allowed,
+    /// Moves off the map or into an obstacle taken out of the policy's distribution before it
+    /// acts, in training and in tests alike (the robot may always stay): a remedy for robots
+    /// that press against a wall (`reports/failures`). The world's rules do not change; the
+    /// policy no longer puts probability where the world would refuse it.
+    Masked,
+}
 
 /// How an action is read from the policy's distribution.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -8,6 +8,8 @@
 use serde::{Deserialize, Serialize};
 use world::{Channels, ObservationCodes, ObservationConfig, ObservationScale};
 
+pub use crate::acting::BlockedMoves;
+
 use crate::ppo::value_norm::ValueNormalisation;
 use nn::{
     ACTIONS, Architecture, ConvSpec, InitScheme, ModelConfig, Neighbours, PAPER_CONVOLUTIONS,
@@ -281,21 +283,6 @@ pub enum AttentionEntropyOf {
     /// The heads' averaged weights, one entropy per agent (the released `evaluate`:
     /// `Categorical(attention_mat.view(-1, n)).entropy()` of `ave_heads`).
     HeadMean,
-}
-
-/// What a policy may choose where a wall blocks a move.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum BlockedMoves {
-    /// Every action, as the released code: a move off the map or into an obstacle is refused
-    /// and the robot stays (what a record without the field means).
-    #[default]
-    Allowed,
-    /// Moves off the map or into an obstacle taken out of the policy's distribution before it
-    /// acts, in training and in tests alike (the robot may always stay): a remedy for robots
-    /// that press against a wall (`reports/failures`). The world's rules do not change; the
-    /// policy no longer puts probability where the world would refuse it.
-    Masked,
 }
 
 /// Agents per training episode: fixed (`min == max`) or drawn uniformly from `min..=max`

@@ -13,7 +13,8 @@
 //!   episodes of two runs at open N = 4 (one working, one failed) a robot's longest streak
 //!   was 1 to 67 steps, about 500 wall-refused robot-steps an episode in the working run, so
 //!   a streak counts only at three times the longest seen there. (The failed run failed
-//!   otherwise: its robots did not press, they left the map's bottom band unwatched.)
+//!   otherwise: its robots did not press, they left the strip below the map's long obstacle
+//!   unwatched, `reports/failures-mechanism`.)
 //! - **Failed runs**: runs whose mean test penalty is more than [`FAILED_RUN_RATIO`] times the
 //!   median run of their setting (at N_test = N_train), or, in a verdict, of their point. The
 //!   median does not move with the failures it judges (a mean or an SD would), and twice it is

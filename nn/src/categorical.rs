@@ -26,7 +26,7 @@ pub struct CategoricalBatch<T> {
 
 /// A masked action's logit: far below any logit a network gives, so that its probability
 /// underflows to exactly 0, yet finite.
-pub const MASKED_LOGIT: f64 = -1e30;
+pub(crate) const MASKED_LOGIT: f64 = -1e30;
 
 impl<T: Real> CategoricalBatch<T> {
     /// Masks the next forward passes' rows: `allowed[row]`'s bit a set where action a may be

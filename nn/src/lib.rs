@@ -41,7 +41,7 @@ pub mod gradient_check;
 
 pub use adam::{Adam, AdamConfig};
 pub use attention::AttentionWorkspace;
-pub use categorical::{CategoricalBatch, MASKED_LOGIT};
+pub use categorical::CategoricalBatch;
 pub use cnn::PAPER_CONVOLUTIONS;
 pub use conv::{ConvSpec, ImageShape};
 pub use error::NnError;

@@ -10,8 +10,7 @@ use store::schema::{cell, checkpoints, convergence as run, episodes};
 
 use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
 use super::comparison::{Sample, samples};
-use super::failures::{self, FAILED_RUN_RATIO, RunFailures, STALL_STEPS};
-use super::refusal_replay::EpisodeRefusals;
+use super::failures::{FAILED_RUN_RATIO, RunFailures, RunsFailures, STALL_STEPS};
 use super::verdicts::ClaimResult;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use plan::scenario::claims::{Claim, ClaimTest};
@@ -24,7 +23,7 @@ pub(crate) fn section(
     convergence: &DataFrame,
     tests: &DataFrame,
     both: Option<&DataFrame>,
-    refusals: &[EpisodeRefusals],
+    failures: &RunsFailures,
 ) -> Result<(), ReportError> {
     report.heading(3, "Did the training runs converge?");
     report.paragraph(&format!(
@@ -50,7 +49,7 @@ pub(crate) fn section(
     ));
     report.table(
         "convergence",
-        &convergence_frame(convergence, tests, refusals)?,
+        &convergence_frame(convergence, tests, failures)?,
     )?;
     if let Some(both) = both {
         report.heading(3, "The best policy against the final one");
@@ -193,11 +192,10 @@ fn episode_shares(samples: &[Sample]) -> HashMap<(&str, &PolicyKey), f64> {
 fn convergence_frame(
     table: &DataFrame,
     tests: &DataFrame,
-    refusals: &[EpisodeRefusals],
+    failures: &RunsFailures,
 ) -> Result<DataFrame, ReportError> {
     let settings = trained_keys(table)?;
     let samples = samples(tests)?;
-    let failures = failures::of_runs(&samples, refusals)?;
     let own_tests: Vec<Option<&RunFailures>> = (strings(table, cell::KEY)?.iter())
         .map(|key| failures.get(key))
         .collect();
@@ -396,7 +394,9 @@ mod tests {
 
     #[test]
     fn a_setting_counts_its_converged_and_capped_runs() {
-        let frame = convergence_frame(&convergence_table(), &test_episodes(), &[]).unwrap();
+        let tests = test_episodes();
+        let failures = crate::failures::of_runs(&samples(&tests).unwrap(), &[]).unwrap();
+        let frame = convergence_frame(&convergence_table(), &tests, &failures).unwrap();
         assert_eq!(frame.height(), 1);
         let text = |name: &str| {
             frame

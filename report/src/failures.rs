@@ -77,12 +77,16 @@ pub(crate) struct RunFailures {
     pub(crate) failed: bool,
 }
 
-/// Every learned run's [`RunFailures`], by cell key: from the samples at N_test = N_train of
-/// the episodes table (`comparison::samples`) and the replayed refusals.
+/// Every learned run's [`RunFailures`], by cell key.
+pub(crate) type RunsFailures = HashMap<String, RunFailures>;
+
+/// Every learned run's [`RunFailures`]: from the samples at N_test = N_train of the episodes
+/// table (`comparison::samples`) and the replayed refusals. Computed once per report, for its
+/// section and the convergence table.
 pub(crate) fn of_runs(
     samples: &[Sample],
     refusals: &[EpisodeRefusals],
-) -> Result<HashMap<String, RunFailures>, ReportError> {
+) -> Result<RunsFailures, ReportError> {
     let mut random: HashMap<(&str, u32), f64> = HashMap::new();
     for sample in samples {
         if sample.group.policy.policy == RANDOM && sample.group.policy.n_train.is_none() {
@@ -134,9 +138,8 @@ pub(crate) fn of_runs(
 pub(crate) fn section(
     report: &mut ReportWriter,
     samples: &[Sample],
-    refusals: &[EpisodeRefusals],
+    runs: &RunsFailures,
 ) -> Result<(), ReportError> {
-    let runs = of_runs(samples, refusals)?;
     let settings: Vec<&Sample> = (samples.iter())
         .filter(|s| s.group.policy.n_train == Some(s.group.n_test))
         .collect();
@@ -157,7 +160,7 @@ pub(crate) fn section(
          the failures make."
     ));
     let rows: Vec<SettingRow> = (settings.into_iter())
-        .map(|sample| SettingRow::of(sample, &runs))
+        .map(|sample| SettingRow::of(sample, runs))
         .collect::<Result<_, _>>()?;
     report.table("failures", &frame(&rows)?)?;
     Ok(())
@@ -179,7 +182,7 @@ struct SettingRow {
 }
 
 impl SettingRow {
-    fn of(sample: &Sample, runs: &HashMap<String, RunFailures>) -> Result<Self, ReportError> {
+    fn of(sample: &Sample, runs: &RunsFailures) -> Result<Self, ReportError> {
         let of_runs: Vec<&RunFailures> = sample.cells.iter().map(|c| &runs[c]).collect();
         let failed: Vec<usize> = (0..of_runs.len()).filter(|&i| of_runs[i].failed).collect();
         let counts = |count: fn(&RunFailures) -> Option<u64>| -> Option<Vec<(u64, u64)>> {

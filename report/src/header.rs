@@ -31,8 +31,8 @@ pub(crate) struct HeaderTables<'a> {
     /// both their policies' tests.
     pub(crate) convergence: Option<&'a DataFrame>,
     pub(crate) checkpoints: Option<&'a DataFrame>,
-    /// The learned runs' replayed refusals (`refusal_replay`), for the stalled episodes.
-    pub(crate) refusals: &'a [super::refusal_replay::EpisodeRefusals],
+    /// Every learned run's failures (`failures::of_runs`), for the convergence table.
+    pub(crate) failures: &'a super::failures::RunsFailures,
 }
 
 /// The header of a report written by the code at commit `writer`.
@@ -78,7 +78,7 @@ pub(crate) fn section(
     report.paragraph(&lines.join("\n"));
     if let Some(convergence) = tables.convergence {
         let (episodes, checkpoints) = (tables.episodes, tables.checkpoints);
-        super::convergence::section(report, convergence, episodes, checkpoints, tables.refusals)?;
+        super::convergence::section(report, convergence, episodes, checkpoints, tables.failures)?;
     } else if let Some(training) = tables.training {
         improving_section(report, training)?;
     }

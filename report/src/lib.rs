@@ -91,13 +91,15 @@ pub fn write_report(
     let loaded = StoreTables::load(store)?;
     let cells = store.optional_table(schema::cells::TABLE)?;
     let refusals = refusal_replay::measures(store, &loaded.episodes, replay)?;
+    let samples = comparison::samples(&loaded.episodes)?;
+    let run_failures = failures::of_runs(&samples, &refusals)?;
     let header = header::HeaderTables {
         cells: cells.as_ref(),
         episodes: &loaded.episodes,
         training: loaded.training.as_ref(),
         convergence: loaded.convergence.as_ref(),
         checkpoints: loaded.checkpoints.as_ref(),
-        refusals: &refusals,
+        failures: &run_failures,
     };
     header::section(&mut report, &header, &writer.git_commit)?;
     let missing = missing::cells(store)?;
@@ -124,7 +126,7 @@ pub fn write_report(
     let summary = store.table(schema::summary::TABLE)?;
     let comparisons = comparison::comparisons(&episodes)?;
     penalty::section(&mut report, &summary, &episodes, &comparisons)?;
-    failures::section(&mut report, &comparison::samples(&episodes)?, &refusals)?;
+    failures::section(&mut report, &samples, &run_failures)?;
     comparison::section(&mut report, &comparisons)?;
     transfer::section(&mut report, &summary)?;
     if let (Some(disturbed), Some(steps)) = (

@@ -55,6 +55,14 @@ impl Action {
     }
 }
 
+/// Where `action` takes a robot at `at`, unless a wall (the map's edge or an obstacle)
+/// refuses it: what a step moves by and what the wall-free moves are, from one rule.
+fn wall_free_target(map: &Map, at: Cell, action: Action) -> Option<Cell> {
+    let (dx, dy) = action.delta();
+    let (x, y) = (at.x as i64 + dx, at.y as i64 + dy);
+    (!map.is_obstacle(x, y)).then(|| Cell::new(x as u16, y as u16))
+}
+
 /// A map's own tables per cell: an obstacle flag (1 byte) and, for a free cell, its
 /// coordinates in the list of free cells (4 bytes).
 const MAP_BYTES_PER_CELL: u64 = 5;
@@ -262,13 +270,10 @@ impl Episode {
             if *action == Action::Stay {
                 continue;
             }
-            let (dx, dy) = action.delta();
-            let (x, y) = (position.x as i64 + dx, position.y as i64 + dy);
-            if map.is_obstacle(x, y) {
+            let Some(target) = wall_free_target(map, *position, *action) else {
                 *refused = Some(Refusal::Wall);
                 continue;
-            }
-            let target = Cell::new(x as u16, y as u16);
+            };
             let (from, to) = (map.index(*position), map.index(target));
             if self.occupied[to] {
                 *refused = Some(Refusal::Agent);
@@ -305,12 +310,8 @@ impl Episode {
     /// robot would refuse it depends on the others' moves this step, known to no one yet.
     pub fn wall_free_moves(&self, agent: usize) -> u8 {
         let (map, at) = (&self.world.map, self.positions[agent]);
-        let free = |action: &Action| {
-            let (dx, dy) = action.delta();
-            !map.is_obstacle(at.x as i64 + dx, at.y as i64 + dy)
-        };
         (Action::ALL.iter().enumerate())
-            .filter(|(_, action)| free(action))
+            .filter(|(_, action)| wall_free_target(map, at, **action).is_some())
             .fold(0, |bits, (a, _)| bits | 1 << a)
     }
 

@@ -29,11 +29,13 @@ pub fn scratch(test: &str) -> PathBuf {
     dir
 }
 
-/// The standard output of a command that must have succeeded (its error output otherwise).
+/// The standard output of a command that must have succeeded (both its outputs otherwise: a
+/// test runner such as pytest reports its failures on standard output).
 pub fn succeed(output: Output) -> String {
     assert!(
         output.status.success(),
-        "{}",
+        "{}\n{}",
+        String::from_utf8_lossy(&output.stdout),
         String::from_utf8_lossy(&output.stderr)
     );
     String::from_utf8(output.stdout).unwrap()

@@ -1,5 +1,5 @@
-//! A checkpoint folder on disk: the files of `learning::checkpoint`, written atomically, and
-//! the learned policy or training state read back from them.
+//! A checkpoint folder on disk: the learned policy or training state read back from the files
+//! of `learning::checkpoint` (`training_run` writes them, together with its log).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -9,20 +9,22 @@ use learning::checkpoint::{
 };
 use learning::ppo::{ConfigError, TrainingState};
 use learning::{ActionChoice, LearnedPolicy};
+use store::TRAINING_FILE;
+use store::save_set::SaveSet;
 use world::World;
 
-use store::atomic_file::write_atomic;
+/// A training run's save: its checkpoint and its log, one unit (`save.json` names their
+/// hashes; `training_run` writes it).
+pub(crate) const RUN_SAVE: SaveSet = SaveSet {
+    name: "save",
+    files: &[WEIGHTS_FILE, OPTIMIZER_FILE, METADATA_FILE, TRAINING_FILE],
+};
 
 /// The prefix that names a checkpoint folder where a policy name is expected.
 pub(crate) const POLICY_PREFIX: &str = "checkpoint:";
 
 #[derive(Debug, thiserror::Error)]
 pub enum CheckpointDirError {
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
     /// Missing, not a regular file, or over the size limit of a store's file.
     #[error("{0}")]
     Input(#[from] world::InputError),
@@ -36,11 +38,9 @@ pub enum CheckpointDirError {
     /// The checkpoint's model does not fit the world it is to act in.
     #[error("checkpoint {dir}: {source}")]
     Config { dir: PathBuf, source: ConfigError },
-}
-
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> CheckpointDirError {
-    let path = path.to_owned();
-    move |source| CheckpointDirError::Io { path, source }
+    /// A folder whose files are not the save its manifest names, or a save cut short.
+    #[error(transparent)]
+    Save(#[from] store::StoreError),
 }
 
 fn in_checkpoint(dir: &Path) -> impl FnOnce(CheckpointError) -> CheckpointDirError {
@@ -52,23 +52,6 @@ fn read(dir: &Path, name: &str) -> Result<Vec<u8>, CheckpointDirError> {
     let path = dir.join(name);
     let limit = store::MAX_FILE_BYTES;
     Ok(world::read_bounded(&path, limit, "a store's file")?)
-}
-
-/// Writes the weights, the optimiser state and the metadata (metadata last, so a folder whose
-/// metadata is readable has the matching tensors).
-pub(crate) fn write(dir: &Path, state: &TrainingState) -> Result<(), CheckpointDirError> {
-    std::fs::create_dir_all(dir).map_err(io(dir))?;
-    let files = checkpoint::save(state);
-    let entries: [(&str, &[u8]); 3] = [
-        (WEIGHTS_FILE, &files.weights),
-        (OPTIMIZER_FILE, &files.optimizer),
-        (METADATA_FILE, files.metadata.as_bytes()),
-    ];
-    for (name, bytes) in entries {
-        let path = dir.join(name);
-        write_atomic(&path, bytes).map_err(io(&path))?;
-    }
-    Ok(())
 }
 
 pub fn read_metadata(dir: &Path) -> Result<CheckpointMetadata, CheckpointDirError> {
@@ -97,6 +80,7 @@ pub fn load_policy(
     world: &Arc<World>,
     choice: ActionChoice,
 ) -> Result<LearnedPolicy, CheckpointDirError> {
+    RUN_SAVE.check(dir)?;
     let metadata = read_metadata(dir)?;
     let weights = read(dir, WEIGHTS_FILE)?;
     let model = checkpoint::load_model(&metadata, &weights).map_err(in_checkpoint(dir))?;

@@ -1025,4 +1025,24 @@ mod tests {
         assert_eq!(capped.3[..], straight.3[..3]);
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    /// Killed at each write and rename of its first saves (the best policy's at the first
+    /// validation, 7 steps, then the run's, 11: a failpoint, a write cut after half its bytes
+    /// as a full disk leaves it), a learned cell resumes to the uninterrupted one's bits.
+    #[test]
+    fn a_cell_killed_at_any_step_of_a_save_resumes_bit_for_bit() {
+        use store::save_set::failpoint;
+        let dir = std::env::temp_dir().join(format!("vpm-save-steps-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let straight = outcome_of(train_converged(60, &dir.join("straight"), None).unwrap());
+        for step in 1..=18 {
+            let cut = dir.join(format!("cut-{step}"));
+            failpoint::arm(step);
+            let killed = train_converged(60, &cut, None);
+            assert!(failpoint::disarm() && killed.is_none(), "step {step}");
+            let resumed = train_converged(60, &cut, None).unwrap();
+            assert_eq!(outcome_of(resumed), straight, "step {step}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

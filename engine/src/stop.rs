@@ -25,6 +25,23 @@ pub fn catch_termination() {
     }
 }
 
+/// From now on SIGTERM and SIGINT end the process with 128 + the signal once no save is in
+/// progress (`store::save_set::exit_between_saves`), after `last_words` (given the signal's
+/// name): for a command whose work since its last save is simply done again, such as
+/// `harness train`.
+pub fn exit_between_saves_when_asked(last_words: impl Fn(&str) + Send + 'static) {
+    catch_termination();
+    std::thread::spawn(move || {
+        loop {
+            if let Some(signal) = requested() {
+                let name = signal_name(signal);
+                store::save_set::exit_between_saves(128 + signal, || last_words(name));
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+    });
+}
+
 /// The signal that asked for a stop, if one did.
 pub(crate) fn requested() -> Option<i32> {
     match REQUESTED.load(Ordering::SeqCst) {

@@ -1,5 +1,6 @@
 //! A training run kept in a folder (the checkpoint files and `training.parquet`), saved every
-//! so often so that an interrupted run continues where it was saved, bit for bit. Both
+//! so often, the four files together (`store::save_set`), so that a run interrupted anywhere,
+//! a save included, continues where it was last saved whole, bit for bit. Both
 //! `harness train` and the sweep's learned cells train through it, and it writes their
 //! TensorBoard events (`events`) episode by episode when asked to.
 
@@ -12,12 +13,15 @@ use learning::ppo::{
 use polars::prelude::{DataFrame, PolarsError};
 use world::World;
 
-use crate::checkpoint_dir::{self, CheckpointDirError};
+use crate::checkpoint_dir::{self, CheckpointDirError, RUN_SAVE as SAVE};
 use crate::events::{EventLog, EventsError};
 use crate::training_log;
-use store::atomic_file::write_atomic;
+use learning::checkpoint::{METADATA_FILE, OPTIMIZER_FILE, WEIGHTS_FILE};
+use store::StoreError;
+use store::save_set::Recovered;
 
-pub const LOG_FILE: &str = "training.parquet";
+/// The run's log, saved with its checkpoint (`checkpoint_dir::RUN_SAVE`).
+pub const LOG_FILE: &str = store::TRAINING_FILE;
 
 #[derive(Debug, thiserror::Error)]
 pub enum TrainingRunError {
@@ -31,16 +35,14 @@ pub enum TrainingRunError {
     #[error(transparent)]
     Input(#[from] world::InputError),
     #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{path}: {source}")]
     Log { path: PathBuf, source: PolarsError },
     #[error("training log: {0}")]
     Table(#[from] PolarsError),
     #[error(transparent)]
     Events(#[from] EventsError),
+    /// A save that cannot be written, or a folder whose files are not its save's.
+    #[error(transparent)]
+    Save(#[from] StoreError),
 }
 
 pub struct TrainingRun {
@@ -50,6 +52,8 @@ pub struct TrainingRun {
     log: DataFrame,
     /// The run's TensorBoard events, once asked for (`write_events`).
     events: Option<EventLog>,
+    /// What a resume found of a save cut short.
+    recovered: Recovered,
 }
 
 /// Removes the temporary files that writes cut short left in `folder` (`write_atomic`'s
@@ -71,7 +75,7 @@ fn remove_temporaries(folder: &Path) {
 }
 
 impl TrainingRun {
-    /// A fresh run saved in `folder`.
+    /// A fresh run saved in `folder`; a save of another run there is forgotten.
     pub fn start(
         folder: &Path,
         world: Arc<World>,
@@ -79,11 +83,13 @@ impl TrainingRun {
         seed: u64,
     ) -> Result<Self, TrainingRunError> {
         remove_temporaries(folder);
+        SAVE.clear(folder)?;
         Ok(Self {
             folder: folder.to_owned(),
             trainer: Trainer::new(world, config, seed)?,
             log: training_log::to_frame(&[])?,
             events: None,
+            recovered: Recovered::Whole,
         })
     }
 
@@ -94,6 +100,7 @@ impl TrainingRun {
         overrides: &[String],
     ) -> Result<Self, TrainingRunError> {
         remove_temporaries(folder);
+        let recovered = SAVE.recover(folder)?;
         let mut state = checkpoint_dir::read_state(folder)?;
         state.config = state.config.with_overrides(overrides)?;
         let path = folder.join(LOG_FILE);
@@ -107,6 +114,7 @@ impl TrainingRun {
             trainer: Trainer::resume(world, state)?,
             log,
             events: None,
+            recovered,
         })
     }
 
@@ -118,8 +126,11 @@ impl TrainingRun {
         config: TrainingConfig,
         seed: u64,
     ) -> Result<Self, TrainingRunError> {
-        let same = checkpoint_dir::read_metadata(folder)
-            .is_ok_and(|saved| saved.config == config && saved.seed == seed);
+        remove_temporaries(folder);
+        let whole = SAVE.recover(folder).is_ok();
+        let same = whole
+            && checkpoint_dir::read_metadata(folder)
+                .is_ok_and(|saved| saved.config == config && saved.seed == seed);
         if same && let Ok(run) = Self::resume(folder, world.clone(), &[]) {
             return Ok(run);
         }
@@ -128,6 +139,11 @@ impl TrainingRun {
 
     pub fn state(&self) -> &TrainingState {
         self.trainer.state()
+    }
+
+    /// What the resume found of a save cut short (`Whole` for a fresh run).
+    pub fn recovered(&self) -> &Recovered {
+        &self.recovered
     }
 
     #[cfg(test)]
@@ -187,12 +203,17 @@ impl TrainingRun {
         Ok(())
     }
 
-    /// Writes the checkpoint and the log.
+    /// Writes the checkpoint and the log, together.
     pub fn save(&mut self) -> Result<(), TrainingRunError> {
-        checkpoint_dir::write(&self.folder, self.trainer.state())?;
-        let path = self.folder.join(LOG_FILE);
-        let bytes = training_log::to_parquet(&mut self.log)?;
-        write_atomic(&path, &bytes).map_err(|source| TrainingRunError::Io { path, source })
+        let files = learning::checkpoint::save(self.trainer.state());
+        let log = training_log::to_parquet(&mut self.log)?;
+        let together: [(&str, &[u8]); 4] = [
+            (WEIGHTS_FILE, &files.weights),
+            (OPTIMIZER_FILE, &files.optimizer),
+            (METADATA_FILE, files.metadata.as_bytes()),
+            (LOG_FILE, &log),
+        ];
+        Ok(SAVE.save(&self.folder, &together)?)
     }
 }
 
@@ -280,6 +301,54 @@ mod tests {
         for dir in [straight_folder, cut] {
             std::fs::remove_dir_all(dir).unwrap();
         }
+    }
+
+    /// A run killed at each write and rename of its saves (a failpoint; a write cut after half
+    /// its bytes, as a full disk or a kill leaves it), resumed, ends with the uninterrupted
+    /// run's weights and log, and resumes from the last whole save.
+    #[test]
+    fn a_run_killed_at_any_step_of_a_save_resumes_bit_for_bit() {
+        use store::save_set::failpoint;
+        let straight_folder = folder("straight-every-step");
+        let mut straight = TrainingRun::start(&straight_folder, world(), config(), 5).unwrap();
+        straight.train(6, 2, &mut |_| ()).unwrap();
+        let (weights, log) = outcome(straight);
+        let mut steps = 0;
+        let mut resumed_at = Vec::new();
+        loop {
+            steps += 1;
+            let dir = folder("every-step");
+            let mut run = TrainingRun::start(&dir, world(), config(), 5).unwrap();
+            run.train(2, 2, &mut |_| ()).unwrap();
+            failpoint::arm(steps);
+            let result = run.train(6, 2, &mut |_| ());
+            drop(run);
+            if !failpoint::disarm() {
+                result.unwrap();
+                break;
+            }
+            assert!(result.is_err(), "step {steps}");
+            let mut resumed = TrainingRun::resume(&dir, world(), &[]).unwrap();
+            resumed_at.push((resumed.state().episodes_done, resumed.recovered().clone()));
+            resumed.train(6, 2, &mut |_| ()).unwrap();
+            let (resumed_weights, resumed_log) = outcome(resumed);
+            assert_eq!(resumed_weights, weights, "step {steps}");
+            assert!(resumed_log.equals_missing(&log), "step {steps}");
+        }
+        // Two saves (at 4 and 6) of four files: each 4 writes, the journal's write and
+        // rename, 4 renames and the manifest's, 11 steps. Cut before a save's journal is in
+        // place, the run resumes from the save before; after, from that save.
+        assert_eq!(steps, 23);
+        let discarded = Recovered::Discarded(vec![WEIGHTS_FILE.to_owned()]);
+        let expected = [
+            (2, discarded),
+            (4, Recovered::Finished),
+            (6, Recovered::Finished),
+        ];
+        for expected in expected {
+            assert!(resumed_at.contains(&expected), "{resumed_at:?}");
+        }
+        std::fs::remove_dir_all(straight_folder).unwrap();
     }
 
     /// A run killed between two saves trains again, when resumed, the episodes after the

@@ -23,6 +23,7 @@ use learning::checkpoint;
 use learning::ppo::TrainingState;
 use plan::cell::CellConfig;
 use plan::scenario::stopping::StoppingRule;
+use store::save_set::SaveSet;
 use store::schema::convergence as run;
 use store::schema::validation::{CPU_SECONDS, TRAINING_EPISODE, VALIDATION_PENALTY, WALL_SECONDS};
 use store::tables::{self, cell_columns};
@@ -213,6 +214,12 @@ impl Validation {
     }
 }
 
+/// The best policy's save: its weights and metadata, one unit (`best-save.json`).
+const BEST_SAVE: SaveSet = SaveSet {
+    name: "best-save",
+    files: &[BEST_WEIGHTS_FILE, BEST_METADATA_FILE],
+};
+
 /// The best policy of a run so far: its checkpoint's weights and metadata (no optimiser:
 /// it is tested, never trained on).
 #[derive(Clone, Debug, PartialEq)]
@@ -237,6 +244,7 @@ impl BestPolicy {
     /// was saved at `done` (the validation there is about to be played again and will find
     /// it best again); `None` otherwise.
     pub(crate) fn resume(folder: &Path, validation: &Validation, done: u64) -> Option<Self> {
+        BEST_SAVE.recover(folder).ok()?;
         let read = |name| store::read(&folder.join(name), MAX_FILE_BYTES, "a run's best policy");
         let weights = read(BEST_WEIGHTS_FILE).ok()?;
         let metadata = String::from_utf8(read(BEST_METADATA_FILE).ok()?).ok()?;
@@ -249,11 +257,13 @@ impl BestPolicy {
         })
     }
 
-    /// Writes the policy beside the run in progress (metadata last: readable metadata has
-    /// its weights).
+    /// Writes the policy beside the run in progress, its two files together.
     pub(crate) fn save(&self, folder: &Path) -> Result<(), StoreError> {
-        test_curve::write_in_progress(folder, BEST_WEIGHTS_FILE, &self.weights)?;
-        test_curve::write_in_progress(folder, BEST_METADATA_FILE, self.metadata.as_bytes())
+        let files: [(&str, &[u8]); 2] = [
+            (BEST_WEIGHTS_FILE, &self.weights),
+            (BEST_METADATA_FILE, self.metadata.as_bytes()),
+        ];
+        BEST_SAVE.save(folder, &files)
     }
 }
 

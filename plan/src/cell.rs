@@ -126,9 +126,15 @@ pub struct SweepCell {
 impl CellConfig {
     /// The content address: blake3 of the code version and the config's JSON.
     fn key(&self) -> String {
+        self.key_under(&code_version())
+    }
+
+    /// The key this config has under `code_version`: what a stored record's key must be,
+    /// given the config and code version the record says it was computed with.
+    pub fn key_under(&self, code_version: &str) -> String {
         let json = serde_json::to_string(self).expect("a cell config serialises");
         let mut hasher = blake3::Hasher::new();
-        hasher.update(code_version().as_bytes());
+        hasher.update(code_version.as_bytes());
         hasher.update(b"\n");
         hasher.update(json.as_bytes());
         hasher.finalize().to_hex()[..20].to_owned()

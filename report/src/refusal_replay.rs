@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 use polars::prelude::*;
 use store::schema::{cell, cells, episodes, refusals};
-use store::{CellRecord, Store, StoreError};
+use store::{CellRecord, REFUSALS_FILE, Store, StoreError};
 use world::{Refusal, World};
 
 use super::columns::{GroupKey, strings, u32s};
@@ -57,15 +57,18 @@ pub(crate) fn measures(
             missing.push(key);
         }
     }
-    let playable: Vec<&String> = (missing.into_iter())
-        .filter(|key| replayable(store, key))
-        .collect();
-    if !playable.is_empty() {
-        let rows = replay_cells(store, &playable, |record, world| {
+    let (playable, carried): (Vec<&String>, Vec<&String>) = (missing.into_iter())
+        .filter(|key| replayable(store, key) || carries_refusals(store, key))
+        .partition(|key| replayable(store, key));
+    if !playable.is_empty() || !carried.is_empty() {
+        let mut rows = replay_cells(store, &playable, |record, world| {
             let (group, wanted) = &needed[&record.key];
             replay_cell(replayer, store, (world, record), (group, wanted))
         })?;
-        table.retain(|r| !playable.contains(&&r.cell_key));
+        for key in &carried {
+            rows.extend(carried_rows(store, key)?);
+        }
+        table.retain(|r| !playable.contains(&&r.cell_key) && !carried.contains(&&r.cell_key));
         table.extend(rows);
         store.write_table(TABLE, &frame(&table).map_err(StoreError::from)?)?;
     }
@@ -168,6 +171,22 @@ fn replay_cell(
             agent_steps: counter.agent_steps,
         });
     Ok(rows.collect())
+}
+
+/// Whether cell `key` was taken from a table store with its rows of the refusals table
+/// (`store::REFUSALS_FILE`): it cannot be played again, and need not be.
+fn carries_refusals(store: &Store, key: &str) -> bool {
+    !store.is_table_store()
+        && (store.finished(key)).is_some_and(|r| r.files.contains_key(REFUSALS_FILE))
+}
+
+/// The rows a taken cell carried, checked against its record.
+fn carried_rows(store: &Store, key: &str) -> Result<Vec<EpisodeRefusals>, ReplayedError> {
+    let record = store.verified_record(key)?;
+    let bytes = store.cell_file(&record, REFUSALS_FILE)?;
+    let frame = store::tables::read_parquet(bytes)?;
+    let path = store.cell_folder(key).join(REFUSALS_FILE);
+    rows(&frame).map_err(|source| ReplayedError::Table { path, source })
 }
 
 /// The store's table as rows; none when it is not there or, in a sweep's store, does not

@@ -88,8 +88,8 @@ impl Store {
         std::fs::symlink_metadata(self.cell_folder(key).join(RECORD_FILE)).is_ok()
     }
 
-    /// Cell `key`'s record as written, unchecked against its files; a table store's from its
-    /// cells table.
+    /// Cell `key`'s record as written, checked against its key but not against its files; a
+    /// table store's from its cells table.
     fn record(&self, key: &str) -> Result<CellRecord, StoreError> {
         if self.is_table_store() {
             return self.record_from_cells_table(key);
@@ -98,6 +98,14 @@ impl Store {
         let record: CellRecord = read_json(&path)?;
         if record.key != key {
             return Err(StoreError::corrupt(&path, "the record names another cell"));
+        }
+        let made = record.config.key_under(&record.code_version);
+        if made != key {
+            let problem = format!(
+                "the configuration and code version the record gives make the key {made}, not \
+                 its own: the record was edited, and nothing says what the cell's files are"
+            );
+            return Err(StoreError::corrupt(&path, problem));
         }
         Ok(record)
     }

@@ -51,7 +51,8 @@ impl Store {
         &self.root
     }
 
-    pub(crate) fn cell_folder(&self, key: &str) -> PathBuf {
+    /// Where cell `key`'s files are, finished or not.
+    pub fn cell_folder(&self, key: &str) -> PathBuf {
         self.root.join("cells").join(key)
     }
 

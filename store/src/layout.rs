@@ -13,6 +13,10 @@ pub const TEST_CURVE_FILE: &str = "test_curve.parquet";
 pub const VALIDATION_FILE: &str = "validation.parquet";
 pub const CONVERGENCE_FILE: &str = "convergence.parquet";
 pub const CHECKPOINTS_FILE: &str = "checkpoints.parquet";
+/// A taken cell's rows of the store's `refusals` table, which the report measures by playing
+/// a cell's test episodes again: carried from the table store the cell was taken from, since
+/// a taken cell has no checkpoint to play them with.
+pub const REFUSALS_FILE: &str = "refusals.parquet";
 /// The best policy of a run until converged, beside the final one (`checkpoint.*`).
 pub const BEST_WEIGHTS_FILE: &str = "best-checkpoint.safetensors";
 pub const BEST_METADATA_FILE: &str = "best-checkpoint.json";

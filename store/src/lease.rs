@@ -103,16 +103,17 @@ impl Drop for Lease {
 /// them back before it exits (a lease's lock dies with the process, its file does not).
 static HELD: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-/// Removes every lease file this process holds, tells `last_words` how many, and exits with
-/// `code`; no lease is taken meanwhile, so a process that stops leaves no cell marked as
-/// running.
+/// Once no save is in progress (`save_set::exit_between_saves`), removes every lease file
+/// this process holds, tells `last_words` how many, and exits with `code`; no lease is taken
+/// meanwhile, so a process that stops leaves no cell marked as running and no save half made.
 pub fn exit_giving_back_leases(code: i32, last_words: impl FnOnce(usize)) -> ! {
-    let held = HELD.lock().unwrap_or_else(|e| e.into_inner());
-    for path in held.iter() {
-        let _ = std::fs::remove_file(path);
-    }
-    last_words(held.len());
-    std::process::exit(code)
+    crate::save_set::exit_between_saves(code, || {
+        let held = HELD.lock().unwrap_or_else(|e| e.into_inner());
+        for path in held.iter() {
+            let _ = std::fs::remove_file(path);
+        }
+        last_words(held.len());
+    })
 }
 
 impl Store {

@@ -8,7 +8,8 @@
 //! OUT/cells/KEY/episodes.parquet
 //! OUT/cells/KEY/training.parquet, checkpoint.safetensors, checkpoint.json (learned policies)
 //! OUT/cells/KEY/trajectories.parquet, snapshots.parquet (repetition 0: see `trajectory`)
-//! OUT/cells/KEY/training-in-progress/  a learned cell's run while it trains
+//! OUT/cells/KEY/training-in-progress/  a learned cell's run while it trains, its saves
+//!                              made whole or not at all (`save_set`: save.json, best-save.json)
 //! OUT/cells/KEY/cell.json      the record, written last: the cell's done-marker
 //! OUT/cells/KEY/running.json   while the cell runs: the lease (process id, host, start)
 //! OUT/cells/KEY/failed.json    why the cell's last run failed, until one succeeds
@@ -49,6 +50,7 @@ pub mod lease;
 pub mod provenance;
 mod reader;
 pub mod record;
+pub mod save_set;
 pub mod schema;
 pub mod status;
 mod table_files;
@@ -61,8 +63,8 @@ pub use files::{MAX_FILE_BYTES, read};
 pub use folder::Store;
 pub use layout::{
     BEST_METADATA_FILE, BEST_WEIGHTS_FILE, CHECKPOINTS_FILE, CONVERGENCE_FILE, DISTURBED_FILE,
-    DISTURBED_STEPS_FILE, EPISODES_FILE, SNAPSHOTS_FILE, TEST_CURVE_FILE, TRAINING_FILE,
-    TRAJECTORIES_FILE, VALIDATION_FILE, per_cell_file,
+    DISTURBED_STEPS_FILE, EPISODES_FILE, REFUSALS_FILE, SNAPSHOTS_FILE, TEST_CURVE_FILE,
+    TRAINING_FILE, TRAJECTORIES_FILE, VALIDATION_FILE, per_cell_file,
 };
 pub use lease::{Lease, LeaseHolder};
 pub use record::{CellFailure, CellRecord, Manifest};

@@ -89,18 +89,22 @@ impl Store {
     }
 
     /// Refuses a store whose tables nothing can vouch for: `cells/` that is a file or a
-    /// symbolic link, or a sweep (a manifest) with neither cells nor a table store's marker,
-    /// as a table store is when its marker was removed. A table store's files are checked
-    /// against its marker.
+    /// symbolic link, a sweep (a manifest) with neither cells nor a table store's marker,
+    /// as a table store is when its marker was removed, or a sweep whose scenario file is not
+    /// the one it ran. A table store's files are checked against its marker.
     pub fn check_readable(&self) -> Result<(), StoreError> {
         if self.is_table_store() {
             return self.table_store().map(drop);
         }
         let has_cells = real_folder(&self.root.join("cells"))?;
-        if !has_cells && self.root.join(MANIFEST_FILE).exists() {
+        let is_sweep = self.root.join(MANIFEST_FILE).exists();
+        if !has_cells && is_sweep {
             return Err(StoreError::Unverifiable {
                 folder: self.root.clone(),
             });
+        }
+        if is_sweep {
+            self.scenario_text()?;
         }
         Ok(())
     }

@@ -16,10 +16,10 @@ use std::path::PathBuf;
 use polars::prelude::{ChunkCompareEq, DataFrame};
 
 use super::columns::{optional_strings, strings};
-use super::schema::{cell, cells};
+use super::schema::{cell, cells, refusals};
 use super::table_store::record_of_row;
 use super::tables::parquet_bytes;
-use crate::layout::{EPISODES_FILE, TRAINING_FILE, per_cell_file};
+use crate::layout::{EPISODES_FILE, REFUSALS_FILE, TRAINING_FILE, per_cell_file};
 use crate::{CellRecord, Store, StoreError};
 use plan::scenario::Output;
 
@@ -74,6 +74,9 @@ impl TakenTables {
                 per_cell.push((file, table));
             }
         }
+        if let Some(table) = source.optional_table(refusals::TABLE)? {
+            per_cell.push((REFUSALS_FILE, table));
+        }
         Ok(Self {
             source,
             cells,
@@ -88,8 +91,8 @@ impl TakenTables {
         self.rows.contains_key(key)
     }
 
-    /// Writes cell `key` into `store` from these tables: its rows of every per-cell table,
-    /// its record (provenance as the cells table kept it, `taken_from` this store), and its
+    /// Writes cell `key` into `store` from these tables: its rows of every per-cell table
+    /// and of the report's refusals table (`REFUSALS_FILE`), its record (provenance as the cells table kept it, `taken_from` this store), and its
     /// map. The cell must be one these tables hold.
     pub fn take(&self, store: &Store, key: &str) -> Result<CellRecord, StoreError> {
         let mut record = record_of_row(&self.cells, &self.cells_path, key)?;

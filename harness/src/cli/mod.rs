@@ -70,7 +70,24 @@ enum Command {
 pub fn main() -> anyhow::Result<()> {
     ignore_file_size_signal();
     end_quietly_on_a_closed_pipe();
+    capture_no_backtrace_for_errors();
     Cli::parse().run()
+}
+
+/// With `RUST_BACKTRACE=1` (many machines set it), every `anyhow` error captures a backtrace,
+/// which the exit resolves: under an address-space limit (`ulimit -v`) that allocation fails
+/// after the message is printed and the process then waits on a lock forever, so a cluster job
+/// that should fail at once hangs to its time limit. Errors here are messages that name the
+/// file and field, not bugs; a panic still prints its backtrace, and `RUST_LIB_BACKTRACE=1`
+/// asks for the errors' too.
+fn capture_no_backtrace_for_errors() {
+    if std::env::var_os("RUST_LIB_BACKTRACE").is_none() {
+        // SAFETY: called first in `main`, before any thread starts that could read the
+        // environment at the same time.
+        unsafe {
+            std::env::set_var("RUST_LIB_BACKTRACE", "0");
+        }
+    }
 }
 
 /// Rust ignores SIGPIPE, so `println!` into a closed pipe (`harness check rq6.yaml | head`)

@@ -16,6 +16,7 @@ use world::Seed;
 use super::world_args::WorldArgs;
 use engine::episode::mean_penalty;
 use engine::training_run::TrainingRun;
+use store::save_set::Recovered;
 
 #[derive(clap::Args)]
 pub(crate) struct TrainArgs {
@@ -125,6 +126,16 @@ pub(crate) fn run(args: TrainArgs) -> anyhow::Result<()> {
         return trace_update(&args, world);
     }
     let mut run = open(&args, &world)?;
+    let out = args.out.clone();
+    engine::stop::exit_between_saves_when_asked(move |signal| {
+        let saved = engine::checkpoint_dir::read_metadata(&out).map(|m| m.episodes_done);
+        let at = saved.map_or_else(|_| "none yet".to_owned(), |e| format!("after episode {e}"));
+        eprintln!(
+            "\ntraining stopped by {signal}; the last save ({at}) is whole: continue with \
+             `harness train --out {} --resume`",
+            out.display()
+        );
+    });
     if !args.no_events {
         run.write_events(&args.out)?;
     }
@@ -177,7 +188,9 @@ fn open(args: &TrainArgs, world: &std::sync::Arc<world::World>) -> anyhow::Resul
             world: &record,
         };
         run_folder::check_resume(&args.out, &asked)?;
-        return Ok(TrainingRun::resume(&args.out, world.clone(), &overrides)?);
+        let run = TrainingRun::resume(&args.out, world.clone(), &overrides)?;
+        say_what_was_recovered(&args.out, &run);
+        return Ok(run);
     }
     run_folder::refuse_existing_run(&args.out, args.replace)?;
     let profile = args.profile.unwrap_or(Profile::FAST);
@@ -185,6 +198,25 @@ fn open(args: &TrainArgs, world: &std::sync::Arc<world::World>) -> anyhow::Resul
     let run = TrainingRun::start(&args.out, world.clone(), config, args.seed.unwrap_or(0))?;
     run_folder::begin(&args.out, &record)?;
     Ok(run)
+}
+
+/// Names a save that a kill or a full disk cut short, and which save the run goes on from.
+fn say_what_was_recovered(out: &std::path::Path, run: &TrainingRun) {
+    let at = run.state().episodes_done;
+    match run.recovered() {
+        Recovered::Whole => {}
+        Recovered::Finished => eprintln!(
+            "{}: the last save was cut short after it was committed; finished, the run goes \
+             on from it (after episode {at})",
+            out.display()
+        ),
+        Recovered::Discarded(files) => eprintln!(
+            "{}: a save cut short before it was committed was removed ({}); the run goes on \
+             from the save before it (after episode {at})",
+            out.display(),
+            files.join(", ")
+        ),
+    }
 }
 
 /// Mean seconds of a round's rollout and update over this run's episodes.

@@ -72,6 +72,18 @@ pub(crate) enum PolicyError {
          channels, the policy's kind and profile)"
     )]
     OwnField(String),
+    /// A play due between two updates: a run trains in rounds of `environments` episodes
+    /// and stops only between them, so the play would fall at the round's end instead.
+    #[error(
+        "{field}: {every} is not a multiple of the {environments} episodes a round trains \
+         (the profile's environments, or set.environments): plays fall between rounds, so \
+         they would be at other episodes than asked"
+    )]
+    OffRound {
+        field: &'static str,
+        every: u32,
+        environments: u64,
+    },
 }
 
 /// The training field that `until: converged` sets to false.
@@ -190,6 +202,7 @@ impl TryFrom<PolicySpec> for ScenarioPolicy {
         {
             return Err(PolicyError::OwnField(key.clone()));
         }
+        check_rounds(&learned, stopping.as_ref())?;
         Ok(ScenarioPolicy::Learned(Learned {
             architecture,
             name: learned.name,
@@ -205,6 +218,38 @@ impl TryFrom<PolicySpec> for ScenarioPolicy {
             stopping,
         }))
     }
+}
+
+/// Refuses a test curve or validation every so many episodes that is not a whole number of
+/// the run's rounds. An `environments` that is not a count is left to the training
+/// configuration's own check.
+fn check_rounds(learned: &LearnedSpec, stopping: Option<&StoppingRule>) -> Result<(), PolicyError> {
+    let environments = match learned.set.get("environments") {
+        Some(value) => match value.as_u64() {
+            Some(n) if n > 0 => n,
+            _ => return Ok(()),
+        },
+        None => TrainingConfig::profile(learned.profile).environments as u64,
+    };
+    let plays = [
+        ("evaluate_every", learned.evaluate_every),
+        (
+            "stopping.validate_every",
+            stopping.map(|r| r.validate_every),
+        ),
+    ];
+    for (field, every) in plays {
+        if let Some(every) = every
+            && u64::from(every) % environments != 0
+        {
+            return Err(PolicyError::OffRound {
+                field,
+                every,
+                environments,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The set of channels a list names, in whatever order it names them.
@@ -295,6 +340,21 @@ mod tests {
             ),
             "{unknown}"
         );
+    }
+
+    #[test]
+    fn plays_that_fall_between_rounds_are_refused_naming_the_field() {
+        let curve = "ma-g-ppo: {profile: fast-v1, episodes: 80, evaluate_every: 12";
+        let off = from_file(&format!("{curve}}}")).unwrap_err();
+        assert!(
+            off.contains("evaluate_every: 12 is not a multiple of the 8 episodes a round"),
+            "{off}"
+        );
+        from_file(&format!("{curve}, set: {{environments: 4}}}}")).unwrap();
+        let converged = "episodes: 80, until: converged, stopping: {validate_every: 3}}";
+        let off = from_file(&format!("ma-g-ppo: {{profile: fast-v1, {converged}")).unwrap_err();
+        assert!(off.contains("stopping.validate_every: 3 is not"), "{off}");
+        from_file(&format!("ma-g-ppo: {{profile: fast-v2, {converged}")).unwrap();
     }
 
     #[test]

@@ -15,7 +15,10 @@ pub(crate) fn from_yaml<'de, T: Deserialize<'de>>(
     file: &Path,
 ) -> Result<T, ScenarioError> {
     let mut path = Vec::new();
-    serde_saphyr::with_deserializer_from_str(text, |yaml| {
+    // Only `true` and `false` are booleans: YAML 1.1's `yes`, `on` or `"yes"` are refused,
+    // not read as a choice nobody wrote down.
+    let options = serde_saphyr::options! { strict_booleans: true };
+    serde_saphyr::with_deserializer_from_str_with_options(text, options, |yaml| {
         serde_path_to_error::deserialize(yaml).map_err(|error| {
             path = error.path().iter().cloned().collect();
             error.into_inner()
@@ -110,6 +113,18 @@ mod tests {
             let error = error_of(&VALID.replace(from, to));
             assert!(error.contains(expected), "{error}\n  expected: {expected}");
         }
+        let stopping = |value: &str| {
+            let policy =
+                "{ma-g-ppo: {episodes: 10, until: converged, stopping: {wait_for_improvement: ";
+            let policies = format!("policies: [{policy}{value}}}}}}}]");
+            VALID.replace("policies: [{baseline: {name: random}}]", &policies)
+        };
+        for value in ["yes", "\"yes\"", "on", "1"] {
+            let error = error_of(&stopping(value));
+            let expected = "policies[0].ma-g-ppo.stopping.wait_for_improvement";
+            assert!(error.contains(expected), "{value}: {error}");
+        }
+        from_yaml::<ScenarioFile>(&stopping("true"), Path::new("good.yaml")).unwrap();
         let fov = error_of(&format!("{VALID}world: {{fov: .inf}}\n"));
         assert!(fov.contains("bad.yaml:7: world.fov: invalid"), "{fov}");
         assert!(fov.contains("expected a whole number"), "{fov}");

@@ -1,8 +1,9 @@
-//! Only a sweep writes a store: `report`, `claims`, `audit`, `status` and `export` on damaged
-//! stores (a table store whose marker is gone and one of its numbers changed, a store whose
-//! `cells/` is a file, a store that lost a cell) leave every file of the store as it was, on
-//! every call, and say why they refuse or what their tables rest on. And one report folder
-//! has one writer at a time; a cache cell that is a link is refused.
+//! Only a sweep writes a store: `report`, `claims`, `audit`, `status`, `export` and
+//! `check --pilot` on damaged stores (a table store whose marker is gone and one of its
+//! numbers changed, a store whose `cells/` is a file, a store that lost a cell) leave every
+//! file of the store as it was, on every call, and say why they refuse or what their tables
+//! rest on. And one report folder has one writer at a time; a cache cell that is a link is
+//! refused.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -39,7 +40,7 @@ fn printed(output: &Output) -> (Option<i32>, String) {
 fn read_twice(store: &Path, claims: &str) -> Vec<(String, Option<i32>, String)> {
     let out = store.with_file_name("reader-output");
     let (dir, reports) = (store.to_str().unwrap(), out.join("reports"));
-    let readers: [(&str, Vec<&str>); 6] = [
+    let readers: [(&str, Vec<&str>); 7] = [
         ("claims", vec!["claims", dir, "--scenario", claims]),
         (
             "report",
@@ -51,6 +52,7 @@ fn read_twice(store: &Path, claims: &str) -> Vec<(String, Option<i32>, String)> 
         ),
         ("status", vec!["status", dir]),
         ("export", vec!["export", "marl-eval", dir]),
+        ("check --pilot", vec!["check", claims, "--pilot", dir]),
         ("claims again", vec!["claims", dir, "--scenario", claims]),
     ];
     let before = file_hashes(store);
@@ -210,6 +212,27 @@ fn a_store_missing_a_cell_says_on_every_call_what_its_verdicts_rest_on() {
             );
         }
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A store whose `scenario.yaml` was swapped for another is refused by every reader that
+/// reads its cells (the audit and the export too, which never read the scenario), naming the
+/// file, and nothing is written.
+#[test]
+fn a_swapped_scenario_is_refused_by_every_reader() {
+    let dir = scratch("readers-swapped-scenario");
+    let store = dir.join("store");
+    copy_folder(&reference_run(TINY), &store);
+    let scenario = store.join("scenario.yaml");
+    let text = std::fs::read_to_string(&scenario).unwrap();
+    std::fs::write(
+        &scenario,
+        text.replace("test_episodes: ", "test_episodes: 1"),
+    )
+    .unwrap();
+    let calls = read_twice(&store, &scenario_with_a_claim(&dir));
+    let readers = ["claims", "report", "audit", "export", "check --pilot"];
+    refused(&calls, &readers, "is not the scenario this sweep ran");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

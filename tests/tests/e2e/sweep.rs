@@ -57,6 +57,51 @@ fn assert_records_name_the_build(store: &Path) {
     }
 }
 
+/// A change made by hand to a cell's record (its JSON).
+type RecordEdit = fn(&mut serde_json::Value);
+
+/// A finished cell whose record was edited (its configuration, or the code version that
+/// computed it) no longer says what its files are: `status` names it damaged, `audit`
+/// refuses it, and the next sweep computes it again, to the reference tables.
+#[test]
+fn a_cell_whose_record_was_edited_is_damaged_and_computed_again() {
+    let dir = scratch("edited-record");
+    let store = dir.join("store");
+    crate::common::copy_folder(&reference_run(TINY), &store);
+    let mut cells: Vec<PathBuf> = (std::fs::read_dir(store.join("cells")).unwrap().flatten())
+        .map(|e| e.path())
+        .collect();
+    cells.sort();
+    let edits: [(&str, RecordEdit); 2] = [
+        ("code_version", |r| {
+            r["code_version"] = "0.1.0+0000000000000000".into()
+        }),
+        ("config", |r| r["config"]["test_episodes"] = 1.into()),
+    ];
+    for ((what, edit), cell) in edits.iter().zip(&cells) {
+        let path = cell.join("cell.json");
+        let mut record: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        edit(&mut record);
+        std::fs::write(&path, record.to_string()).unwrap();
+        let key = cell.file_name().unwrap().to_string_lossy().into_owned();
+        let status = succeed(harness(&["status", store.to_str().unwrap()]));
+        let line = status
+            .lines()
+            .find(|l| l.contains(&key))
+            .unwrap_or_default();
+        assert!(
+            line.starts_with("damaged") && line.contains("edited"),
+            "{what}: {status}"
+        );
+    }
+    let audit = harness(&["audit", store.to_str().unwrap(), "--sample", "4"]);
+    assert!(!audit.status.success(), "the audit passed an edited record");
+    let again = sweep(TINY, &store, &["--jobs", "1"]);
+    assert!(again.contains("2 computed"), "{again}");
+    assert_same_tables(&store, &reference_run(TINY));
+}
+
 #[test]
 fn a_second_run_recomputes_nothing_and_a_shared_cache_serves_another_store() {
     let dir = scratch("twice");
@@ -458,6 +503,39 @@ fn a_small_address_space_is_refused_with_the_numbers() {
     assert!(!out.exists(), "nothing written");
 }
 
+/// With `RUST_BACKTRACE=1`, as many machines set it, an error under an address-space limit
+/// once printed its message, failed to allocate the error's backtrace and then waited on a
+/// lock forever: every error exits at once, with its message and code 1.
+#[test]
+fn an_error_under_a_small_address_space_exits_with_backtraces_asked_for() {
+    for limit_bytes in [60_000 << 10, 150_000 << 10] {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_harness-e2e"));
+        command
+            .args(["sweep", "no-such-scenario.yaml"])
+            .env("RUST_BACKTRACE", "1")
+            .env_remove("RUST_LIB_BACKTRACE")
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        limit(&mut command, libc::RLIMIT_AS, limit_bytes);
+        let mut child = command.spawn().unwrap();
+        let start = std::time::Instant::now();
+        while child.try_wait().unwrap().is_none() {
+            if start.elapsed() > Duration::from_secs(60) {
+                child.kill().unwrap();
+                panic!("still running after 60 s under {limit_bytes} bytes");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let output = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains("no-such-scenario.yaml: cannot read"),
+            "{stderr}"
+        );
+    }
+}
+
 #[test]
 fn two_shards_merged_equal_one_unsharded_run() {
     let dir = scratch("shards");
@@ -496,6 +574,58 @@ fn two_shards_merged_equal_one_unsharded_run() {
     ]);
     assert!(!output.status.success());
     assert!(String::from_utf8_lossy(&output.stderr).contains("cells are missing"));
+    refuses_conflicting_shards_and_a_foreign_out(&dir, &shards, &merged);
+}
+
+/// A cell finished in two shards with other test episodes (recorded as its own, hashes and
+/// all) is refused naming both, and so is an `--out` that holds another plan; neither
+/// merge writes anything.
+fn refuses_conflicting_shards_and_a_foreign_out(dir: &Path, shards: &[PathBuf], merged: &Path) {
+    let altered = dir.join("altered");
+    crate::common::copy_folder(&shards[1], &altered);
+    let cell = (std::fs::read_dir(shards[0].join("cells"))
+        .unwrap()
+        .flatten())
+    .map(|e| e.path())
+    .find(|cell| cell.join("cell.json").exists())
+    .unwrap();
+    let copy = altered.join("cells").join(cell.file_name().unwrap());
+    crate::common::copy_folder(&cell, &copy);
+    let other = b"other test episodes".to_vec();
+    std::fs::write(copy.join("episodes.parquet"), &other).unwrap();
+    let text = std::fs::read_to_string(copy.join("cell.json")).unwrap();
+    let mut record: serde_json::Value = serde_json::from_str(&text).unwrap();
+    record["files"]["episodes.parquet"] = blake3::hash(&other).to_hex().to_string().into();
+    record["sizes"]["episodes.parquet"] = other.len().into();
+    std::fs::write(copy.join("cell.json"), record.to_string()).unwrap();
+    let out = dir.join("conflict");
+    let (shard, altered_arg) = (shards[0].to_str().unwrap(), altered.to_str().unwrap());
+    let output = harness(&["merge", "--out", out.to_str().unwrap(), shard, altered_arg]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    let key = cell.file_name().unwrap().to_string_lossy();
+    assert!(
+        stderr.contains(&format!("cell {key}: ")) && stderr.contains("other test episodes"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "{stderr}");
+
+    let foreign = dir.join("foreign");
+    crate::common::copy_folder(merged, &foreign);
+    let manifest = foreign.join("sweep.json");
+    let mut plan: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    plan["cells"].as_array_mut().unwrap().pop();
+    std::fs::write(&manifest, plan.to_string()).unwrap();
+    let before = crate::common::file_hashes(&foreign);
+    let second = shards[1].to_str().unwrap();
+    let output = harness(&["merge", "--out", foreign.to_str().unwrap(), shard, second]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        !output.status.success() && stderr.contains("holds another sweep"),
+        "{stderr}"
+    );
+    assert_eq!(crate::common::file_hashes(&foreign), before);
 }
 
 #[test]
@@ -1202,6 +1332,43 @@ fn a_sweep_goes_on_from_its_committed_tables_to_the_same_results() {
     let columns = engine::training_log::reproducible_columns;
     let training = |store: &Path| read_table(store, "training").select(columns()).unwrap();
     assert!(training(&again).equals_missing(&training(&reference)));
+    // The taken runs' refused moves, which the report measures by playing a policy again (a
+    // taken cell has none), come with them from the tables: the report of the new store has
+    // the tables' rows, and rows for the cells it computed.
+    let again_reports = dir.join("again-reports");
+    let again_arg = again.to_str().unwrap();
+    succeed(harness(&[
+        "report",
+        again_arg,
+        "--to",
+        again_reports.to_str().unwrap(),
+    ]));
+    let refusals = |store: &Path| {
+        let table = read_table(store, "refusals");
+        let order = SortMultipleOptions::default();
+        table.sort(["cell_key", "episode"], order).unwrap()
+    };
+    let (found, taken) = (
+        refusals(&again_reports.join("tiny/store")),
+        refusals(&tables),
+    );
+    let column = |frame: &DataFrame| -> Vec<String> {
+        let keys = frame.column("cell_key").unwrap().str().unwrap();
+        keys.iter()
+            .map(|k| k.unwrap_or_default().to_owned())
+            .collect()
+    };
+    let taken_keys = column(&taken);
+    let mask: BooleanChunked = column(&found)
+        .iter()
+        .map(|k| taken_keys.contains(k))
+        .collect();
+    let carried = found.filter(&mask).unwrap();
+    assert!(
+        taken.height() > 0 && carried.equals_missing(&taken),
+        "{carried}\n{taken}"
+    );
+    assert_eq!(found.height(), 2 * taken.height(), "{found}");
     let taken: Vec<PathBuf> = std::fs::read_dir(again.join("cells"))
         .unwrap()
         .flatten()

@@ -4,7 +4,7 @@ use crate::common::{harness, repo_file, scratch, succeed};
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::Output;
+use std::process::{Command, Output, Stdio};
 
 fn small_map() -> String {
     repo_file("scenarios/maps/small_two_room.txt")
@@ -13,6 +13,11 @@ fn small_map() -> String {
 /// `harness train` of a small run (8 episodes, checkpoint every 4) into `out`, with
 /// `changes` replacing the values of its flags or adding flags (a bare flag with "").
 fn train(out: &Path, changes: &[(&str, &str)]) -> Output {
+    train_command(out, changes).output().expect("harness runs")
+}
+
+/// The command [`train`] runs.
+fn train_command(out: &Path, changes: &[(&str, &str)]) -> Command {
     let map = small_map();
     let out = out.to_str().unwrap();
     let mut flags = vec![
@@ -37,14 +42,15 @@ fn train(out: &Path, changes: &[(&str, &str)]) -> Output {
             None => flags.push((flag, value)),
         }
     }
-    let mut args = vec!["train"];
+    let mut command = Command::new(env!("CARGO_BIN_EXE_harness-e2e"));
+    command.arg("train");
     for (flag, value) in flags {
-        args.push(flag);
+        command.arg(flag);
         if !value.is_empty() {
-            args.push(value);
+            command.arg(value);
         }
     }
-    harness(&args)
+    command
 }
 
 #[test]
@@ -103,6 +109,62 @@ fn trains_writes_its_files_and_resumes_to_the_same_weights() {
     assert_eq!(probed, sampled, "probing changes nothing in the episode");
     check_probe(&probe, &trace);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A run stopped by SIGTERM ends at once with 143, saying where it was saved; one killed
+/// (SIGKILL) wherever it is, a save included, leaves a folder that resumes to the uninterrupted
+/// run's weights and log.
+#[test]
+fn a_run_stopped_or_killed_anywhere_resumes_to_the_same_weights_and_log() {
+    let dir = scratch("train-stopped");
+    let long = [
+        ("--episodes", "40"),
+        ("--until", "40"),
+        ("--checkpoint-every", "2"),
+    ];
+    let straight = dir.join("straight");
+    succeed(train(&straight, &long));
+    for (signal, name) in [(libc::SIGTERM, "SIGTERM"), (libc::SIGKILL, "SIGKILL")] {
+        let out = dir.join(name);
+        let mut child = train_command(&out, &long)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Once the first save is whole (after 2 of 40 episodes); the signal lands wherever
+        // the run then is, in training or in the next save.
+        while !out.join("save.json").exists() {
+            assert!(
+                child.try_wait().unwrap().is_none(),
+                "the run ended before a save"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
+        // SAFETY: kill(2) on the child's own process id.
+        assert_eq!(unsafe { libc::kill(child.id() as i32, signal) }, 0);
+        let stopped = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&stopped.stderr);
+        if signal == libc::SIGTERM {
+            assert_eq!(stopped.status.code(), Some(143), "{stderr}");
+            assert!(stderr.contains("training stopped by SIGTERM"), "{stderr}");
+            assert!(stderr.contains("--resume"), "{stderr}");
+        }
+        let resume = [("--resume", ""), ("--episodes", "40"), ("--until", "40")];
+        succeed(train(&out, &resume));
+        let weights = |dir: &Path| std::fs::read(dir.join("checkpoint.safetensors")).unwrap();
+        assert_eq!(weights(&out), weights(&straight), "{name}");
+        assert_eq!(penalties(&out), penalties(&straight), "{name}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Each training episode's penalty, in the order of the run's log.
+fn penalties(dir: &Path) -> Vec<f64> {
+    use polars::prelude::*;
+    let file = std::fs::File::open(dir.join("training.parquet")).unwrap();
+    let log = ParquetReader::new(file).finish().unwrap();
+    let column = log.column("penalty").unwrap().f64().unwrap();
+    column.into_no_null_iter().collect()
 }
 
 /// Every file of a folder, by name.
@@ -343,6 +405,9 @@ fn a_nan_weight_is_refused_naming_its_tensor() {
     let out = dir.join("run");
     succeed(train(&out, &[("--until", "4")]));
     let name = poison_first_tensor(&out.join("checkpoint.safetensors"));
+    // Without its save's manifest (a checkpoint copied alone, or saved before manifests),
+    // which would refuse the changed file first: the tensors' own check.
+    std::fs::remove_file(out.join("save.json")).unwrap();
     let before = files(&out);
     let policy = format!("checkpoint:{}", out.display());
     let map = small_map();
@@ -352,6 +417,36 @@ fn a_nan_weight_is_refused_naming_its_tensor() {
     let expected = format!("checkpoint.safetensors: tensor `{name}` holds NaN at flat index 0");
     for error in [fail(harness(&args)), fail(train(&out, &[("--resume", "")]))] {
         assert!(error.contains(&expected), "{error}");
+        assert!(!error.contains("panicked"), "{error}");
+    }
+    assert_eq!(files(&out), before, "nothing written");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A checkpoint whose metadata was edited (here to another mini-map block, which the tensors'
+/// shapes cannot tell) is refused naming the file, by `run` and by a resume, and nothing is
+/// written.
+#[test]
+fn an_edited_checkpoint_is_refused_naming_its_file() {
+    let dir = scratch("edited-checkpoint");
+    let out = dir.join("run");
+    succeed(train(&out, &[("--until", "4")]));
+    let path = out.join("checkpoint.json");
+    let mut metadata: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    metadata["config"]["mini_map_block"] = 7.into();
+    std::fs::write(&path, metadata.to_string()).unwrap();
+    let before = files(&out);
+    let policy = format!("checkpoint:{}", out.display());
+    let map = small_map();
+    let args = [
+        "run", "--map", &map, "--fov", "7", "--agents", "2", "--policy", &policy, "--steps", "5",
+    ];
+    for error in [fail(harness(&args)), fail(train(&out, &[("--resume", "")]))] {
+        assert!(
+            error.contains("checkpoint.json: is not the file its save's manifest names"),
+            "{error}"
+        );
         assert!(!error.contains("panicked"), "{error}");
     }
     assert_eq!(files(&out), before, "nothing written");

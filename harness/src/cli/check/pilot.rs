@@ -64,7 +64,7 @@ pub(crate) fn print(
 /// The verdicts of the claims that rest on intervals (behaviour claims are measurements, and
 /// their replays are not needed here), and the pilot's training runs' seconds.
 fn judge(claims: &[Claim], pilot: &Path) -> anyhow::Result<(Vec<ClaimResult>, RunSeconds)> {
-    let store = Store::new(pilot);
+    let store = Store::reader(pilot);
     anyhow::ensure!(
         store.manifest()?.is_some(),
         "holds no sweep (no sweep.json)"

@@ -40,8 +40,8 @@ pub(crate) fn section(
          make (a one-way split: more test episodes a cell shrink that part alone), and, run \
          by run, how many of those test episodes left more than Random's mean at that map \
          and N (`-` where the sweep has no Random): failed episodes, each of which moves its \
-         run's mean far; how many stalled, a robot's move refused by a wall {STALL_STEPS} steps \
-         running (`-` where the runs could not be played again), and how many runs failed \
+         run's mean far; how many stalled, a robot's move refused (by a wall or another robot) \
+         {STALL_STEPS} steps running (`-` where the runs could not be played again), and how many runs failed \
          (a mean more than {FAILED_RUN_RATIO} times the setting's median run; see *Failed \
          runs and episodes*). Validation episodes have their own seeds, never a test episode's. \
          The claims are judged on the tested policy; where judging them on the runs' other \

@@ -6,9 +6,10 @@
 //!
 //! - **Failed episodes**: test episodes that left more than Random's mean at that map and N
 //!   (the team did worse than moving at random).
-//! - **Stalled episodes**: episodes in which one robot's chosen move was refused by a wall
-//!   (off the map or into an obstacle) [`STALL_STEPS`] steps running (`refusal_replay`): a
-//!   robot pressing against the wall for a tenth of the paper's T = 2,000 steps. Working
+//! - **Stalled episodes**: episodes in which one robot's chosen move was refused, by a wall
+//!   (off the map or into an obstacle) or by another robot, [`STALL_STEPS`] steps running
+//!   (`refusal_replay`): a robot pressing against the wall, or two against each other, for a
+//!   tenth of the paper's T = 2,000 steps. Working
 //!   policies press too, as a way of staying put at the edge: in the 100 replayed test
 //!   episodes of two runs at open N = 4 (one working, one failed) a robot's longest streak
 //!   was 1 to 67 steps, about 500 wall-refused robot-steps an episode in the working run, so
@@ -96,9 +97,12 @@ pub(crate) fn of_runs(
     }
     let mut stalls: HashMap<&str, (u64, u64)> = HashMap::new();
     for refusal in refusals {
+        let Some(longest) = refusal.longest_refusal else {
+            continue;
+        };
         let entry = stalls.entry(refusal.cell_key.as_str()).or_default();
         entry.0 += 1;
-        entry.1 += u64::from(refusal.longest_wall >= STALL_STEPS);
+        entry.1 += u64::from(longest >= STALL_STEPS);
     }
     let mut runs = HashMap::new();
     for sample in samples {
@@ -152,8 +156,8 @@ pub(crate) fn section(
          runs that failed (a mean test penalty more than {FAILED_RUN_RATIO} times the setting's \
          median run; their mean test penalties beside), the share of test episodes that failed (left more \
          than Random's mean at that map and N; `-` where the sweep has no Random) and that \
-         stalled (a robot pressing against a wall or the map's edge, its chosen move refused \
-         {STALL_STEPS} steps running; `-` where the store cannot play the runs again, as a \
+         stalled (a robot pressing against a wall, the map's edge or another robot, its chosen \
+         move refused {STALL_STEPS} steps running; `-` where the store cannot play the runs again, as a \
          committed report's tables-only store cannot unless it kept them), each with its 95 % \
          interval (Wilson's; for episodes at the count their clustering in runs leaves), and \
          the runs' standard deviation with and without the failed runs (10^6): the spread \
@@ -293,15 +297,16 @@ mod tests {
         }
     }
 
-    fn refusal(cell: &str, episode: u32, longest_wall: u32) -> EpisodeRefusals {
+    fn refusal(cell: &str, episode: u32, longest: u32) -> EpisodeRefusals {
         EpisodeRefusals {
             group: sample("x", Some(4), vec![]).group,
             cell_key: cell.into(),
             repetition: 0,
             episode,
-            longest_wall,
-            wall_steps: longest_wall,
-            agent_steps: 0,
+            longest_wall: longest / 2,
+            wall_steps: longest,
+            agent_steps: longest,
+            longest_refusal: Some(longest),
         }
     }
 

@@ -6,7 +6,10 @@
 //! there: it presses against the wall, step after step, and the cells it should watch decay.
 //! The world says, per step, whose move it refused and why (`world::Episode::refused`); the
 //! test episodes are played again (`replayed`) and each is measured by its longest run of
-//! consecutive wall-refused steps of one robot, kept in the store's `refusals` table.
+//! consecutive refused steps of one robot, by a wall or by another robot (two robots can press
+//! against each other as one presses against a wall: with wall moves masked, a run's failed
+//! episodes were two robots in a corner, each pushing into the other to the episode's end), and by
+//! its longest run refused by a wall alone, kept in the store's `refusals` table.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
@@ -34,6 +37,10 @@ pub(crate) struct EpisodeRefusals {
     /// Robot-steps refused by a wall, and by another robot.
     pub(crate) wall_steps: u32,
     pub(crate) agent_steps: u32,
+    /// The most consecutive steps one robot's chosen move was refused, by a wall or another
+    /// robot; `None` in rows measured before it was (the run is then measured again where the
+    /// store can play it).
+    pub(crate) longest_refusal: Option<u32>,
 }
 
 /// The refusals of every learned run's test episodes at N_test = N_train: read from the
@@ -50,7 +57,7 @@ pub(crate) fn measures(
     let mut missing: Vec<&String> = Vec::new();
     for (key, (_, wanted)) in &needed {
         let held: BTreeSet<u32> = (table.iter())
-            .filter(|r| &r.cell_key == key)
+            .filter(|r| &r.cell_key == key && r.longest_refusal.is_some())
             .map(|r| r.episode)
             .collect();
         if &held != wanted {
@@ -99,42 +106,49 @@ fn own_n_test_episodes(
     Ok(needed)
 }
 
-/// A robot's refused moves along one episode.
+/// A run of consecutive steps, and the longest so far.
 #[derive(Clone, Copy, Default)]
 struct Streak {
     current: u32,
     longest: u32,
 }
 
-/// Counts along one episode, for every robot.
+impl Streak {
+    fn step(&mut self, goes_on: bool) {
+        self.current = if goes_on { self.current + 1 } else { 0 };
+        self.longest = self.longest.max(self.current);
+    }
+}
+
+/// Counts along one episode, for every robot: its streaks of moves refused by a wall, and
+/// refused at all.
 #[derive(Clone, Default)]
 struct Counter {
-    streaks: Vec<Streak>,
+    streaks: Vec<(Streak, Streak)>,
     wall_steps: u32,
     agent_steps: u32,
 }
 
 impl Counter {
     fn after_step(&mut self, refused: &[Option<Refusal>]) {
-        self.streaks.resize(refused.len(), Streak::default());
-        for (streak, refusal) in self.streaks.iter_mut().zip(refused) {
+        self.streaks.resize(refused.len(), Default::default());
+        for ((wall, any), refusal) in self.streaks.iter_mut().zip(refused) {
+            wall.step(*refusal == Some(Refusal::Wall));
+            any.step(refusal.is_some());
             match refusal {
-                Some(Refusal::Wall) => {
-                    streak.current += 1;
-                    streak.longest = streak.longest.max(streak.current);
-                    self.wall_steps += 1;
-                }
-                Some(Refusal::Agent) => {
-                    streak.current = 0;
-                    self.agent_steps += 1;
-                }
-                None => streak.current = 0,
+                Some(Refusal::Wall) => self.wall_steps += 1,
+                Some(Refusal::Agent) => self.agent_steps += 1,
+                None => {}
             }
         }
     }
 
     fn longest_wall(&self) -> u32 {
-        self.streaks.iter().map(|s| s.longest).max().unwrap_or(0)
+        self.streaks.iter().map(|s| s.0.longest).max().unwrap_or(0)
+    }
+
+    fn longest_refusal(&self) -> u32 {
+        self.streaks.iter().map(|s| s.1.longest).max().unwrap_or(0)
     }
 }
 
@@ -169,6 +183,7 @@ fn replay_cell(
             longest_wall: counter.longest_wall(),
             wall_steps: counter.wall_steps,
             agent_steps: counter.agent_steps,
+            longest_refusal: Some(counter.longest_refusal()),
         });
     Ok(rows.collect())
 }
@@ -211,6 +226,10 @@ fn rows(frame: &DataFrame) -> PolarsResult<Vec<EpisodeRefusals>> {
     let longest = u32s(frame, refusals::LONGEST_WALL)?;
     let wall = u32s(frame, refusals::WALL_STEPS)?;
     let agent = u32s(frame, refusals::AGENT_STEPS)?;
+    let any: Vec<Option<u32>> = match frame.column(refusals::LONGEST_REFUSAL) {
+        Ok(column) => column.u32()?.iter().collect(),
+        Err(_) => vec![None; frame.height()],
+    };
     Ok((0..frame.height())
         .map(|i| EpisodeRefusals {
             group: groups[i].clone(),
@@ -220,6 +239,7 @@ fn rows(frame: &DataFrame) -> PolarsResult<Vec<EpisodeRefusals>> {
             longest_wall: longest[i],
             wall_steps: wall[i],
             agent_steps: agent[i],
+            longest_refusal: any[i],
         })
         .collect())
 }
@@ -243,6 +263,7 @@ fn frame(rows: &[EpisodeRefusals]) -> PolarsResult<DataFrame> {
         refusals::LONGEST_WALL => column(|r| r.longest_wall),
         refusals::WALL_STEPS => column(|r| r.wall_steps),
         refusals::AGENT_STEPS => column(|r| r.agent_steps),
+        refusals::LONGEST_REFUSAL => rows.iter().map(|r| r.longest_refusal).collect::<Vec<_>>(),
     )
 }
 
@@ -262,6 +283,16 @@ mod tests {
         assert_eq!(counter.longest_wall(), 3);
         assert_eq!((counter.wall_steps, counter.agent_steps), (8, 1));
         assert_eq!(Counter::default().longest_wall(), 0);
+        // Refused at all, robot 0's moves were refused 5 steps running: walls and a robot.
+        assert_eq!(counter.longest_refusal(), 5);
+        let mut standoff = Counter::default();
+        for _ in 0..4 {
+            standoff.after_step(&[a, a]);
+        }
+        assert_eq!(
+            (standoff.longest_wall(), standoff.longest_refusal()),
+            (0, 4)
+        );
     }
 
     #[test]
@@ -281,11 +312,17 @@ mod tests {
             longest_wall: 7 * episode,
             wall_steps: 11,
             agent_steps: 3,
+            longest_refusal: (episode > 0).then_some(9 * episode),
         };
         let written = vec![row("a", 0), row("a", 1), row("b", 4)];
         let bytes = store::tables::parquet_bytes(&frame(&written).unwrap()).unwrap();
         let read = rows(&store::tables::read_parquet(bytes).unwrap()).unwrap();
         assert_eq!(read, written);
+        // A table written before the column: every row's measure unknown.
+        let mut older = frame(&written).unwrap();
+        older.drop_in_place(refusals::LONGEST_REFUSAL).unwrap();
+        let read = rows(&older).unwrap();
+        assert!(read.iter().all(|r| r.longest_refusal.is_none()));
     }
 
     #[test]

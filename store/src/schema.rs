@@ -482,10 +482,18 @@ pub mod refusals {
     pub const WALL_STEPS: &str = "wall_refused_steps";
     /// Robot-steps whose move another robot refused.
     pub const AGENT_STEPS: &str = "agent_refused_steps";
+    /// The most consecutive steps in which one robot's chosen move was refused, by a wall or by
+    /// another robot: a robot pressing against a wall, or two pressing against each other.
+    pub const LONGEST_REFUSAL: &str = "longest_refusal";
 
     pub(crate) fn columns() -> Vec<&'static str> {
-        let own = [LONGEST_WALL, WALL_STEPS, AGENT_STEPS];
+        let own = [LONGEST_WALL, WALL_STEPS, AGENT_STEPS, LONGEST_REFUSAL];
         [&super::replayed_episode()[..], &own].concat()
+    }
+
+    /// Measured after the table's first rows were committed.
+    pub(crate) fn added_later() -> Vec<&'static str> {
+        vec![LONGEST_REFUSAL]
     }
 }
 
@@ -494,6 +502,7 @@ pub mod refusals {
 pub fn added_later(name: &str) -> Vec<&'static str> {
     match name {
         behaviour_episodes::TABLE => behaviour_episodes::added_later(),
+        refusals::TABLE => refusals::added_later(),
         _ => Vec::new(),
     }
 }

@@ -101,6 +101,16 @@ impl TrainingRun {
     ) -> Result<Self, TrainingRunError> {
         remove_temporaries(folder);
         let recovered = SAVE.recover(folder)?;
+        Self::resume_recovered(folder, world, overrides, recovered)
+    }
+
+    /// [`TrainingRun::resume`] once its folder's save has been recovered (`recovered`).
+    fn resume_recovered(
+        folder: &Path,
+        world: Arc<World>,
+        overrides: &[String],
+        recovered: Recovered,
+    ) -> Result<Self, TrainingRunError> {
         let mut state = checkpoint_dir::read_state(folder)?;
         state.config = state.config.with_overrides(overrides)?;
         let path = folder.join(LOG_FILE);
@@ -127,11 +137,11 @@ impl TrainingRun {
         seed: u64,
     ) -> Result<Self, TrainingRunError> {
         remove_temporaries(folder);
-        let whole = SAVE.recover(folder).is_ok();
-        let same = whole
+        if let Ok(recovered) = SAVE.recover(folder)
             && checkpoint_dir::read_metadata(folder)
-                .is_ok_and(|saved| saved.config == config && saved.seed == seed);
-        if same && let Ok(run) = Self::resume(folder, world.clone(), &[]) {
+                .is_ok_and(|saved| saved.config == config && saved.seed == seed)
+            && let Ok(run) = Self::resume_recovered(folder, world.clone(), &[], recovered)
+        {
             return Ok(run);
         }
         Self::start(folder, world, config, seed)

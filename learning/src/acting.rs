@@ -23,6 +23,12 @@ pub enum BlockedMoves {
     /// that press against a wall (`reports/failures`). The world's rules do not change; the
     /// policy no longer puts probability where the world would refuse it.
     Masked,
+    /// As `Masked`, and moves onto a cell another robot holds when the step begins taken out
+    /// too: the remedy the masked runs' failures pointed to, two robots in a corner each
+    /// pressing into the other for the rest of the episode (`reports/failures`). The world
+    /// still moves robots one at a time, so a move this masks would sometimes have gone
+    /// through; staying is always allowed.
+    MaskedWithRobots,
 }
 
 /// How an action is read from the policy's distribution.
@@ -69,7 +75,12 @@ pub(crate) fn push_agents(
 /// Appends the moves each agent of `episode` may choose (`nn::CategoricalBatch::set_mask`'s
 /// bits) where `rule` masks blocked moves; appends nothing where every move may be chosen.
 pub(crate) fn push_allowed_moves(rule: BlockedMoves, episode: &Episode, masks: &mut Vec<u8>) {
-    if rule == BlockedMoves::Masked {
-        masks.extend((0..episode.agents()).map(|agent| episode.wall_free_moves(agent)));
+    let agents = 0..episode.agents();
+    match rule {
+        BlockedMoves::Allowed => {}
+        BlockedMoves::Masked => masks.extend(agents.map(|agent| episode.wall_free_moves(agent))),
+        BlockedMoves::MaskedWithRobots => {
+            masks.extend(agents.map(|agent| episode.unoccupied_moves(agent)))
+        }
     }
 }

@@ -172,7 +172,7 @@ impl Policy for LearnedPolicy {
 mod tests {
     use std::path::Path;
 
-    use world::{Map, WorldParams};
+    use world::{Cell, Map, WorldParams};
 
     use super::*;
     use crate::ppo::Profile;
@@ -245,5 +245,36 @@ mod tests {
         let (walls, probability) = refused("allowed");
         assert!(walls > 50 && probability > 10.0, "{walls} {probability}");
         assert_eq!(refused("masked"), (0, 0.0));
+    }
+
+    /// Two robots side by side on a corridor: with robots masked too, an untrained policy
+    /// puts no probability on a move onto the other's cell, and none on a wall's; with walls
+    /// alone masked, some.
+    #[test]
+    fn a_policy_with_robots_masked_never_chooses_a_standing_robots_cell() {
+        let map = Map::parse_text("corridor", "..........\n", Path::new("c.txt")).unwrap();
+        let world = World::new(map, WorldParams::new(3, 1.0, 40.0).unwrap());
+        let onto_robots = |rule: &str| -> f32 {
+            let config = TrainingConfig::profile(Profile::FastV1)
+                .with_overrides(&["network=compact", &format!("blocked_moves={rule}")])
+                .unwrap();
+            let side = Observer::new(&world, config.observation_config()).side();
+            let model_config = config.model_config(side).unwrap();
+            let model = ActorCritic::new(&model_config, &mut Seed::new(1).rng()).unwrap();
+            let mut policy =
+                LearnedPolicy::new(&world, model, &config, ActionChoice::Sampled).unwrap();
+            let mut episode = Episode::new(world.clone(), 2).unwrap();
+            episode.reset_at(&[Cell::new(4, 0), Cell::new(5, 0)]).unwrap();
+            policy.reset(&episode, Seed::new(2));
+            policy.act(&episode, &mut [Action::Stay; 2]);
+            let inspected = policy.inspect_last_step().probabilities;
+            // Robot 0's Right (4) and robot 1's Left (2) lead onto the other; Up and Down
+            // (1, 3) off the map.
+            let (zero, one) = (&inspected[..5], &inspected[5..]);
+            assert_eq!(zero[1] + zero[3] + one[1] + one[3], 0.0, "walls are masked");
+            zero[4] + one[2]
+        };
+        assert!(onto_robots("masked") > 0.1);
+        assert_eq!(onto_robots("masked_with_robots"), 0.0);
     }
 }

@@ -309,9 +309,26 @@ impl Episode {
     /// staying always, a move unless it leads off the map or into an obstacle. Whether another
     /// robot would refuse it depends on the others' moves this step, known to no one yet.
     pub fn wall_free_moves(&self, agent: usize) -> u8 {
+        self.moves_onto(agent, |_| true)
+    }
+
+    /// The wall-free moves of `agent` less those onto a cell another robot holds now: the
+    /// moves that neither a wall nor a robot standing still would refuse. A robot that moves
+    /// away first this step would have let one of them through, so this takes out a little
+    /// more than the world refuses, and never staying.
+    pub fn unoccupied_moves(&self, agent: usize) -> u8 {
+        let map = &self.world.map;
+        self.moves_onto(agent, |to| !self.occupied[map.index(to)])
+    }
+
+    /// Staying, and each move a wall does not refuse whose target cell passes `open`.
+    fn moves_onto(&self, agent: usize, open: impl Fn(Cell) -> bool) -> u8 {
         let (map, at) = (&self.world.map, self.positions[agent]);
+        let allowed = |action: Action| {
+            action == Action::Stay || wall_free_target(map, at, action).is_some_and(&open)
+        };
         (Action::ALL.iter().enumerate())
-            .filter(|(_, action)| wall_free_target(map, at, **action).is_some())
+            .filter(|(_, action)| allowed(**action))
             .fold(0, |bits, (a, _)| bits | 1 << a)
     }
 
@@ -417,6 +434,9 @@ mod tests {
         // At (0, 0): +y and +x open, -x and -y off the map; at (1, 0) +y is the obstacle.
         assert_eq!(e.wall_free_moves(0), 0b10011);
         assert_eq!(e.wall_free_moves(1), 0b10101);
+        // Agent 0's move right is onto agent 1; agent 1's left onto agent 0.
+        assert_eq!(e.unoccupied_moves(0), 0b00011);
+        assert_eq!(e.unoccupied_moves(1), 0b10001);
         e.step(&[Action::Right, Action::Right]);
         assert_eq!(e.refused(), &[Some(Refusal::Agent), None]);
         let refused = [Cell::new(0, 0), Cell::new(2, 0)];

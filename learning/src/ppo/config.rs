@@ -387,8 +387,8 @@ pub struct TrainingParams {
     /// What the codes are divided by (`rmax`, left out of the file, or the released `raw`).
     #[serde(default, skip_serializing_if = "is_default")]
     pub observation_scale: ObservationScale,
-    /// Whether moves a wall would refuse can be chosen (`allowed`, left out of the file, or
-    /// `masked`).
+    /// Whether moves a wall would refuse can be chosen (`allowed`, left out of the file,
+    /// `masked`, or `masked_with_robots`, which also takes out moves onto a robot).
     #[serde(default, skip_serializing_if = "is_default")]
     pub blocked_moves: BlockedMoves,
 }

@@ -452,6 +452,7 @@ mod tests {
             (vec![VALUE_NORMALISATION], &plain),
             (vec!["grad_clip_per_network=true"], &plain),
             (vec!["blocked_moves=masked"], &plain),
+            (vec!["blocked_moves=masked_with_robots"], &plain),
             (
                 vec![VALUE_NORMALISATION, "advantage=monte_carlo"],
                 &plain_monte_carlo,
@@ -483,7 +484,8 @@ mod tests {
             let trace = trainer.trace_update().unwrap();
             (trace.first.terms.approx_kl, trace.first.terms.clip_fraction)
         };
-        for overrides in [&[][..], &["blocked_moves=masked"][..]] {
+        let masks = ["blocked_moves=masked", "blocked_moves=masked_with_robots"];
+        for overrides in [&[][..], &masks[..1], &masks[1..]] {
             let (kl, clipped) = first_kl(overrides);
             assert!(kl < 1e-6 && clipped == 0.0, "{overrides:?}: {kl} {clipped}");
         }

@@ -16,14 +16,15 @@ use polars::prelude::DataFrame;
 use crate::files::real_folder;
 use crate::folder::HeldTables;
 use crate::layout::MANIFEST_FILE;
+use crate::taken::TakenTables;
 use crate::{Store, StoreError, tables};
 use plan::scenario::Output;
 
-/// Whether `file` is one of the tables a sweep builds from its cells (`engine::aggregate`).
-fn built_from_cells(file: &str) -> bool {
-    Output::ALL
-        .iter()
-        .any(|output| file.strip_suffix(".parquet") == Some(output.name()))
+/// Whether `file` is one of the tables a sweep builds from its cells (`engine::aggregate`),
+/// as Parquet or its CSV copy.
+pub(crate) fn built_from_cells(file: &str) -> bool {
+    let name = file.strip_suffix(".parquet").or_else(|| file.strip_suffix(".csv"));
+    Output::ALL.iter().any(|output| name == Some(output.name()))
 }
 
 impl Store {
@@ -91,10 +92,11 @@ impl Store {
     /// Refuses a store whose tables nothing can vouch for: `cells/` that is a file or a
     /// symbolic link, a sweep (a manifest) with neither cells nor a table store's marker,
     /// as a table store is when its marker was removed, or a sweep whose scenario file is not
-    /// the one it ran. A table store's files are checked against its marker.
+    /// the one it ran. A table store's files are checked against its marker, and each
+    /// cell's rows against the hashes its cells table kept (`TakenTables::check_every_cell`).
     pub fn check_readable(&self) -> Result<(), StoreError> {
         if self.is_table_store() {
-            return self.table_store().map(drop);
+            return TakenTables::open(self.clone())?.check_every_cell();
         }
         let has_cells = real_folder(&self.root.join("cells"))?;
         let is_sweep = self.root.join(MANIFEST_FILE).exists();

@@ -9,6 +9,7 @@ use crate::error::StoreError;
 use crate::files::{MAX_FILE_BYTES, json_bytes, read, read_json, with_columns, write};
 use crate::folder::Store;
 use crate::layout::*;
+use crate::reader::built_from_cells;
 use crate::record::CellRecord;
 use crate::tables;
 
@@ -102,7 +103,28 @@ impl Store {
                 .tables
                 .extend(tables::write_table(&self.root, name, frame)?);
         }
+        self.remove_stale_tables(built, &mut listing.tables)?;
         write(&self.root.join(TABLES_FILE), &json_bytes(&listing))
+    }
+
+    /// Removes the tables built from cells that `built` lacks (no finished cell has rows for
+    /// them now, as when the cells were removed) with their hashes: tables left from earlier
+    /// cells would be read as these cells'.
+    fn remove_stale_tables(
+        &self,
+        built: &[(&'static str, DataFrame)],
+        listed: &mut BTreeMap<String, String>,
+    ) -> Result<(), StoreError> {
+        let written: BTreeSet<String> = (built.iter())
+            .flat_map(|(name, _)| [format!("{name}.parquet"), format!("{name}.csv")])
+            .collect();
+        let stale = |file: &&String| built_from_cells(file) && !written.contains(*file);
+        for file in self.files_in("", "")?.iter().filter(|file| stale(file)) {
+            let path = self.root.join(file);
+            std::fs::remove_file(&path).map_err(|e| StoreError::io(&path, e))?;
+            listed.remove(file);
+        }
+        Ok(())
     }
 
     /// Writes a table of the sweep's own (`NAME.parquet` and `.csv`) and lists its hashes.

@@ -146,7 +146,7 @@ impl Store {
 
     /// The files of the store's folder `sub` named `*ending`, by path relative to the store,
     /// in name order (temporary files of `write_atomic`, which start with a dot, left out).
-    fn files_in(&self, sub: &str, ending: &str) -> Result<Vec<String>, StoreError> {
+    pub(crate) fn files_in(&self, sub: &str, ending: &str) -> Result<Vec<String>, StoreError> {
         let folder = self.root.join(sub);
         let entries = std::fs::read_dir(&folder).map_err(|e| StoreError::io(&folder, e))?;
         let mut names = Vec::new();

@@ -96,13 +96,7 @@ impl TakenTables {
     /// map. The cell must be one these tables hold.
     pub fn take(&self, store: &Store, key: &str) -> Result<CellRecord, StoreError> {
         let mut record = record_of_row(&self.cells, &self.cells_path, key)?;
-        let mut files = Vec::new();
-        for (file, table) in &self.per_cell {
-            let rows = table.filter(&table.column(cell::KEY)?.str()?.equal(key))?;
-            if rows.height() > 0 {
-                files.push((*file, parquet_bytes(&rows)?));
-            }
-        }
+        let files = self.cell_files(key, |_| true)?;
         self.check_hashes(key, &files)?;
         let hash = &record.config.map.hash;
         crate::files::write(
@@ -111,6 +105,47 @@ impl TakenTables {
         )?;
         record.taken_from = Some(self.source.root().display().to_string());
         store.save_cell(record, &files)
+    }
+
+    /// Cell `key`'s files among `wanted`, each its rows of a per-cell table written again.
+    fn cell_files(
+        &self,
+        key: &str,
+        wanted: impl Fn(&str) -> bool,
+    ) -> Result<Vec<(&'static str, Vec<u8>)>, StoreError> {
+        let mut files = Vec::new();
+        for (file, table) in self.per_cell.iter().filter(|(file, _)| wanted(file)) {
+            let rows = table.filter(&table.column(cell::KEY)?.str()?.equal(key))?;
+            if rows.height() > 0 {
+                files.push((*file, parquet_bytes(&rows)?));
+            }
+        }
+        Ok(files)
+    }
+
+    /// Every cell's episodes and training rows against the hashes of the files it was
+    /// computed with, and no row of those tables without its cell: what `take` checks of one
+    /// cell, checked of all. A table store's marker lists its files' hashes, which whoever
+    /// edits a table can edit too; a number changed in the episodes table must then also
+    /// be made to match a hash of the cells table that was computed from the cell's own file,
+    /// so every reader checks both (`Store::check_readable`).
+    pub fn check_every_cell(&self) -> Result<(), StoreError> {
+        let hashed = |file: &str| HASHED.iter().any(|(name, _)| *name == file);
+        let mut keys: Vec<&String> = self.rows.keys().collect();
+        keys.sort();
+        for key in keys {
+            self.check_hashes(key, &self.cell_files(key, hashed)?)?;
+        }
+        for (file, table) in self.per_cell.iter().filter(|(file, _)| hashed(file)) {
+            let keys = strings(table, cell::KEY).map_err(|e| StoreError::corrupt(&self.cells_path, e))?;
+            if let Some(stray) = keys.iter().find(|key| !self.holds(key)) {
+                let problem = format!(
+                    "its {file} rows include cell {stray}, which its cells table does not hold"
+                );
+                return Err(StoreError::corrupt(self.source.root(), problem));
+            }
+        }
+        Ok(())
     }
 
     /// The episodes and training files rebuilt from the rows against the hashes of the

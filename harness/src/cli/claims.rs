@@ -23,6 +23,7 @@ pub(crate) fn run(args: ClaimsArgs) -> anyhow::Result<()> {
         "{} holds no sweep (no sweep.json)",
         args.dir.display()
     );
+    store.check_readable()?;
     let claims = match &args.scenario {
         Some(file) => Scenario::load(file)?.claims().to_vec(),
         None => store_claims(&store)?,

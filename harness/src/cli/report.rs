@@ -89,6 +89,11 @@ fn say_how_many_cells(store: &Store) -> anyhow::Result<()> {
         (None, Some(listing)) => listing.cells.len(),
         (None, None) => cells,
     };
+    anyhow::ensure!(
+        held > 0,
+        "{}: none of the sweep's {cells} cells has finished; there is nothing to report",
+        store.root().display()
+    );
     if held < cells {
         eprintln!(
             "{}: its tables hold {held} of the sweep's {cells} cells (the others failed or \

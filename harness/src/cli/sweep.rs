@@ -135,7 +135,10 @@ pub(crate) fn run(args: SweepArgs) -> anyhow::Result<()> {
         engine::sweep::exit_if_asked();
         println!("recordings: {written} written in {}", folder.display());
     }
-    if !args.no_report && args.shard.is_none() {
+    let reported = !args.no_report && args.shard.is_none();
+    if reported && report.tabled == 0 {
+        println!("no report: none of the sweep's {} cells has finished", report.selected);
+    } else if reported {
         let written = write_report(
             &Store::new(&out),
             &args.report_to,

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use std::fs::File;
 use std::path::Path;
 
-use crate::common::{harness, scratch, succeed};
+use crate::common::{copy_folder, harness, scratch, succeed};
 use polars::prelude::*;
 
 /// The tiny corridor, three training runs of MA-G-PPO and three repetitions of each baseline.
@@ -66,23 +66,43 @@ fn disagreeing(episodes: &mut DataFrame) {
         .unwrap();
 }
 
-/// Rewrites a table store's episodes with [`disagreeing`] and its marker's hash of them.
-fn rewrite_episodes(store: &Path) {
-    let path = store.join("episodes.parquet");
-    let mut episodes = ParquetReader::new(File::open(&path).unwrap())
-        .finish()
-        .unwrap();
+/// Rewrites a table store's episodes with [`disagreeing`], each cell's hash of its episodes in
+/// the cells table (unless `cells_too` is false), and the marker's hashes of the tables it
+/// rewrote: with the cells table, every check a reader makes (`Store::check_readable`) passes,
+/// as it must for tables a sweep wrote; without, an edit and its marker's hash, which a
+/// reader must refuse.
+fn rewrite_episodes(store: &Path, cells_too: bool) {
+    let read = |name: &str| {
+        ParquetReader::new(File::open(store.join(name)).unwrap())
+            .finish()
+            .unwrap()
+    };
+    let mut episodes = read("episodes.parquet");
     disagreeing(&mut episodes);
-    ParquetWriter::new(File::create(&path).unwrap())
-        .finish(&mut episodes)
+    let mut cells = read("cells.parquet");
+    let keys = cells.column("cell_key").unwrap().str().unwrap().clone();
+    let hashes: Vec<String> = keys
+        .into_iter()
+        .map(|key| {
+            let mine = episodes.column("cell_key").unwrap().str().unwrap();
+            let rows = episodes.filter(&mine.equal(key.unwrap())).unwrap();
+            let bytes = store::tables::parquet_bytes(&rows).unwrap();
+            blake3::hash(&bytes).to_hex().to_string()
+        })
+        .collect();
+    cells
+        .with_column(Column::new("episodes_hash".into(), hashes))
         .unwrap();
     let marker_path = store.join("table-store.json");
     let mut marker: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&marker_path).unwrap()).unwrap();
-    let hash = blake3::hash(&std::fs::read(&path).unwrap())
-        .to_hex()
-        .to_string();
-    marker["files"]["episodes.parquet"] = serde_json::Value::String(hash);
+    let rewritten = [("episodes.parquet", &episodes), ("cells.parquet", &cells)];
+    for (name, table) in &rewritten[..if cells_too { 2 } else { 1 }] {
+        let bytes = store::tables::parquet_bytes(table).unwrap();
+        std::fs::write(store.join(name), &bytes).unwrap();
+        let hash = blake3::hash(&bytes).to_hex().to_string();
+        marker["files"][name] = serde_json::Value::String(hash);
+    }
     std::fs::write(&marker_path, serde_json::to_vec_pretty(&marker).unwrap()).unwrap();
 }
 
@@ -118,7 +138,19 @@ fn disagreeing_runs_leave_a_learned_claim_inconclusive() {
         reports.to_str().unwrap(),
     ]));
     let table_store = reports.join("disagreeing-runs").join("store");
-    rewrite_episodes(&table_store);
+    let forged = dir.join("forged");
+    copy_folder(&table_store, &forged);
+    rewrite_episodes(&forged, false);
+    for command in ["claims", "report"] {
+        let output = harness(&[command, forged.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{command} took a forged table store");
+        assert!(
+            stderr.contains("episodes.parquet, rebuilt from its rows, is not the file it was computed with"),
+            "{command}: {stderr}"
+        );
+    }
+    rewrite_episodes(&table_store, true);
 
     let printed = succeed(harness(&["claims", table_store.to_str().unwrap()]));
     // Three runs at 1, 2 and 3 against 2.5: another three seeds could land anywhere in

@@ -1315,6 +1315,33 @@ fn a_sweep_goes_on_from_its_committed_tables_to_the_same_results() {
     let report = std::fs::read_to_string(assembled_reports.join("tiny/README.md")).unwrap();
     assert!(report.contains("**4 of 8 cells are missing**"), "{report}");
 
+    // With its cells removed, computing nothing leaves no table of theirs to report, and a
+    // fresh folder has none to begin with: each says so, with no report of stale rows.
+    std::fs::remove_dir_all(assembled.join("cells")).unwrap();
+    let fresh = dir.join("fresh");
+    for out in [&assembled, &fresh] {
+        let printed = succeed(harness(&[
+            "sweep",
+            &crate::common::repo_file(TINY),
+            "--out",
+            out.to_str().unwrap(),
+            "--report-to",
+            assembled_reports.to_str().unwrap(),
+            "--no-compute",
+        ]));
+        assert!(
+            printed.contains("no report: none of the sweep's 8 cells has finished"),
+            "{printed}"
+        );
+        assert!(!out.join("episodes.parquet").exists() && !out.join("episodes.csv").exists());
+        let output = harness(&["report", out.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            !output.status.success() && stderr.contains("none of the sweep's 8 cells has finished"),
+            "{stderr}"
+        );
+    }
+
     let again = dir.join("again");
     let printed = sweep(TINY, &again, &tables_arg);
     assert!(

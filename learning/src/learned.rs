@@ -264,7 +264,9 @@ mod tests {
             let mut policy =
                 LearnedPolicy::new(&world, model, &config, ActionChoice::Sampled).unwrap();
             let mut episode = Episode::new(world.clone(), 2).unwrap();
-            episode.reset_at(&[Cell::new(4, 0), Cell::new(5, 0)]).unwrap();
+            episode
+                .reset_at(&[Cell::new(4, 0), Cell::new(5, 0)])
+                .unwrap();
             policy.reset(&episode, Seed::new(2));
             policy.act(&episode, &mut [Action::Stay; 2]);
             let inspected = policy.inspect_last_step().probabilities;

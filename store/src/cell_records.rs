@@ -10,7 +10,7 @@ use crate::folder::Store;
 use crate::layout::*;
 use crate::record::{CellFailure, CellRecord};
 use crate::tables;
-use learning::checkpoint::WEIGHTS_FILE;
+use learning::checkpoint::{METADATA_FILE, WEIGHTS_FILE};
 
 impl Store {
     /// The record of a finished cell, its files verified; `None` when the cell is absent,
@@ -31,10 +31,40 @@ impl Store {
             return Ok(None);
         }
         let record = self.record(key)?;
+        self.check_file_list(&record)?;
         for name in record.files.keys() {
             self.verify_file(&record, name)?;
         }
         Ok(Some(record))
+    }
+
+    /// Refuses a record whose file list lacks a file every cell of its kind writes (test
+    /// episodes; a training run's log; a run trained here, its weights and metadata) or names
+    /// other files than its sizes: a list edited to leave a file out would otherwise leave
+    /// that file unchecked, and the cell finished without it.
+    fn check_file_list(&self, record: &CellRecord) -> Result<(), StoreError> {
+        let mut required = vec![EPISODES_FILE];
+        if record.config.training().is_some() {
+            required.push(TRAINING_FILE);
+            if record.taken_from.is_none() {
+                required.extend([WEIGHTS_FILE, METADATA_FILE]);
+            }
+        }
+        let path = || self.cell_folder(&record.key).join(RECORD_FILE);
+        if let Some(file) = required
+            .iter()
+            .find(|file| !record.files.contains_key(**file))
+        {
+            let problem = format!(
+                "its file list has no {file}, which every such cell writes: the record was edited"
+            );
+            return Err(StoreError::corrupt(&path(), problem));
+        }
+        if !record.sizes.is_empty() && record.sizes.keys().ne(record.files.keys()) {
+            let problem = "its file list and its sizes name different files: the record was edited";
+            return Err(StoreError::corrupt(&path(), problem));
+        }
+        Ok(())
     }
 
     /// Checks a cell's file against its record, hashing it unless this process found it

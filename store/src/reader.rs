@@ -23,7 +23,9 @@ use plan::scenario::Output;
 /// Whether `file` is one of the tables a sweep builds from its cells (`engine::aggregate`),
 /// as Parquet or its CSV copy.
 pub(crate) fn built_from_cells(file: &str) -> bool {
-    let name = file.strip_suffix(".parquet").or_else(|| file.strip_suffix(".csv"));
+    let name = file
+        .strip_suffix(".parquet")
+        .or_else(|| file.strip_suffix(".csv"));
     Output::ALL.iter().any(|output| name == Some(output.name()))
 }
 

@@ -137,7 +137,8 @@ impl TakenTables {
             self.check_hashes(key, &self.cell_files(key, hashed)?)?;
         }
         for (file, table) in self.per_cell.iter().filter(|(file, _)| hashed(file)) {
-            let keys = strings(table, cell::KEY).map_err(|e| StoreError::corrupt(&self.cells_path, e))?;
+            let keys =
+                strings(table, cell::KEY).map_err(|e| StoreError::corrupt(&self.cells_path, e))?;
             if let Some(stray) = keys.iter().find(|key| !self.holds(key)) {
                 let problem = format!(
                     "its {file} rows include cell {stray}, which its cells table does not hold"

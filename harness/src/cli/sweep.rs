@@ -137,7 +137,10 @@ pub(crate) fn run(args: SweepArgs) -> anyhow::Result<()> {
     }
     let reported = !args.no_report && args.shard.is_none();
     if reported && report.tabled == 0 {
-        println!("no report: none of the sweep's {} cells has finished", report.selected);
+        println!(
+            "no report: none of the sweep's {} cells has finished",
+            report.selected
+        );
     } else if reported {
         let written = write_report(
             &Store::new(&out),

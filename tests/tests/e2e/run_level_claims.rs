@@ -144,9 +144,14 @@ fn disagreeing_runs_leave_a_learned_claim_inconclusive() {
     for command in ["claims", "report"] {
         let output = harness(&[command, forged.to_str().unwrap()]);
         let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(!output.status.success(), "{command} took a forged table store");
         assert!(
-            stderr.contains("episodes.parquet, rebuilt from its rows, is not the file it was computed with"),
+            !output.status.success(),
+            "{command} took a forged table store"
+        );
+        assert!(
+            stderr.contains(
+                "episodes.parquet, rebuilt from its rows, is not the file it was computed with"
+            ),
             "{command}: {stderr}"
         );
     }

@@ -60,8 +60,8 @@ fn assert_records_name_the_build(store: &Path) {
 /// A change made by hand to a cell's record (its JSON).
 type RecordEdit = fn(&mut serde_json::Value);
 
-/// A finished cell whose record was edited (its configuration, or the code version that
-/// computed it) no longer says what its files are: `status` names it damaged, `audit`
+/// A finished cell whose record was edited (its configuration, the code version that
+/// computed it, or its file list) no longer says what its files are: `status` names it damaged, `audit`
 /// refuses it, and the next sweep computes it again, to the reference tables.
 #[test]
 fn a_cell_whose_record_was_edited_is_damaged_and_computed_again() {
@@ -72,11 +72,22 @@ fn a_cell_whose_record_was_edited_is_damaged_and_computed_again() {
         .map(|e| e.path())
         .collect();
     cells.sort();
-    let edits: [(&str, RecordEdit); 2] = [
+    let edits: [(&str, RecordEdit); 4] = [
         ("code_version", |r| {
             r["code_version"] = "0.1.0+0000000000000000".into()
         }),
         ("config", |r| r["config"]["test_episodes"] = 1.into()),
+        ("files and sizes", |r| {
+            for list in ["files", "sizes"] {
+                r[list].as_object_mut().unwrap().remove("episodes.parquet");
+            }
+        }),
+        ("files", |r| {
+            r["files"]
+                .as_object_mut()
+                .unwrap()
+                .remove("episodes.parquet");
+        }),
     ];
     for ((what, edit), cell) in edits.iter().zip(&cells) {
         let path = cell.join("cell.json");
@@ -98,7 +109,7 @@ fn a_cell_whose_record_was_edited_is_damaged_and_computed_again() {
     let audit = harness(&["audit", store.to_str().unwrap(), "--sample", "4"]);
     assert!(!audit.status.success(), "the audit passed an edited record");
     let again = sweep(TINY, &store, &["--jobs", "1"]);
-    assert!(again.contains("2 computed"), "{again}");
+    assert!(again.contains("4 computed"), "{again}");
     assert_same_tables(&store, &reference_run(TINY));
 }
 

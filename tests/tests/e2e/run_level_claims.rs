@@ -82,7 +82,7 @@ fn rewrite_episodes(store: &Path, cells_too: bool) {
     let mut cells = read("cells.parquet");
     let keys = cells.column("cell_key").unwrap().str().unwrap().clone();
     let hashes: Vec<String> = keys
-        .into_iter()
+        .iter()
         .map(|key| {
             let mine = episodes.column("cell_key").unwrap().str().unwrap();
             let rows = episodes.filter(&mine.equal(key.unwrap())).unwrap();

@@ -171,11 +171,36 @@ impl Policy for LearnedPolicy {
 #[cfg(test)]
 mod tests {
     use std::path::Path;
+    use std::sync::Arc;
 
     use world::{Cell, Map, WorldParams};
 
     use super::*;
     use crate::ppo::Profile;
+
+    /// An untrained policy of `profile` with a compact network and `overrides`, its weights
+    /// from seed 1.
+    fn untrained(
+        world: &World,
+        profile: Profile,
+        overrides: &[&str],
+        choice: ActionChoice,
+    ) -> LearnedPolicy {
+        let overrides = [&["network=compact"], overrides].concat();
+        let config = TrainingConfig::profile(profile)
+            .with_overrides(&overrides)
+            .unwrap();
+        let side = Observer::new(world, config.observation_config()).side();
+        let model_config = config.model_config(side).unwrap();
+        let model = ActorCritic::new(&model_config, &mut Seed::new(1).rng()).unwrap();
+        LearnedPolicy::new(world, model, &config, choice).unwrap()
+    }
+
+    /// A one-row corridor of ten cells, walls all round.
+    fn corridor() -> Arc<World> {
+        let map = Map::parse_text("corridor", "..........\n", Path::new("c.txt")).unwrap();
+        World::new(map, WorldParams::new(3, 1.0, 40.0).unwrap())
+    }
 
     /// Who hears agent 2: the two others, until it is lost; then nobody, while the others
     /// still hear each other; with every link down, nobody hears anybody.
@@ -184,13 +209,7 @@ mod tests {
         let rows = vec![".".repeat(30); 30].join("\n");
         let map = Map::parse_text("open", &rows, Path::new("open.txt")).unwrap();
         let world = World::new(map, WorldParams::paper());
-        let config = TrainingConfig::profile(Profile::PaperV1)
-            .with_overrides(&["network=compact"])
-            .unwrap();
-        let side = Observer::new(&world, config.observation_config()).side();
-        let model_config = config.model_config(side).unwrap();
-        let model = ActorCritic::new(&model_config, &mut Seed::new(1).rng()).unwrap();
-        let mut policy = LearnedPolicy::new(&world, model, &config, ActionChoice::Greedy).unwrap();
+        let mut policy = untrained(&world, Profile::PaperV1, &[], ActionChoice::Greedy);
         let mut episode = Episode::new(world, 3).unwrap();
         episode.reset(Seed::new(2));
         policy.reset(&episode, Seed::new(3));
@@ -214,17 +233,10 @@ mod tests {
     /// them are exactly 0.
     #[test]
     fn a_policy_with_blocked_moves_masked_never_presses_against_a_wall() {
-        let map = Map::parse_text("corridor", "..........\n", Path::new("c.txt")).unwrap();
-        let world = World::new(map, WorldParams::new(3, 1.0, 40.0).unwrap());
+        let world = corridor();
         let refused = |rule: &str| -> (usize, f32) {
-            let config = TrainingConfig::profile(Profile::FastV1)
-                .with_overrides(&["network=compact", &format!("blocked_moves={rule}")])
-                .unwrap();
-            let side = Observer::new(&world, config.observation_config()).side();
-            let model_config = config.model_config(side).unwrap();
-            let model = ActorCritic::new(&model_config, &mut Seed::new(1).rng()).unwrap();
-            let mut policy =
-                LearnedPolicy::new(&world, model, &config, ActionChoice::Sampled).unwrap();
+            let rule = format!("blocked_moves={rule}");
+            let mut policy = untrained(&world, Profile::FastV1, &[&rule], ActionChoice::Sampled);
             let mut episode = Episode::new(world.clone(), 2).unwrap();
             episode.reset(Seed::new(2));
             policy.reset(&episode, Seed::new(3));
@@ -252,17 +264,10 @@ mod tests {
     /// alone masked, some.
     #[test]
     fn a_policy_with_robots_masked_never_chooses_a_standing_robots_cell() {
-        let map = Map::parse_text("corridor", "..........\n", Path::new("c.txt")).unwrap();
-        let world = World::new(map, WorldParams::new(3, 1.0, 40.0).unwrap());
+        let world = corridor();
         let onto_robots = |rule: &str| -> f32 {
-            let config = TrainingConfig::profile(Profile::FastV1)
-                .with_overrides(&["network=compact", &format!("blocked_moves={rule}")])
-                .unwrap();
-            let side = Observer::new(&world, config.observation_config()).side();
-            let model_config = config.model_config(side).unwrap();
-            let model = ActorCritic::new(&model_config, &mut Seed::new(1).rng()).unwrap();
-            let mut policy =
-                LearnedPolicy::new(&world, model, &config, ActionChoice::Sampled).unwrap();
+            let rule = format!("blocked_moves={rule}");
+            let mut policy = untrained(&world, Profile::FastV1, &[&rule], ActionChoice::Sampled);
             let mut episode = Episode::new(world.clone(), 2).unwrap();
             episode
                 .reset_at(&[Cell::new(4, 0), Cell::new(5, 0)])

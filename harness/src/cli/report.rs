@@ -50,10 +50,7 @@ pub(crate) fn tables_of_unfinished_sweep(store: &Store) -> anyhow::Result<()> {
     let Some((finished, cells)) = engine::aggregate::build_missing_tables(store)? else {
         return say_how_many_cells(store);
     };
-    anyhow::ensure!(
-        finished > 0,
-        "{root}: none of the sweep's {cells} cells has finished yet"
-    );
+    ensure_some_finished(store, finished, cells)?;
     let held = match store.is_reader() {
         true => {
             " (held in memory: a reader leaves the store as it is, and `harness sweep` writes them)"
@@ -89,11 +86,7 @@ fn say_how_many_cells(store: &Store) -> anyhow::Result<()> {
         (None, Some(listing)) => listing.cells.len(),
         (None, None) => cells,
     };
-    anyhow::ensure!(
-        held > 0,
-        "{}: none of the sweep's {cells} cells has finished; there is nothing to report",
-        store.root().display()
-    );
+    ensure_some_finished(store, held, cells)?;
     if held < cells {
         eprintln!(
             "{}: its tables hold {held} of the sweep's {cells} cells (the others failed or \
@@ -101,6 +94,17 @@ fn say_how_many_cells(store: &Store) -> anyhow::Result<()> {
             store.root().display()
         );
     }
+    Ok(())
+}
+
+/// Refuses a sweep whose tables hold none of its `cells` (`finished` is 0): there is no
+/// number to report or judge, whether the tables were built here or found.
+fn ensure_some_finished(store: &Store, finished: usize, cells: usize) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        finished > 0,
+        "{}: none of the sweep's {cells} cells has finished yet; there is nothing to report",
+        store.root().display()
+    );
     Ok(())
 }
 

@@ -5,7 +5,7 @@
 //! their intervals. The penalty stays the headline: it is the paper's metric.
 //!
 //! The strata are the cells. A learned policy's cells are its training runs, the unit of
-//! replication: its intervals draw runs, then episodes within them, and its mean and IQM are
+//! replication: its intervals draw runs, each scored by its episodes' mean, and its mean and IQM are
 //! those of its runs' means (`stats::resampling`). A baseline's cells are repetitions of test
 //! episodes: its intervals draw episodes within each cell. Each group's resampling has its own
 //! seed, derived from the group's name, so the table does not depend on row order or thread

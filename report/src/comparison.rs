@@ -275,8 +275,8 @@ pub(crate) fn section(
          the probability that a draw of a has a lower penalty than one of b (ties count half) \
          with its 95 % interval. A draw is a training run (its mean over the test episodes) \
          for a learned policy, a test episode for a baseline; `runs_a` and `runs_b` count the \
-         cells (training runs of a learned policy). Intervals draw runs, then episodes within \
-         them (see How we decide); an interval of the difference that excludes 0 marks a \
+         cells (training runs of a learned policy). Intervals draw runs, each scored by its \
+         episodes' mean (see How we decide); an interval of the difference that excludes 0 marks a \
          difference the training runs support.",
     );
     report.table("comparisons", &frame(comparisons)?)

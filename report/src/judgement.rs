@@ -4,6 +4,7 @@
 //! behaviour, disturbances, time to quality), so that none of them depends on another.
 
 use plan::scenario::claims::Point;
+use stats::power::Tails;
 use stats::{Bootstrap, StatsError, holm};
 
 use super::columns::GroupKey;
@@ -69,16 +70,32 @@ impl PointTest {
         })
     }
 
-    /// "The statistic lies within [-tolerance, tolerance]".
-    pub(crate) fn within(boot: &Bootstrap, tolerance: f64) -> Result<Self, StatsError> {
-        let (low, high) = boot.interval(CONFIDENCE)?;
+    /// Equivalence, "the statistic lies within [-margin, margin]", by two one-sided tests at
+    /// 5 % (Schuirmann 1987): supported when the 90 % interval lies inside the margin;
+    /// contradicted as one-sided tests say the statistic lies beyond it.
+    pub(crate) fn equivalent(boot: &Bootstrap, margin: f64) -> Result<Self, StatsError> {
+        let (low, high) = boot.interval(Tails::One.confidence())?;
         Ok(Self {
-            supported: -tolerance <= low && high <= tolerance,
-            p_contradicted: boot
-                .p_value(tolerance, true)
-                .min(boot.p_value(-tolerance, false)),
+            supported: -margin < low && high < margin,
+            p_contradicted: one_sided(boot, margin, true).min(one_sided(boot, -margin, false)),
         })
     }
+
+    /// Non-inferiority, "the statistic is below `margin`", by a one-sided test at 5 %:
+    /// supported when the 90 % interval's upper end is below the margin.
+    pub(crate) fn non_inferior(boot: &Bootstrap, margin: f64) -> Result<Self, StatsError> {
+        let (_, high) = boot.interval(Tails::One.confidence())?;
+        Ok(Self {
+            supported: high < margin,
+            p_contradicted: one_sided(boot, margin, true),
+        })
+    }
+}
+
+/// The one-sided p-value of "the statistic lies above `boundary`" (`above`) or below it: half
+/// the two-sided level at which the interval excludes the boundary on that side.
+fn one_sided(boot: &Bootstrap, boundary: f64, above: bool) -> f64 {
+    boot.p_value(boundary, above) / 2.0
 }
 
 /// Whether results of `group` are those of `policy` at `point`: a learned policy's at the

@@ -2,8 +2,8 @@
 //! training tables and the measured behaviour of its test episodes, and the report section
 //! that opens with them.
 //!
-//! Every interval draws a learned policy's training runs (then the test episodes within them)
-//! and a baseline's test episodes (`stats::resampling`); samples of the same runs
+//! Every interval draws a learned policy's training runs (each scored by its test episodes'
+//! mean) and a baseline's test episodes (`stats::resampling`); samples of the same runs
 //! under two conditions are drawn as pairs (`comparison::blocks`).
 
 use std::collections::BTreeMap;
@@ -24,8 +24,13 @@ use super::test_curve::{samples_at, trained_curves};
 use super::time_to_quality;
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use plan::scenario::claims::{Behaviour, Claim, ClaimTest, Pair, Point, RANDOM, Scale, Tolerance};
-use stats::power::{EpisodeNoise, runs_to_decide, runs_with_episodes};
-use stats::{Bootstrap, StatsError, least_squares_slope, mean, mean_difference};
+use stats::power::{
+    EpisodeNoise, Tails, runs_to_decide, runs_to_establish_if_equal, runs_with_episodes,
+};
+use stats::{
+    Bootstrap, StatsError, iqm, least_squares_slope, mean, mean_difference,
+    probability_of_improvement,
+};
 
 /// One claim's verdict and the numbers behind it.
 #[derive(Clone, Debug)]
@@ -50,7 +55,8 @@ pub struct ClaimResult {
 pub struct PointPower {
     /// The point as the verdict's text names it.
     pub point: String,
-    /// The compared statistic (a - b, or (a - b) / scale) and its 95 % interval.
+    /// The compared statistic (a - b, or (a - b) / scale) and its interval (95 %, or 90 %
+    /// for equivalence and non-inferiority).
     pub estimate: f64,
     pub interval: (f64, f64),
     /// The training runs compared: each learned side's, once where both sides are the same
@@ -60,7 +66,15 @@ pub struct PointPower {
     pub sides: RunSides,
     /// The runs per side the interval rests on: the harmonic mean where the sides differ.
     pub runs: f64,
+    /// The statistic's standard error from the runs' own spread, without the interval's
+    /// small-sample expansion (`Bootstrap::standard_error`): what the runs needed scale.
+    pub standard_error: f64,
     pub decision: Decision,
+    /// What deciding would do to the claim: "decided", "established", "refuted".
+    outcome: &'static str,
+    /// `within` and `not_worse`: the runs a side that would establish the claim were the
+    /// two the same (a true difference of 0), beside those at the observed difference.
+    if_equal: Option<u64>,
     /// Each side's spread split into its test episodes' part and the rest, for independent
     /// sides of two runs or more (empty otherwise): what more test episodes would save.
     noise: Vec<EpisodeNoise>,
@@ -100,21 +114,72 @@ impl RunSides {
 pub enum Decision {
     /// The interval excludes the claim's threshold (0, or the tolerance).
     Decided,
-    /// About this many runs per side would find the observed difference with 80 % power
-    /// (`stats::power::runs_to_decide`).
+    /// About this many runs per side would decide the observed difference with 80 % power
+    /// (`stats::power::runs_to_decide`, from the comparison's standard error).
     Runs(u64),
     /// The estimate lies on the threshold: no number of runs decides it.
     Never,
 }
 
+/// What a point's interval is held against.
+#[derive(Clone, Copy)]
+enum Rule {
+    /// `lower`: a - b below 0, two-sided at 5 %.
+    Lower,
+    /// `within` (equivalence within ±margin) or `not_worse` (non-inferiority, below the
+    /// margin), by one-sided tests at 5 %.
+    Tolerated(Tolerated, f64),
+}
+
+impl Rule {
+    fn tails(self) -> Tails {
+        match self {
+            Rule::Lower => Tails::Two,
+            Rule::Tolerated(..) => Tails::One,
+        }
+    }
+
+    /// The bounds an interval must not hold to decide the point.
+    fn thresholds(self) -> Vec<f64> {
+        match self {
+            Rule::Lower => vec![0.0],
+            Rule::Tolerated(Tolerated::Within, margin) => vec![-margin, margin],
+            Rule::Tolerated(Tolerated::NotWorse, margin) => vec![margin],
+        }
+    }
+
+    /// What an estimate on this side of its nearest threshold would do once decided.
+    fn outcome(self, estimate: f64) -> &'static str {
+        match self {
+            Rule::Lower => "decided",
+            Rule::Tolerated(Tolerated::Within, margin) if estimate.abs() < margin => "established",
+            Rule::Tolerated(Tolerated::NotWorse, margin) if estimate < margin => "established",
+            Rule::Tolerated(..) => "refuted",
+        }
+    }
+
+    /// The runs that would establish a tolerated claim were the two the same.
+    fn if_equal(self, standard_error: f64, runs: f64) -> Option<u64> {
+        match self {
+            Rule::Lower => None,
+            Rule::Tolerated(Tolerated::Within, margin) => {
+                runs_to_establish_if_equal(margin, standard_error, runs)
+            }
+            Rule::Tolerated(Tolerated::NotWorse, margin) => {
+                runs_to_decide(margin, standard_error, runs, Tails::One)
+            }
+        }
+    }
+}
+
 impl PointPower {
-    /// The comparison of `a` and `b` with this estimate and interval, judged against
-    /// `thresholds`; `None` where neither side is training runs or there is no interval.
+    /// The comparison of `a` and `b` by `boot`, its interval `interval` held against
+    /// `rule`; `None` where neither side is training runs or there is no interval.
     fn of(
         (a, b): (&Sample, &Sample),
-        estimate: f64,
+        boot: &Bootstrap,
         interval: (f64, f64),
-        thresholds: &[f64],
+        rule: Rule,
     ) -> Option<Self> {
         let (low, high) = interval;
         let (of_a, of_b) = (LearnedRuns::of(a), LearnedRuns::of(b));
@@ -132,12 +197,14 @@ impl PointPower {
             false => of_a.into_iter().chain(of_b).collect(),
         };
         let runs = learned.len() as f64 / learned.iter().map(|l| 1.0 / l.runs as f64).sum::<f64>();
+        let thresholds = rule.thresholds();
         let held = thresholds.iter().any(|t| (low..=high).contains(t));
         let gap = thresholds
             .iter()
-            .map(|t| (estimate - t).abs())
+            .map(|t| (boot.estimate - t).abs())
             .fold(f64::INFINITY, f64::min);
-        let decision = match (held, runs_to_decide(gap, (high - low) / 2.0, runs)) {
+        let error = boot.standard_error();
+        let decision = match (held, runs_to_decide(gap, error, runs, rule.tails())) {
             (false, _) => Decision::Decided,
             (true, Some(runs)) => Decision::Runs(runs),
             (true, None) => Decision::Never,
@@ -148,12 +215,17 @@ impl PointPower {
         };
         Some(Self {
             point: String::new(),
-            estimate,
+            estimate: boot.estimate,
             interval,
             learned,
             sides,
             runs,
+            standard_error: error,
             decision,
+            outcome: rule.outcome(boot.estimate),
+            if_equal: (decision != Decision::Decided)
+                .then(|| rule.if_equal(error, runs))
+                .flatten(),
             noise: noise.unwrap_or_default(),
         })
     }
@@ -185,10 +257,15 @@ impl PointPower {
 
     /// What the verdict's text adds beside *detectable*: nothing for a decided point.
     fn clause(&self) -> String {
-        match self.decision {
-            Decision::Decided => String::new(),
-            Decision::Runs(runs) => format!(", decided by about {runs} runs {}", self.sides.per()),
+        let per = self.sides.per();
+        let observed = match self.decision {
+            Decision::Decided => return String::new(),
+            Decision::Runs(runs) => format!(", {} by about {runs} runs {per}", self.outcome),
             Decision::Never => ", on the threshold: no number of runs decides it".to_owned(),
+        };
+        match self.if_equal {
+            Some(runs) => format!("{observed}; established by about {runs} were the two the same"),
+            None => observed,
         }
     }
 }
@@ -578,34 +655,56 @@ fn draws(sample: &Sample) -> String {
     }
 }
 
-/// "a lower than b": the interval of the difference of means decides; the probability of
-/// improvement over draws (runs of a learned policy) and its interval are shown beside it.
+/// "a lower than b": the interval of the difference of means decides; rliable's measures are
+/// shown beside it (`beside_the_mean`).
 fn compare_lower(a: &Sample, b: &Sample, seed: world::Seed) -> Result<PointJudged, StatsError> {
     let (difference, improvement) = difference_and_improvement(a, b, seed)?;
     let (low, high) = difference.interval(CONFIDENCE)?;
-    let (p_low, p_high) = improvement.interval(CONFIDENCE)?;
-    let power = PointPower::of((a, b), difference.estimate, (low, high), &[0.0]);
+    let power = PointPower::of((a, b), &difference, (low, high), Rule::Lower);
     let text = format!(
-        "{} ({}) vs {} ({}), a - b {} {} (detectable {}{}), P(a < b) {:.2} {}",
+        "{} ({}) vs {} ({}), a - b {} {} (detectable {}{}), {}",
         number(mean(&a.units()?)?),
         draws(a),
         number(mean(&b.units()?)?),
         draws(b),
         number(difference.estimate),
         interval(low, high, number),
-        number(detectable(low, high)),
+        number(detectable(low, high, Tails::Two)),
         power.as_ref().map_or_else(String::new, PointPower::clause),
-        improvement.estimate,
-        interval(p_low, p_high, |p| format!("{p:.2}"))
+        beside_the_mean(a, b, &improvement, seed)?,
     );
     Ok((PointTest::below(&difference, 0.0)?, text, power))
 }
 
-/// The smallest true difference a comparison with this interval would find with 80 % power
-/// (`stats::power::detectable` of its half-width). More runs narrow it, about as one over
-/// the square root of their number.
-fn detectable(low: f64, high: f64) -> f64 {
-    stats::power::detectable((high - low) / 2.0)
+/// rliable's measures beside a difference of means (Agarwal et al. 2021), each with its 95 %
+/// interval over the same draws (runs of a learned side): the probability of improvement
+/// P(a < b) (`improvement`, the point's seed's second stream), and the difference of
+/// interquartile means, which a failed run or two moves far less than the mean (its third).
+fn beside_the_mean(
+    a: &Sample,
+    b: &Sample,
+    improvement: &Bootstrap,
+    seed: world::Seed,
+) -> Result<String, StatsError> {
+    let iqm_difference =
+        |u: &[Vec<f64>]| -> Result<f64, StatsError> { Ok(iqm(&u[0])? - iqm(&u[1])?) };
+    let iqm = bootstrap_of(&[a, b], &iqm_difference, seed.child(2))?;
+    let (i_low, i_high) = iqm.interval(CONFIDENCE)?;
+    let (p_low, p_high) = improvement.interval(CONFIDENCE)?;
+    Ok(format!(
+        "IQM a - b {} {}, P(a < b) {:.2} {}",
+        number(iqm.estimate),
+        interval(i_low, i_high, number),
+        improvement.estimate,
+        interval(p_low, p_high, |p| format!("{p:.2}"))
+    ))
+}
+
+/// The smallest true difference a comparison with this interval, read as `tails` says, would
+/// find with 80 % power (`stats::power::detectable` of its half-width). More runs narrow it,
+/// about as one over the square root of their number.
+fn detectable(low: f64, high: f64, tails: Tails) -> f64 {
+    stats::power::detectable((high - low) / 2.0, tails)
 }
 
 /// `every_run_lower`: each training run of `a` (its mean) against `b`'s mean and its 95 %
@@ -641,25 +740,17 @@ fn every_run_lower(
 /// How a tolerated difference is judged.
 #[derive(Clone, Copy)]
 enum Tolerated {
-    /// `within`: inside [-tolerance, tolerance].
+    /// `within`: equivalence, inside [-tolerance, tolerance].
     Within,
-    /// `not_worse`: below the tolerance.
+    /// `not_worse`: non-inferiority, below the tolerance.
     NotWorse,
 }
 
 impl Tolerated {
     fn test(self, boot: &Bootstrap, tolerance: f64) -> Result<PointTest, StatsError> {
         match self {
-            Tolerated::Within => PointTest::within(boot, tolerance),
-            Tolerated::NotWorse => PointTest::below(boot, tolerance),
-        }
-    }
-
-    /// The bounds an interval must not hold to decide the point.
-    fn thresholds(self, tolerance: f64) -> Vec<f64> {
-        match self {
-            Tolerated::Within => vec![-tolerance, tolerance],
-            Tolerated::NotWorse => vec![tolerance],
+            Tolerated::Within => PointTest::equivalent(boot, tolerance),
+            Tolerated::NotWorse => PointTest::non_inferior(boot, tolerance),
         }
     }
 }
@@ -691,12 +782,14 @@ fn tolerated(
             Ok(mean_difference(&u[0], &u[1])? / scale)
         };
         let boot = bootstrap_of(&samples, &statistic, seed)?;
-        let (low, high) = boot.interval(CONFIDENCE)?;
-        let thresholds = judge.thresholds(tolerance.value);
-        let power = PointPower::of((a, b), boot.estimate, (low, high), &thresholds);
+        let (low, high) = boot.interval(Tails::One.confidence())?;
+        let rule = Rule::Tolerated(judge, tolerance.value);
+        let power = PointPower::of((a, b), &boot, (low, high), rule);
+        let improves = |u: &[Vec<f64>]| probability_of_improvement(&u[0], &u[1]);
+        let improvement = bootstrap_of(&[a, b], &improves, seed.child(1))?;
         let text = format!(
-            "{} ({}) vs {} ({}), (a - b) / {} {:+.3} {} (detectable {:.3}, \
-             tolerance {}{})",
+            "{} ({}) vs {} ({}), (a - b) / {} {:+.3} {} at 90 % (detectable {:.3}, \
+             tolerance {}{}), {}",
             number(mean(&a.units()?)?),
             draws(a),
             number(mean(&b.units()?)?),
@@ -704,9 +797,10 @@ fn tolerated(
             scale_name(tolerance.scale),
             boot.estimate,
             interval(low, high, |v| format!("{v:+.3}")),
-            detectable(low, high),
+            detectable(low, high, Tails::One),
             tolerance.value,
-            power.as_ref().map_or_else(String::new, PointPower::clause)
+            power.as_ref().map_or_else(String::new, PointPower::clause),
+            beside_the_mean(a, b, &improvement, seed)?,
         );
         Ok((judge.test(&boot, tolerance.value)?, text, power))
     })
@@ -943,9 +1037,10 @@ pub fn results_frame(results: &[&ClaimResult]) -> PolarsResult<DataFrame> {
 
 /// What a claim's verdict means, for the report and `harness claims`.
 const RULE: &str = "Each of the scenario's claims with our numbers and a verdict. Intervals \
-     are 95 % bootstrap intervals whose unit is a learned policy's training run (runs drawn \
-     with replacement, then test episodes within each drawn run) and a baseline's test \
-     episode, with a small-sample correction (see the project's docs/claims.md, How we decide); the \
+     are bootstrap intervals (95 %; 90 % for `within` and `not_worse`, two one-sided tests) \
+     whose unit is a learned policy's training run (runs drawn with replacement, each \
+     scored by the mean of its test episodes) and a baseline's test episode, with a \
+     small-sample correction (see the project's docs/claims.md, How we decide); the \
      same runs under two conditions are drawn as pairs. A point is supported when its \
      interval excludes the claim's opposite; a claim is supported when every point is, \
      contradicted when Holm's correction over its points (family-wise 5 %) finds a point \
@@ -958,12 +1053,14 @@ const RULE: &str = "Each of the scenario's claims with our numbers and a verdict
      in five at the spread its runs showed (from the interval's width): a smaller one can go \
      unseen, so an inconclusive verdict rules out only differences above it. Where a point's \
      interval holds the claim's threshold (0, or the tolerance), *decided by about N runs a \
-     side* is the number of training runs (seeds) per side that would find the observed \
-     difference four times in five at the same spread (of the learned side, against a \
-     baseline, whose episodes are not seeds): the runs the interval rests on times the square \
-     of (the interval's half-width over z(0.975), times z(0.975) + z(0.8), over the \
-     estimate's distance from the threshold), the two-sample formula \
-     2 (z(0.975) + z(0.8))^2 sigma^2 / delta^2 with sigma read from the interval. The spread \
+     side* (*established* or *refuted* for `within` and `not_worse`, by whether the estimate \
+     lies inside the tolerance) is the number of training runs (seeds) per side that would \
+     find the observed distance from the threshold four times in five (of the learned side, \
+     against a baseline, whose episodes are not seeds): n (se (z + z(0.8)) / d)^2, with n \
+     the runs the interval rests on, se the difference's standard error from its runs' own \
+     spread, d the estimate's distance from the threshold, z = z(0.975), or z(0.95) for the \
+     one-sided tests; for those, *established by about M were the two the same* is the same \
+     formula at a true difference of 0 (z(0.95) + z(0.9) for equivalence). The spread \
      of five runs is itself uncertain, and so is the observed difference, so the figure is a \
      rough guide, off by a factor of about two either way. Penalties in 10^6.";
 
@@ -1006,7 +1103,7 @@ mod tests {
         let mut uniform = || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
         let error = (2.0_f64 / 5.0).sqrt(); // 5 runs a side, unit spread
         let half_width = 1.959_963_984_540_054 * error;
-        let size = detectable(-half_width, half_width);
+        let size = detectable(-half_width, half_width, Tails::Two);
         let experiments = 20_000;
         let found = (0..experiments)
             .filter(|_| {
@@ -1017,7 +1114,7 @@ mod tests {
             .count();
         let power = found as f64 / experiments as f64;
         assert!((power - 0.80).abs() < 0.01, "{power}");
-        assert!(detectable(0.0, f64::INFINITY).is_infinite());
+        assert!(detectable(0.0, f64::INFINITY, Tails::Two).is_infinite());
     }
 
     #[test]
@@ -1140,13 +1237,18 @@ mod tests {
         let Decision::Runs(runs) = power.decision else {
             panic!("{power:?}")
         };
-        let half_width = (power.interval.1 - power.interval.0) / 2.0;
         let gap = power.estimate - 0.05;
-        assert_eq!(Some(runs), runs_to_decide(gap, half_width, 4.0), "{text}");
-        assert!(
-            text.contains(&format!("decided by about {runs} runs a side)")),
+        let error = power.standard_error;
+        assert_eq!(
+            Some(runs),
+            runs_to_decide(gap, error, 4.0, Tails::One),
             "{text}"
         );
+        let observed = format!("{} by about {runs} runs a side", power.outcome);
+        assert!(text.contains(&observed), "{text}");
+        let if_equal = runs_to_decide(0.05, error, 4.0, Tails::One).unwrap();
+        let equal = format!("established by about {if_equal} were the two the same)");
+        assert!(text.contains(&equal), "{text}");
     }
 
     #[test]
@@ -1196,14 +1298,14 @@ mod tests {
         assert!(low < 0.0 && 0.0 < high, "{text}");
         assert_eq!(power.runs, 4.0);
         assert_eq!(
-            runs_to_decide(power.estimate, (high - low) / 2.0, 4.0),
+            runs_to_decide(power.estimate, power.standard_error, 4.0, Tails::Two),
             Some(runs)
         );
         assert!(runs > 4, "{runs}");
         assert!(
             text.contains(&format!(
                 "(detectable {}, decided by about {runs} runs a side)",
-                number(detectable(low, high))
+                number(detectable(low, high, Tails::Two))
             )),
             "{text}"
         );
@@ -1295,5 +1397,90 @@ mod tests {
         assert_eq!(Verdict::combine(&twelve), Inconclusive);
         twelve[5] = point(false, 0.001);
         assert_eq!(Verdict::combine(&twelve), Contradicted);
+    }
+
+    /// Two one-sided tests at 5 % are the 90 % interval inside the margin (Schuirmann 1987):
+    /// a margin between the 90 % and the 95 % interval's ends establishes equivalence (the
+    /// 95 % interval, which `within` read before, did not), one inside the 90 % interval does
+    /// not; and the runs to establish it were the two the same follow the equivalence formula.
+    #[test]
+    fn equivalence_is_two_one_sided_tests_at_the_90_percent_interval() {
+        let levels = |shift: f64| -> Vec<Vec<f64>> {
+            (0..12)
+                .map(|r| vec![10.0 + shift + (r as f64 * 0.37).sin(), 10.0 + shift])
+                .collect()
+        };
+        let (a_runs, b_runs) = (levels(0.05), levels(0.0));
+        fn as_slices(runs: &[Vec<f64>]) -> Vec<&[f64]> {
+            runs.iter().map(Vec::as_slice).collect()
+        }
+        let samples = [
+            sample("a", Some(4), &as_slices(&a_runs)),
+            sample("b", Some(4), &as_slices(&b_runs)),
+        ];
+        let seed = world::Seed::new(9);
+        let difference = |u: &[Vec<f64>]| mean_difference(&u[0], &u[1]);
+        let boot = bootstrap_of(&[&samples[0], &samples[1]], &difference, seed.child(0)).unwrap();
+        let widest = |confidence| {
+            let (low, high) = boot.interval(confidence).unwrap();
+            f64::max(-low, high)
+        };
+        let (at_90, at_95) = (widest(0.90), widest(0.95));
+        assert!(at_90 < at_95, "{at_90} {at_95}");
+        let judge = |margin| {
+            let tolerance = Tolerance {
+                value: margin,
+                scale: Scale::Absolute,
+            };
+            let pair = pair("a", "b");
+            let sides: Sides = (&samples, &samples);
+            tolerated(sides, (&pair, &samples), tolerance, seed, Tolerated::Within).unwrap()
+        };
+        let between = judge((at_90 + at_95) / 2.0);
+        assert_eq!(between.verdict, Verdict::Supported, "{}", between.ours);
+        assert!(between.ours.contains("at 90 %"), "{}", between.ours);
+        let inside = judge(at_90 * 0.98);
+        assert_eq!(inside.verdict, Verdict::Inconclusive, "{}", inside.ours);
+        let [power] = &inside.power[..] else {
+            panic!("{:?}", inside.power)
+        };
+        assert_eq!(power.outcome, "established", "{}", inside.ours);
+        let margin = at_90 * 0.98;
+        let equal = runs_to_establish_if_equal(margin, power.standard_error, 12.0).unwrap();
+        assert!(
+            inside
+                .ours
+                .contains(&format!("established by about {equal} were")),
+            "{}",
+            inside.ours
+        );
+    }
+
+    /// Beside the mean, a verdict line gives the IQM difference and P(a < b): a failed run
+    /// of a (100 among runs near 30) turns the mean difference against a, not the IQM's.
+    #[test]
+    fn a_verdict_line_gives_rliables_measures_beside_the_mean() {
+        let runs = |level: f64, failed: bool| -> Vec<Vec<f64>> {
+            (0..8)
+                .map(|r| {
+                    let run = level + (r as f64 * 0.9).sin();
+                    let run = if failed && r == 3 { 100.0 } else { run };
+                    vec![run, run + 0.5]
+                })
+                .collect()
+        };
+        let (a_runs, b_runs) = (runs(30.0, true), runs(32.0, false));
+        let a_refs: Vec<&[f64]> = a_runs.iter().map(Vec::as_slice).collect();
+        let b_refs: Vec<&[f64]> = b_runs.iter().map(Vec::as_slice).collect();
+        let (a, b) = (sample("a", Some(4), &a_refs), sample("b", Some(4), &b_refs));
+        let (_, text, _) = compare_lower(&a, &b, world::Seed::new(10)).unwrap();
+        let after = |label: &str| -> f64 {
+            let rest = text.split(label).nth(1).unwrap_or_else(|| panic!("{text}"));
+            rest.trim().split(' ').next().unwrap().parse().unwrap()
+        };
+        assert!(after("), a - b ") > 0.0, "{text}");
+        assert!(after("IQM a - b ") < 0.0, "{text}");
+        assert!(text.contains("8 runs, 1 failed"), "{text}");
+        assert!(text.contains("P(a < b) "), "{text}");
     }
 }

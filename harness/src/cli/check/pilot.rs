@@ -25,9 +25,11 @@ type RunSeconds = BTreeMap<LearnedSetting, Vec<f64>>;
 
 /// What the figures are, under the pilot's name.
 const HOW: &str = "per undecided point, the training runs a side that would find its observed
-difference with 80 % power at two-sided 5 %, n (h / z(0.975) x (z(0.975) + z(0.8)) / d)^2 (the
-report's \"decided by\"), and the further runs' CPU time by the pilot's runs (a run until
-converged by its training thread's clock, another by its log's wall time). The spread of a few
+difference (its distance d from the claim's threshold) with 80 % power, n (se (z + z(0.8)) /
+d)^2 with se the difference's standard error from the runs' own spread and z = z(0.975), or
+z(0.95) for `within` and `not_worse` (the report's \"decided by\", \"established by\"),
+and the further runs' CPU time by the pilot's runs (a run until converged by its training
+thread's clock, another by its log's wall time). The spread of a few
 runs is itself uncertain: each figure is a rough guide, off by a factor of about two either
 way.";
 

@@ -181,6 +181,7 @@ pub(crate) fn run_cell(
         files: Default::default(),
         sizes: Default::default(),
         taken_from: None,
+        taken_weights_hash: None,
     };
     files.extend(recording.files(&cell.key, config)?);
     let record = store.save_cell(record, &files)?;

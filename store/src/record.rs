@@ -46,6 +46,11 @@ pub struct CellRecord {
     /// computed here.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub taken_from: Option<String>,
+    /// A taken cell's checkpoint hash, as the cells table kept it: the take carries no
+    /// checkpoint, and without this the cells table written from the taken record would lose
+    /// the hash that an audit of the original checks its weights against.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub taken_weights_hash: Option<String>,
 }
 
 /// The sweep's manifest, `sweep.json`: which scenario the folder holds and its full cell list,

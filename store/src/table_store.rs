@@ -24,7 +24,7 @@ use std::path::{Component, Path};
 use polars::prelude::DataFrame;
 use serde::{Deserialize, Serialize};
 
-use super::columns::{f64s, strings};
+use super::columns::{f64s, optional_strings, strings};
 use crate::files::{MAX_FILE_BYTES, json_bytes, read, read_json, write};
 use crate::layout::{MANIFEST_FILE, SCENARIO_FILE, TABLE_STORE_FILE};
 use crate::schema::{cell, cells};
@@ -215,6 +215,9 @@ pub(super) fn record_of_row(
         files: BTreeMap::new(),
         sizes: BTreeMap::new(),
         taken_from: None,
+        taken_weights_hash: optional_strings(cells, cells::WEIGHTS_HASH)
+            .map_err(corrupt)?
+            .swap_remove(row),
     })
 }
 

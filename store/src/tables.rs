@@ -159,7 +159,12 @@ pub fn cells_frame(records: &[CellRecord]) -> Result<DataFrame, StoreError> {
             column(records, |r| resolved_training(&r.config)),
         ),
         Column::new(cells::EPISODES_HASH.into(), file_hash(EPISODES_FILE)),
-        Column::new(cells::WEIGHTS_HASH.into(), file_hash(WEIGHTS_FILE)),
+        Column::new(
+            cells::WEIGHTS_HASH.into(),
+            column(records, |r| {
+                (r.files.get(WEIGHTS_FILE).cloned()).or_else(|| r.taken_weights_hash.clone())
+            }),
+        ),
         Column::new(cells::TRAINING_HASH.into(), file_hash(TRAINING_FILE)),
         Column::new(
             cells::CODE_VERSION.into(),

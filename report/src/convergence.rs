@@ -11,7 +11,7 @@ use store::schema::{cell, checkpoints, convergence as run, episodes};
 use super::columns::{PolicyKey, distinct, f64s, group_rows, strings, trained_keys};
 use super::comparison::{Sample, samples};
 use super::failures::{FAILED_RUN_RATIO, RunFailures, RunsFailures, STALL_STEPS};
-use super::verdicts::ClaimResult;
+use super::verdicts::{ClaimResult, reversed_points};
 use super::{PENALTY_UNIT, ReportError, ReportWriter};
 use plan::scenario::claims::{Claim, ClaimTest};
 use stats::{mean, median, standard_deviation};
@@ -45,7 +45,9 @@ pub(crate) fn section(
          (a mean more than {FAILED_RUN_RATIO} times the setting's median run; see *Failed \
          runs and episodes*). Validation episodes have their own seeds, never a test episode's. \
          The claims are judged on the tested policy; where judging them on the runs' other \
-         policy gives another verdict, the claim's text adds that verdict and its numbers."
+         policy gives another verdict, the claim's text adds that verdict and its numbers, \
+         and where it gives the same verdict on an estimate of the other sign, the points \
+         where the sign turns."
     ));
     report.table(
         "convergence",
@@ -157,12 +159,21 @@ pub(crate) fn name_other_verdicts(
     };
     for (&index, alternative) in judged.iter().zip(others) {
         let result = &mut results[index];
+        let reversed = reversed_points(&result.power, &alternative.power);
         if alternative.verdict != result.verdict {
             result.ours = format!(
                 "{}; judged on the runs' {other} policies instead: {} ({})",
                 result.ours,
                 alternative.verdict.name(),
                 alternative.ours
+            );
+        } else if !reversed.is_empty() {
+            result.ours = format!(
+                "{}; judged on the runs' {other} policies instead: {} too, the estimate of the \
+                 other sign at {}",
+                result.ours,
+                alternative.verdict.name(),
+                reversed.join(", ")
             );
         }
     }

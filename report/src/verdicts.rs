@@ -287,6 +287,26 @@ impl LearnedRuns {
     }
 }
 
+/// The points of `others` (a claim judged again on the runs' other policy) whose estimate
+/// has the other sign from the same point's in `ours`, each "open N=4 -11.41 [-41.80, 12.90]":
+/// a verdict that stays the same can still rest on a difference that turns round.
+pub(crate) fn reversed_points(ours: &[PointPower], others: &[PointPower]) -> Vec<String> {
+    (ours.iter())
+        .filter_map(|p| {
+            let q = others.iter().find(|q| q.point == p.point)?;
+            let (low, high) = q.interval;
+            (p.estimate * q.estimate < 0.0).then(|| {
+                format!(
+                    "{} {} {}",
+                    q.point,
+                    number(q.estimate),
+                    interval(low, high, number)
+                )
+            })
+        })
+        .collect()
+}
+
 /// A point's test, its text, and what deciding it would take where it compares runs.
 type PointJudged = (PointTest, String, Option<PointPower>);
 
@@ -1325,6 +1345,42 @@ mod tests {
         assert!(text.contains("runs of a)"), "{text}");
         let (_, text, power) = compare_lower(&baseline, &baseline, seed).unwrap();
         assert!(power.is_none() && !text.contains("decided by"), "{text}");
+    }
+
+    /// The best policies' difference and the final ones' with the other sign: a point named
+    /// with the other's estimate; the same sign, or a point the other lacks, names none.
+    #[test]
+    fn a_point_whose_estimate_turns_round_on_the_other_policy_is_named() {
+        let seed = world::Seed::new(5);
+        let learned = |policy, runs: &[&[f64]]| sample(policy, Some(4), runs);
+        let b = learned(
+            "b",
+            &[&[30.0, 31.0], &[33.0, 32.0], &[29.0, 30.0], &[35.0, 34.0]],
+        );
+        let higher = learned(
+            "a",
+            &[&[36.0, 35.0], &[31.0, 33.0], &[34.0, 38.0], &[30.0, 32.0]],
+        );
+        let lower = learned(
+            "a",
+            &[&[26.0, 25.0], &[31.0, 29.0], &[24.0, 28.0], &[30.0, 27.0]],
+        );
+        let power = |a: &Sample| {
+            let (_, _, power) = compare_lower(a, &b, seed).unwrap();
+            vec![power.unwrap().at("open N=4".into())]
+        };
+        let (best, last) = (power(&higher), power(&lower));
+        assert!(best[0].estimate > 0.0 && last[0].estimate < 0.0);
+        let (low, high) = last[0].interval;
+        let named = format!(
+            "open N=4 {} {}",
+            number(last[0].estimate),
+            interval(low, high, number)
+        );
+        assert_eq!(reversed_points(&best, &last), [named]);
+        assert!(reversed_points(&best, &best).is_empty());
+        let elsewhere = vec![last[0].clone().at("open N=6".into())];
+        assert!(reversed_points(&best, &elsewhere).is_empty());
     }
 
     #[test]

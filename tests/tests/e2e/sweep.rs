@@ -1154,6 +1154,62 @@ fn every_statement_about_the_papers_trained_policies_holds_runs_to_its_budget() 
     }
 }
 
+/// The central scenarios test the paper's statements as it makes them: "always outperform the
+/// random policy" on the figure's diagonal as well as over the matrix; a lead over GCS or
+/// TSPC along N as shares of b's penalty (every penalty falls with N, so an absolute gap
+/// shrinks with it whatever the policies do); and "a similar trend in other cases" of RQ5 at
+/// every off-diagonal cell, not in one column.
+#[test]
+fn the_central_scenarios_claim_what_the_paper_says() {
+    use plan::scenario::claims::{ClaimTest, Scale};
+    let load = |name: &str| {
+        let path = crate::common::repo_file(&format!("scenarios/{name}.yaml"));
+        plan::scenario::Scenario::load(Path::new(&path)).unwrap()
+    };
+    let (rq1, rq5) = (load("rq1"), load("rq5"));
+    let cells = |pair: &plan::scenario::claims::Pair| -> Vec<(u32, u32)> {
+        pair.points.iter().map(|p| (p.n_train, p.n_test)).collect()
+    };
+    let diagonal = rq1.claims().iter().any(|claim| match &claim.test {
+        ClaimTest::Lower { pair } => {
+            pair.a.starts_with("ma-g-ppo")
+                && pair.b == "random"
+                && cells(pair) == [(2, 2), (4, 4), (6, 6), (10, 10)]
+        }
+        _ => false,
+    });
+    assert!(diagonal, "rq1 lacks MA-G-PPO below Random on the diagonal");
+    for claim in rq1.claims() {
+        if let ClaimTest::GapGrows { pair, scale } = &claim.test {
+            let along_n = pair.points.iter().all(|p| p.n_train == p.n_test);
+            assert!(
+                !along_n || *scale == Scale::B,
+                "rq1 {}: absolute gaps",
+                claim.id
+            );
+        }
+    }
+    let mut off_diagonal: Vec<(u32, u32)> = (rq5.claims().iter())
+        .filter_map(|claim| match &claim.test {
+            ClaimTest::Lower { pair }
+                if pair.a.starts_with("ma-g-ppo") && pair.b.starts_with("ma-ppo") =>
+            {
+                Some(cells(pair))
+            }
+            _ => None,
+        })
+        .flatten()
+        .filter(|(n_train, n_test)| n_train != n_test)
+        .collect();
+    off_diagonal.sort();
+    off_diagonal.dedup();
+    assert_eq!(
+        off_diagonal.len(),
+        12,
+        "rq5's off-diagonal cells: {off_diagonal:?}"
+    );
+}
+
 /// The number before `word` in a sweep's summary line (`3 computed`).
 fn count_before(summary: &str, word: &str) -> usize {
     let at = summary
@@ -1375,7 +1431,7 @@ fn a_sweep_goes_on_from_its_committed_tables_to_the_same_results() {
     );
     assert!(
         taken.equals_missing(&computed),
-        "{taken} against {computed}"
+        "{taken:?} against {computed:?}"
     );
     let columns = engine::training_log::reproducible_columns;
     let training = |store: &Path| read_table(store, "training").select(columns()).unwrap();

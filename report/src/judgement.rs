@@ -110,3 +110,43 @@ pub(crate) fn at_point(group: &GroupKey, policy: &str, point: &Point) -> bool {
 pub(crate) fn find<'a>(samples: &'a [Sample], policy: &str, point: &Point) -> Option<&'a Sample> {
     samples.iter().find(|s| at_point(&s.group, policy, point))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use stats::{Block, Unit, bootstrap};
+
+    /// Schuirmann's two one-sided tests on a worked case: 400 episodes of mean 0.05 and
+    /// standard deviation 2 (a standard error of 0.1) give a 90 % interval of 0.05 -+ 1.645 x
+    /// 0.1 = [-0.114, 0.214]. Equivalence within 0.23 or 0.25 and non-inferiority below 0.25 hold;
+    /// within 0.2 and below 0.2 do not, as the upper one-sided test fails (0.214 > 0.2), though
+    /// the lower passes.
+    #[test]
+    fn two_one_sided_tests_decide_a_worked_case() {
+        let n = 400;
+        let width = 2.0 * 12f64.sqrt();
+        let values: Vec<f64> = (0..n)
+            .map(|i| 0.05 + width * ((i as f64 + 0.5) / n as f64 - 0.5))
+            .collect();
+        let sample = stats::Sample::new(vec![&values], Unit::Episode);
+        let first = |units: &[Vec<f64>]| stats::mean(&units[0]);
+        let boot = bootstrap(
+            &[Block::single(sample)],
+            &first,
+            10_000,
+            world::Seed::new(7),
+        )
+        .unwrap();
+        let (low, high) = boot.interval(Tails::One.confidence()).unwrap();
+        assert!(
+            (low + 0.1145).abs() < 0.01 && (high - 0.2145).abs() < 0.01,
+            "{low} {high}"
+        );
+        assert!(PointTest::equivalent(&boot, 0.25).unwrap().supported);
+        // A 95 % interval, [-0.146, 0.246], would not decide 0.23: the tests are at 5 % each.
+        assert!(PointTest::equivalent(&boot, 0.23).unwrap().supported);
+        assert!(!PointTest::equivalent(&boot, 0.2).unwrap().supported);
+        assert!(PointTest::non_inferior(&boot, 0.25).unwrap().supported);
+        assert!(!PointTest::non_inferior(&boot, 0.2).unwrap().supported);
+    }
+}

@@ -1160,6 +1160,11 @@ mod tests {
         }
     }
 
+    /// A learned policy's runs at N_train = N_test = 4.
+    fn learned(policy: &str, runs: &[&[f64]]) -> Sample {
+        sample(policy, Some(4), runs)
+    }
+
     fn pair(a: &str, b: &str) -> Pair {
         Pair {
             a: a.into(),
@@ -1274,9 +1279,8 @@ mod tests {
     #[test]
     fn a_comparison_says_what_difference_its_runs_could_detect() {
         let seed = world::Seed::new(5);
-        let spread = |policy, runs: &[&[f64]]| sample(policy, Some(4), runs);
-        let few = spread("a", &[&[10.0, 10.5], &[30.0, 29.0], &[20.0, 21.0]]);
-        let b = spread("b", &[&[25.0, 25.5], &[35.0, 34.0], &[15.0, 16.0]]);
+        let few = learned("a", &[&[10.0, 10.5], &[30.0, 29.0], &[20.0, 21.0]]);
+        let b = learned("b", &[&[25.0, 25.5], &[35.0, 34.0], &[15.0, 16.0]]);
         let (_, text, _) = compare_lower(&few, &b, seed).unwrap();
         let detectable_in = |text: &str| -> f64 {
             let after = text.split("(detectable ").nth(1).unwrap();
@@ -1285,7 +1289,8 @@ mod tests {
         let wide = detectable_in(&text);
         let runs: Vec<&[f64]> = [&[10.0, 10.5][..], &[30.0, 29.0], &[20.0, 21.0]].repeat(4);
         let others: Vec<&[f64]> = [&[25.0, 25.5][..], &[35.0, 34.0], &[15.0, 16.0]].repeat(4);
-        let (_, text, _) = compare_lower(&spread("a", &runs), &spread("b", &others), seed).unwrap();
+        let (_, text, _) =
+            compare_lower(&learned("a", &runs), &learned("b", &others), seed).unwrap();
         let narrow = detectable_in(&text);
         // Four times the runs, about half the detectable difference.
         assert!(
@@ -1299,7 +1304,6 @@ mod tests {
     #[test]
     fn an_undecided_point_says_the_runs_that_would_decide_it() {
         let seed = world::Seed::new(6);
-        let learned = |policy, runs: &[&[f64]]| sample(policy, Some(4), runs);
         let a = learned(
             "a",
             &[&[10.0, 10.5], &[30.0, 29.0], &[20.0, 21.0], &[14.0, 15.0]],
@@ -1352,7 +1356,6 @@ mod tests {
     #[test]
     fn a_point_whose_estimate_turns_round_on_the_other_policy_is_named() {
         let seed = world::Seed::new(5);
-        let learned = |policy, runs: &[&[f64]]| sample(policy, Some(4), runs);
         let b = learned(
             "b",
             &[&[30.0, 31.0], &[33.0, 32.0], &[29.0, 30.0], &[35.0, 34.0]],

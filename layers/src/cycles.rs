@@ -166,6 +166,31 @@ mod tests {
     }
 
     #[test]
+    fn a_path_among_an_attributes_arguments_is_an_import() {
+        let (_dir, modules) = scratch_crate(
+            "attributes",
+            &[
+                ("lib.rs", "mod error;\nmod grid;\npub use grid::MAX;\n"),
+                (
+                    "error.rs",
+                    "#[derive(Debug, thiserror::Error)]\npub enum E {\n    \
+                     #[error(\"at most {max}\", max = super::MAX)]\n    Large,\n}\n",
+                ),
+                (
+                    "grid.rs",
+                    "pub const MAX: usize = 8;\npub fn f() -> crate::error::E { todo!() }\n",
+                ),
+            ],
+        );
+        let edges = modules.edges();
+        assert!(edges[&vec!["error".to_owned()]].contains(&vec!["grid".to_owned()]));
+        assert_eq!(
+            folder_cycles(&modules),
+            ["attributes: error -> grid", "attributes: grid -> error"]
+        );
+    }
+
+    #[test]
     fn comments_strings_and_test_modules_are_not_code() {
         let (_dir, modules) = scratch_crate(
             "quiet",

@@ -390,6 +390,15 @@ impl<'ast> Visit<'ast> for PathCollector<'_> {
         }
     }
 
+    /// An attribute's arguments are tokens, not code, to syn; a path among them still names
+    /// what it uses (`#[error("at most {max}", max = super::MAX_SIDE)]`).
+    fn visit_attribute(&mut self, attribute: &'ast syn::Attribute) {
+        if let syn::Meta::List(list) = &attribute.meta {
+            token_paths(list.tokens.clone(), self.0);
+        }
+        syn::visit::visit_attribute(self, attribute);
+    }
+
     /// `pub(crate)` and `pub(super)` say who may see an item, not what it uses.
     fn visit_visibility(&mut self, _: &'ast syn::Visibility) {}
 
@@ -410,5 +419,46 @@ impl<'ast> Visit<'ast> for PathCollector<'_> {
         if !is_test(&function.attrs) {
             syn::visit::visit_impl_item_fn(self, function);
         }
+    }
+}
+
+/// Every path of two segments or more among `tokens` (`a::b`, `::a::b`), groups included: a
+/// path of one segment among an attribute's tokens is as likely a word of its own (`Debug`,
+/// `transparent`) as an item.
+fn token_paths(tokens: proc_macro2::TokenStream, found: &mut Vec<WrittenPath>) {
+    use proc_macro2::TokenTree;
+    let tokens: Vec<TokenTree> = tokens.into_iter().collect();
+    let separator = |i: usize| {
+        matches!((tokens.get(i), tokens.get(i + 1)),
+            (Some(TokenTree::Punct(a)), Some(TokenTree::Punct(b))) if a.as_char() == ':' && b.as_char() == ':')
+    };
+    let mut i = 0;
+    while i < tokens.len() {
+        let leading_colon = separator(i) && matches!(tokens.get(i + 2), Some(TokenTree::Ident(_)));
+        let start = if leading_colon { i + 2 } else { i };
+        match &tokens[start] {
+            TokenTree::Group(group) => token_paths(group.stream(), found),
+            TokenTree::Ident(first) => {
+                let mut segments = vec![first.to_string()];
+                let mut end = start + 1;
+                while separator(end) {
+                    let Some(TokenTree::Ident(next)) = tokens.get(end + 2) else {
+                        break;
+                    };
+                    segments.push(next.to_string());
+                    end += 3;
+                }
+                if segments.len() > 1 || leading_colon {
+                    found.push(WrittenPath {
+                        leading_colon,
+                        segments,
+                    });
+                }
+                i = end;
+                continue;
+            }
+            _ => {}
+        }
+        i = start + 1;
     }
 }

@@ -51,11 +51,11 @@ pub enum MapErrorKind {
     NoFreeCell,
     #[error("the map has {free} free cells, too few for {agents} agents on distinct cells")]
     TooFewFreeCells { free: usize, agents: usize },
-    #[error("the map is {width} x {height}; a side may be at most {max}", max = super::MAX_SIDE)]
+    #[error("the map is {width} x {height}; a side may be at most {max}", max = super::limits::MAX_SIDE)]
     TooLarge { width: usize, height: usize },
     #[error(
         "map {map:?}: `size: [{width}, {height}]` has a side of 0 cells; each side must be 1 to {max}",
-        max = super::MAX_SIDE
+        max = super::limits::MAX_SIDE
     )]
     ZeroSide {
         map: String,

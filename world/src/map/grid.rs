@@ -1,19 +1,11 @@
 //! The grid itself: its free and obstacle cells, parsed from the text format or built from
-//! obstacles, and the size limits of any map. A leaf below the loaders (`polygon`, and the
-//! dispatch by file kind in the folder's own file).
+//! obstacles. Below the loaders (`polygon`, and the dispatch by file kind in the folder's own
+//! file).
 
 use std::path::Path;
 
 use super::error::{MapError, MapErrorKind};
-
-/// The largest side a map may have: keeps cell indices in `u32` and per-map tables in memory.
-pub const MAX_SIDE: usize = 1024;
-
-/// The largest text map file read: every row of a map at its widest with a CRLF ending
-/// (1 MiB + 2 KiB), and 4 KiB more for a byte-order mark and blank lines. A longer file cannot
-/// be a valid map, and refusing it before reading keeps a wrong path (a device, a huge file)
-/// from filling memory.
-pub const MAX_TEXT_MAP_BYTES: u64 = (MAX_SIDE * (MAX_SIDE + 2) + 4096) as u64;
+use super::limits::{MAX_SIDE, MAX_TEXT_MAP_BYTES};
 
 /// A cell of the grid, x from the left, y from the bottom.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

@@ -7,10 +7,12 @@ use std::path::Path;
 
 mod error;
 mod grid;
+mod limits;
 mod polygon;
 
 pub use error::{MapError, MapErrorKind};
-pub use grid::{Cell, MAX_SIDE, MAX_TEXT_MAP_BYTES, Map};
+pub use grid::{Cell, Map};
+pub use limits::{MAX_SIDE, MAX_TEXT_MAP_BYTES};
 
 impl Map {
     /// Loads a map file by its extension: `.yaml`/`.yml` polygon files hold one or more named

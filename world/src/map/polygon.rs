@@ -10,7 +10,8 @@ use std::path::Path;
 use serde::Deserialize;
 
 use super::error::{MapError, MapErrorKind};
-use super::grid::{MAX_SIDE, Map};
+use super::grid::Map;
+use super::limits::MAX_SIDE;
 
 /// The largest polygon map file read. Its vertices lie within a map of at most
 /// [`MAX_SIDE`] cells a side, so the format has no natural bound on their number; 4 MiB holds
